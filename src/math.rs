@@ -1,0 +1,86 @@
+//! Small numeric helpers shared by the models: safe square roots and inverse trigonometry, the output
+//! nonlinearities of Sec. 4.1, and finite-value guards. All `#[inline]`, all `no_std` through `libm`.
+
+/// π as `f32`.
+pub const PI: f32 = core::f32::consts::PI;
+/// 1/π as `f32`.
+pub const INV_PI: f32 = core::f32::consts::FRAC_1_PI;
+
+/// `sqrt(max(x, 0))`: rounding can push a squared sine slightly below zero.
+#[inline]
+pub fn safe_sqrt(x: f32) -> f32 {
+    libm::sqrtf(x.max(0.0))
+}
+
+/// `acos` of `x` clamped to [-1, 1].
+#[inline]
+pub fn safe_acos(x: f32) -> f32 {
+    libm::acosf(x.clamp(-1.0, 1.0))
+}
+
+/// Logistic sigmoid `1 / (1 + e^-x)`, stable for large |x|.
+#[inline]
+pub fn sigmoid(x: f32) -> f32 {
+    if x >= 0.0 {
+        1.0 / (1.0 + libm::expf(-x))
+    } else {
+        let e = libm::expf(x);
+        e / (1.0 + e)
+    }
+}
+
+/// Softplus `ln(1 + e^x)`, computed as `max(x, 0) + ln(1 + e^-|x|)` so it never overflows.
+#[inline]
+pub fn softplus(x: f32) -> f32 {
+    x.max(0.0) + libm::log1pf(libm::expf(-x.abs()))
+}
+
+/// Inverse of [`softplus`] for `y > 0`: `ln(e^y - 1)`; used to initialise raw parameters.
+#[inline]
+pub fn softplus_inv(y: f32) -> f32 {
+    if y > 20.0 {
+        y
+    } else {
+        libm::logf(libm::expm1f(y.max(1e-30)))
+    }
+}
+
+/// Inverse of [`sigmoid`] for `y` in (0, 1): `ln(y / (1 - y))`.
+#[inline]
+pub fn logit(y: f32) -> f32 {
+    let y = y.clamp(1e-7, 1.0 - 1e-7);
+    libm::logf(y / (1.0 - y))
+}
+
+/// `v` with every non-finite or negative component replaced by 0: the last guard of every `eval`.
+#[inline]
+pub fn sanitize(v: [f32; 3]) -> [f32; 3] {
+    let f = |x: f32| if x.is_finite() && x > 0.0 { x } else { 0.0 };
+    [f(v[0]), f(v[1]), f(v[2])]
+}
+
+/// Linear interpolation `a + t (b - a)`.
+#[inline]
+pub fn lerp(a: f32, b: f32, t: f32) -> f32 {
+    a + t * (b - a)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn softplus_matches_definition_and_never_overflows() {
+        assert!((softplus(0.0) - core::f32::consts::LN_2).abs() < 1e-7);
+        assert_eq!(softplus(1e4), 1e4);
+        assert_eq!(softplus(-1e4), 0.0);
+        assert!((softplus(softplus_inv(0.37)) - 0.37).abs() < 1e-6);
+    }
+
+    #[test]
+    fn sigmoid_is_stable_and_inverts() {
+        assert_eq!(sigmoid(-1e4), 0.0);
+        assert_eq!(sigmoid(1e4), 1.0);
+        assert!((sigmoid(logit(0.8)) - 0.8).abs() < 1e-6);
+    }
+}
