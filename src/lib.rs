@@ -26,6 +26,8 @@ extern crate alloc;
 extern crate std;
 
 pub mod angles;
+pub mod encoding;
+pub mod mlp;
 pub mod error;
 pub mod math;
 
