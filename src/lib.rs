@@ -28,6 +28,7 @@ extern crate std;
 pub mod angles;
 pub mod error;
 pub mod math;
+pub mod parametric;
 
 pub use error::Error;
 pub use glam::Vec3;
