@@ -26,6 +26,7 @@ extern crate alloc;
 extern crate std;
 
 pub mod angles;
+pub mod builtin;
 pub mod error;
 pub mod math;
 pub mod parametric;
