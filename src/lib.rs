@@ -30,6 +30,7 @@ pub mod builtin;
 pub mod error;
 pub mod math;
 pub mod parametric;
+pub mod sampling;
 
 pub use error::Error;
 pub use glam::Vec3;

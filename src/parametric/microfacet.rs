@@ -56,7 +56,7 @@ impl HalfGeometry {
         let s = wi + wo;
         let s_len = libm::sqrtf(s.length_squared());
         // Both z > 0, so s.z > 0 and |s| > 0; the check only guards denormal underflow.
-        if !(s_len > 0.0) {
+        if s_len <= 0.0 {
             return None;
         }
         let h = s / s_len;
@@ -89,7 +89,7 @@ pub fn beckmann_d(cos_h: f32, sin2_h: f32, alpha: f32) -> f32 {
     let c2 = cos_h * cos_h;
     let a2 = alpha * alpha;
     let c4 = c2 * c2;
-    if !(c4 > 0.0) {
+    if c4 <= 0.0 {
         return 0.0;
     }
     libm::expf(-sin2_h / (c2 * a2)) / (core::f32::consts::PI * a2 * c4)
