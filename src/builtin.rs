@@ -41,27 +41,27 @@ pub enum Builtin {
 
 /// Complex refractive index of gold at the R, G, B wavelengths (≈ 650, 550, 450 nm; Johnson & Christy
 /// 1972, as tabulated in pbrt's `Au` spectrum).
-const GOLD_ETA: Rgb = [0.143, 0.374, 1.442];
+pub(crate) const GOLD_ETA: Rgb = [0.143, 0.374, 1.442];
 /// Extinction coefficient of gold at R, G, B (same source).
-const GOLD_K: Rgb = [3.983, 2.385, 1.603];
+pub(crate) const GOLD_K: Rgb = [3.983, 2.385, 1.603];
 
 /// `two-lobe-metal`: (weight · tint per channel, GGX α) of the sharp and the hazy lobe. The per-channel
 /// sums of weight · tint are ≤ 1, so with Fresnel ≤ 1 and single-scattering masking each lobe's albedo,
 /// and their sum, stays ≤ 1.
-const METAL_LOBES: [(Rgb, f32); 2] = [([0.70, 0.70, 0.70], 0.06), ([0.28, 0.22, 0.14], 0.30)];
+pub(crate) const METAL_LOBES: [(Rgb, f32); 2] = [([0.70, 0.70, 0.70], 0.06), ([0.28, 0.22, 0.14], 0.30)];
 
 /// `clear-coat`: coat GGX α, coat index, base albedo, and optical depth of the coat per channel.
-const COAT_ALPHA: f32 = 0.05;
-const COAT_ETA: f32 = 1.5;
-const COAT_BASE: Rgb = [0.75, 0.10, 0.06];
-const COAT_DEPTH: Rgb = [0.02, 0.10, 0.15];
+pub(crate) const COAT_ALPHA: f32 = 0.05;
+pub(crate) const COAT_ETA: f32 = 1.5;
+pub(crate) const COAT_BASE: Rgb = [0.75, 0.10, 0.06];
+pub(crate) const COAT_DEPTH: Rgb = [0.02, 0.10, 0.15];
 
 /// `velvet`: diffuse albedo, sheen colour and width, retro-reflection weight and exponent.
-const VELVET_DIFFUSE: Rgb = [0.04, 0.05, 0.22];
-const VELVET_SHEEN: Rgb = [0.35, 0.38, 0.60];
-const VELVET_SHEEN_ALPHA: f32 = 0.35;
-const VELVET_RETRO: Rgb = [0.10, 0.10, 0.16];
-const VELVET_RETRO_N: f32 = 8.0;
+pub(crate) const VELVET_DIFFUSE: Rgb = [0.04, 0.05, 0.22];
+pub(crate) const VELVET_SHEEN: Rgb = [0.35, 0.38, 0.60];
+pub(crate) const VELVET_SHEEN_ALPHA: f32 = 0.35;
+pub(crate) const VELVET_RETRO: Rgb = [0.10, 0.10, 0.16];
+pub(crate) const VELVET_RETRO_N: f32 = 8.0;
 
 impl Builtin {
     /// Every built-in material.

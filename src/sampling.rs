@@ -20,11 +20,15 @@
 //! | Torrance-Sparrow | cosine + Beckmann `D cos θh` half vectors (Walter et al. 2007, Eq. 28) |
 //! | FMBRDF | cosine + Beckmann half vectors of slope α as a proposal for its generalised Gaussian |
 //! | Disney | cosine (diffuse, subsurface, sheen) + GGX visible normals (Heitz 2018) + GTR1 clearcoat |
+//! | built-in `two-lobe-metal` | GGX visible normals of each lobe |
+//! | built-in `clear-coat` | cosine (base) + GGX visible normals (coat) |
+//! | built-in `velvet` | cosine (diffuse and sheen) + Phong lobe `cos^n` about `wo` (retro-reflection) |
 //!
 //! The FMBRDF's generalised Gaussian has no closed-form inverse CDF; the Beckmann proposal matches it
 //! exactly for β = 2 in the small-angle limit and stays a valid (unbiased, higher-variance) proposal
 //! otherwise, because the pdf reported is always the proposal's own.
 
+use crate::builtin::{self, Builtin};
 use crate::math::{safe_sqrt, PI};
 use crate::parametric::microfacet::{self, clamp_alpha, ALPHA_MIN};
 use crate::parametric::{Disney, FresnelMicrofacet, Lambert, Parametric, Phong, TorranceSparrow};
@@ -464,6 +468,70 @@ impl Parametric {
         };
         if p.is_finite() && p > 0.0 {
             p
+        } else {
+            0.0
+        }
+    }
+}
+
+impl Builtin {
+    /// Lobe probabilities of the built-in material at `wo` (up to two lobes; see the module table).
+    #[inline]
+    fn lobe_probabilities(self, wo: Vec3) -> [f32; 2] {
+        match self {
+            Builtin::TwoLobeMetal => normalise(builtin::METAL_LOBES.map(|(tint, _)| lum(tint))),
+            Builtin::ClearCoat => {
+                let f = microfacet::fresnel_dielectric(wo.z, builtin::COAT_ETA);
+                normalise([lum(builtin::COAT_BASE) * (1.0 - f), f])
+            }
+            // The sheen is broad and grazing: the cosine lobe carries it along with the diffuse part.
+            Builtin::Velvet => normalise([
+                lum(builtin::VELVET_DIFFUSE) + 0.5 * lum(builtin::VELVET_SHEEN),
+                lum(builtin::VELVET_RETRO),
+            ]),
+        }
+    }
+
+    /// Samples `wi` for the given `wo` (lobes in the module table); `u` is three uniform numbers in
+    /// [0, 1).
+    #[inline]
+    pub fn sample(self, u: [f32; 3], wo: Vec3) -> Option<BsdfSample> {
+        let wo = valid_wo(wo)?;
+        let p = self.lobe_probabilities(wo);
+        let k = choose(&p, u[2]);
+        let uv = [u[0], u[1]];
+        let wi = match self {
+            Builtin::TwoLobeMetal => reflect_about(wo, sample_ggx_vndf(wo, builtin::METAL_LOBES[k].1, uv)),
+            Builtin::ClearCoat if k == 0 => square_to_cosine_hemisphere(uv),
+            Builtin::ClearCoat => reflect_about(wo, sample_ggx_vndf(wo, builtin::COAT_ALPHA, uv)),
+            Builtin::Velvet if k == 0 => square_to_cosine_hemisphere(uv),
+            Builtin::Velvet => sample_phong_lobe(wo, builtin::VELVET_RETRO_N, uv),
+        };
+        finish(wi, self.pdf(wo, wi), self.eval(wi, wo))
+    }
+
+    /// Density of [`Builtin::sample`] at `wi` per unit solid angle.
+    #[inline]
+    pub fn pdf(self, wo: Vec3, wi: Vec3) -> f32 {
+        let Some((wi, wo)) = crate::angles::upper_hemisphere_pair(wi, wo) else {
+            return 0.0;
+        };
+        let Some((h, oh)) = half_of(wo, wi) else {
+            return 0.0;
+        };
+        let p = self.lobe_probabilities(wo);
+        let vndf = |alpha: f32| ggx_vndf_pdf(wo, h, alpha) / (4.0 * oh);
+        let pdf = match self {
+            Builtin::TwoLobeMetal => {
+                p[0] * vndf(builtin::METAL_LOBES[0].1) + p[1] * vndf(builtin::METAL_LOBES[1].1)
+            }
+            Builtin::ClearCoat => p[0] * cosine_hemisphere_pdf(wi) + p[1] * vndf(builtin::COAT_ALPHA),
+            Builtin::Velvet => {
+                p[0] * cosine_hemisphere_pdf(wi) + p[1] * phong_lobe_pdf(wi.dot(wo), builtin::VELVET_RETRO_N)
+            }
+        };
+        if pdf.is_finite() && pdf > 0.0 {
+            pdf
         } else {
             0.0
         }

@@ -3,13 +3,44 @@
 //! produced (1 for lobes that cannot leave the hemisphere), and the estimator weight is unbiased for
 //! the directional albedo.
 
+use nbrdf::builtin::Builtin;
 use nbrdf::parametric::{Disney, FresnelMicrofacet, Lambert, Parametric, Phong, TorranceSparrow};
-use nbrdf::Vec3;
+use nbrdf::sampling::BsdfSample;
+use nbrdf::{Rgb, Vec3};
 use std::f64::consts::PI;
 
 const N_THETA: usize = 16; // bins in cos θ (equal solid angle)
 const N_PHI: usize = 32;
 const SUB: usize = 16; // quadrature points per bin and axis
+
+/// What the checks need of a sampled BRDF: the parametric models and the built-in materials.
+trait Sampled: Send + Sync {
+    fn sample(&self, u: [f32; 3], wo: Vec3) -> Option<BsdfSample>;
+    fn pdf(&self, wo: Vec3, wi: Vec3) -> f32;
+    fn eval(&self, wi: Vec3, wo: Vec3) -> Rgb;
+}
+impl Sampled for Parametric {
+    fn sample(&self, u: [f32; 3], wo: Vec3) -> Option<BsdfSample> {
+        Parametric::sample(self, u, wo)
+    }
+    fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+        Parametric::pdf(self, wo, wi)
+    }
+    fn eval(&self, wi: Vec3, wo: Vec3) -> Rgb {
+        Parametric::eval(self, wi, wo)
+    }
+}
+impl Sampled for Builtin {
+    fn sample(&self, u: [f32; 3], wo: Vec3) -> Option<BsdfSample> {
+        Builtin::sample(*self, u, wo)
+    }
+    fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+        Builtin::pdf(*self, wo, wi)
+    }
+    fn eval(&self, wi: Vec3, wo: Vec3) -> Rgb {
+        Builtin::eval(*self, wi, wo)
+    }
+}
 
 struct Rng(u64);
 impl Rng {
@@ -34,7 +65,7 @@ fn bin_of(w: Vec3) -> usize {
 }
 
 /// ∫ pdf over each bin (midpoint rule on SUB × SUB points in (cos θ, φ)).
-fn expected_mass(m: &Parametric, wo: Vec3) -> Vec<f64> {
+fn expected_mass(m: &dyn Sampled, wo: Vec3) -> Vec<f64> {
     let mut mass = vec![0.0; N_THETA * N_PHI];
     let dz = 1.0 / (N_THETA * SUB) as f64;
     let dphi = 2.0 * PI / (N_PHI * SUB) as f64;
@@ -51,7 +82,7 @@ fn expected_mass(m: &Parametric, wo: Vec3) -> Vec<f64> {
 }
 
 /// Draws `n` samples; checks them against the pdf and returns (fraction produced, mean weight).
-fn check_model(name: &str, m: &Parametric, wo: Vec3, n: usize, seed: u64) -> (f64, [f64; 3]) {
+fn check_model(name: &str, m: &dyn Sampled, wo: Vec3, n: usize, seed: u64) -> (f64, [f64; 3]) {
     let mut rng = Rng(seed);
     let mut counts = vec![0.0f64; N_THETA * N_PHI];
     let mut produced = 0usize;
@@ -110,7 +141,7 @@ fn check_model(name: &str, m: &Parametric, wo: Vec3, n: usize, seed: u64) -> (f6
 }
 
 /// Directional albedo by a fine midpoint quadrature (independent of the sampler).
-fn albedo(m: &Parametric, wo: Vec3) -> [f64; 3] {
+fn albedo(m: &dyn Sampled, wo: Vec3) -> [f64; 3] {
     let n = 512;
     let mut a = [0.0f64; 3];
     for i in 0..n {
@@ -128,7 +159,7 @@ fn albedo(m: &Parametric, wo: Vec3) -> [f64; 3] {
     a.map(|x| x * 2.0 * PI / (n * n) as f64)
 }
 
-fn models() -> Vec<(&'static str, Parametric)> {
+fn parametric_models() -> Vec<(&'static str, Parametric)> {
     vec![
         ("lambert", Parametric::Lambert(Lambert { kd: [0.2, 0.5, 0.8] })),
         ("phong n=10", Parametric::Phong(Phong { kd: [0.3, 0.2, 0.1], ks: [0.6, 0.5, 0.4], n: 10.0 })),
@@ -178,15 +209,18 @@ fn sample_and_pdf_agree_and_weights_are_unbiased() {
     // of 650); the configurations run on scoped threads.
     let n = 400_000;
     std::thread::scope(|scope| {
-        for (k, (name, m)) in models().into_iter().enumerate() {
+        let mut all: Vec<(&str, Box<dyn Sampled>)> =
+            parametric_models().into_iter().map(|(n, m)| (n, Box::new(m) as Box<dyn Sampled>)).collect();
+        all.extend(Builtin::ALL.map(|b| (b.id(), Box::new(b) as Box<dyn Sampled>)));
+        for (k, (name, m)) in all.into_iter().enumerate() {
             scope.spawn(move || {
                 for (t, theta) in [0.5f64, 1.3].into_iter().enumerate() {
                     let wo = dir(theta, 0.7);
                     let label = format!("{name} θo={theta}");
-                    let (_, mean) = check_model(&label, &m, wo, n, 1 + (k * 3 + t) as u64);
+                    let (_, mean) = check_model(&label, m.as_ref(), wo, n, 1 + (k * 3 + t) as u64);
                     // E[weight] = ∫ f cos θi dωi wherever the pdf covers f (every mixture here has full
                     // support).
-                    let a = albedo(&m, wo);
+                    let a = albedo(m.as_ref(), wo);
                     for c in 0..3 {
                         assert!(
                             (mean[c] - a[c]).abs() < 0.02 * a[c].max(0.05),
@@ -208,10 +242,14 @@ fn cosine_lobe_pdf_integrates_to_one() {
 
 #[test]
 fn below_horizon_wo_gives_nothing() {
-    for (_, m) in models() {
+    for (_, m) in parametric_models() {
         assert!(m.sample([0.5, 0.5, 0.5], Vec3::new(0.3, 0.0, -0.5)).is_none());
         assert_eq!(m.pdf(Vec3::new(0.3, 0.0, -0.5), Vec3::Z), 0.0);
         assert_eq!(m.pdf(Vec3::Z, Vec3::new(0.3, 0.0, -0.5)), 0.0);
+    }
+    for b in Builtin::ALL {
+        assert!(b.sample([0.5, 0.5, 0.5], Vec3::new(0.3, 0.0, -0.5)).is_none());
+        assert_eq!(b.pdf(Vec3::Z, Vec3::new(0.3, 0.0, -0.5)), 0.0);
     }
 }
 
@@ -254,6 +292,20 @@ fn samples_stay_finite_in_extreme_regimes() {
                             }
                             let p = m.pdf(wo, dir(0.3, u0 as f64 * 6.0));
                             assert!(p.is_finite() && p >= 0.0);
+                        }
+                    }
+                }
+            }
+        }
+    }
+    for b in Builtin::ALL {
+        for wo in wos {
+            for u0 in us {
+                for u1 in us {
+                    for u2 in [0.1f32, 0.6, 0.95] {
+                        if let Some(s) = b.sample([u0, u1, u2], wo) {
+                            assert!(s.wi.z > 0.0 && s.pdf > 0.0 && s.pdf.is_finite(), "{b:?} {wo}: {s:?}");
+                            assert!(s.weight.iter().all(|w| w.is_finite() && *w >= 0.0), "{b:?} {wo}: {s:?}");
                         }
                     }
                 }
