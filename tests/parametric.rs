@@ -356,3 +356,24 @@ fn disney_matches_brdf_explorer_at_hand_points() {
     let diffuse = Disney { base_color: [0.5, 0.25, 1.0], roughness: 0.5, ..Disney::default() };
     close(diffuse.eval(Vec3::Z, Vec3::Z), [0.5 / PI, 0.25 / PI, 1.0 / PI], 1e-6, "Disney diffuse");
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 500, ..ProptestConfig::default() })]
+
+    /// `to_raw` inverts `from_raw`: raw outputs in a range where the activations are not saturated come
+    /// back from the parameters they produce.
+    #[test]
+    fn to_raw_inverts_from_raw(kind in kind_strategy(), raw in prop::collection::vec(-4.0f32..4.0, MAX_RAW),
+                               obj in -2.0f32..12.0) {
+        let m = Parametric::from_raw(kind, &raw, &[obj]);
+        let (back, back_obj) = m.to_raw();
+        // The roughness pre-activations go through sigmoid(0.5 x): a larger but still bounded error.
+        for i in 0..kind.n_raw() {
+            prop_assert!((back[i] - raw[i]).abs() < 2e-3, "{kind:?} raw[{i}]: {} vs {}", back[i], raw[i]);
+        }
+        if kind.n_object() == 1 {
+            prop_assert!((back_obj[0] - obj).abs() < 1e-4);
+        }
+        prop_assert_eq!(Parametric::from_raw(kind, &back, &back_obj).kind(), kind);
+    }
+}

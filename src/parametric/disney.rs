@@ -36,7 +36,7 @@
 
 use super::microfacet::{self, HalfGeometry, ALPHA_MIN};
 use super::raw_at;
-use crate::math::{lerp, sanitize, sigmoid, INV_PI};
+use crate::math::{lerp, logit, sanitize, sigmoid, INV_PI};
 use crate::{Rgb, Vec3, BLACK};
 
 /// Isotropic Disney BRDF parameters (all in [0, 1]).
@@ -92,6 +92,27 @@ impl Disney {
             clearcoat: s(10),
             clearcoat_gloss: s(11),
         }
+    }
+
+    /// Raw outputs that [`Disney::from_raw`] maps back to these parameters (the inverse of the table;
+    /// the roughness pre-activation is `2 logit(roughness)`).
+    #[inline]
+    pub fn to_raw(&self) -> [f32; Self::N_RAW] {
+        let c = self.base_color.map(logit);
+        [
+            c[0],
+            c[1],
+            c[2],
+            logit(self.subsurface),
+            logit(self.metallic),
+            logit(self.specular),
+            logit(self.specular_tint),
+            2.0 * logit(self.roughness),
+            logit(self.sheen),
+            logit(self.sheen_tint),
+            logit(self.clearcoat),
+            logit(self.clearcoat_gloss),
+        ]
     }
 
     /// The formula at the top of the file (BRDF Explorer `disney.brdf`, `BRDF(L, V, N, X, Y)`).

@@ -36,7 +36,7 @@
 
 use super::microfacet::{self, clamp_alpha, HalfGeometry};
 use super::raw_at;
-use crate::math::{sanitize, sigmoid, INV_PI};
+use crate::math::{logit, sanitize, sigmoid, INV_PI};
 use crate::{Rgb, Vec3, BLACK};
 
 /// Smallest and largest shape exponent β.
@@ -132,6 +132,25 @@ impl FresnelMicrofacet {
             eta: e0 + (e1 - e0) * sigmoid(raw_at(raw, 6)),
             norm: libm::expf(raw_at(object_raw, 0).clamp(-80.0, 80.0)),
         }
+    }
+
+    /// Raw outputs and the raw object parameter that [`FresnelMicrofacet::from_raw`] maps back to these
+    /// parameters (the inverse of the table).
+    #[inline]
+    pub fn to_raw(&self) -> ([f32; Self::N_RAW], [f32; Self::N_OBJECT]) {
+        let (b0, b1) = BETA_RANGE;
+        let (e0, e1) = ETA_RANGE;
+        let rho = self.rho.map(logit);
+        let raw = [
+            rho[0],
+            rho[1],
+            rho[2],
+            logit(self.ks),
+            2.0 * logit(self.alpha),
+            logit((self.beta - b0) / (b1 - b0)),
+            logit((self.eta - e0) / (e1 - e0)),
+        ];
+        (raw, [libm::logf(self.norm)])
     }
 
     /// The generalised Gaussian NDF `N exp(-(θh/α)^β)` at a half-vector angle.

@@ -6,7 +6,7 @@
 
 use super::raw_at;
 use crate::angles::upper_hemisphere_pair;
-use crate::math::{sanitize, sigmoid, INV_PI};
+use crate::math::{logit, sanitize, sigmoid, INV_PI};
 use crate::{Rgb, Vec3, BLACK};
 
 /// A Lambertian BRDF with albedo `kd`: the albedo is exactly `kd` at every incidence.
@@ -32,6 +32,13 @@ impl Lambert {
     #[inline]
     pub fn from_raw(raw: &[f32]) -> Self {
         Self { kd: [0, 1, 2].map(|c| sigmoid(raw_at(raw, c))) }
+    }
+
+    /// Raw outputs that [`Lambert::from_raw`] maps back to these parameters (values in the open range
+    /// (0, 1) round-trip; the ends are clamped to 1e-7 from them).
+    #[inline]
+    pub fn to_raw(&self) -> [f32; Self::N_RAW] {
+        self.kd.map(logit)
     }
 
     /// `kd / π` for a valid pair, 0 below the horizon or for degenerate input.

@@ -197,6 +197,34 @@ impl Parametric {
         }
     }
 
+    /// Raw network outputs and per-object raw parameters that [`Parametric::from_raw`] maps back to this
+    /// model (entries past `n_raw` / `n_object` are 0). For initialising a network's output bias at a
+    /// known material, or exporting a uniform analytic material as a parametric model.
+    ///
+    /// ```
+    /// use nbrdf::parametric::{Parametric, TorranceSparrow};
+    /// let m = Parametric::TorranceSparrow(TorranceSparrow { kd: [0.3, 0.2, 0.1], ks: [0.9; 3], alpha: 0.25 });
+    /// let (raw, object) = m.to_raw();
+    /// let Parametric::TorranceSparrow(back) = Parametric::from_raw(m.kind(), &raw, &object) else { panic!() };
+    /// assert!((back.alpha - 0.25).abs() < 1e-5 && (back.kd[2] - 0.1).abs() < 1e-6);
+    /// ```
+    pub fn to_raw(&self) -> ([f32; MAX_RAW], [f32; MAX_OBJECT]) {
+        let mut raw = [0.0; MAX_RAW];
+        let mut object = [0.0; MAX_OBJECT];
+        match self {
+            Parametric::Lambert(m) => raw[..Lambert::N_RAW].copy_from_slice(&m.to_raw()),
+            Parametric::Phong(m) => raw[..Phong::N_RAW].copy_from_slice(&m.to_raw()),
+            Parametric::TorranceSparrow(m) => raw[..TorranceSparrow::N_RAW].copy_from_slice(&m.to_raw()),
+            Parametric::FresnelMicrofacet(m) => {
+                let (r, o) = m.to_raw();
+                raw[..FresnelMicrofacet::N_RAW].copy_from_slice(&r);
+                object[..FresnelMicrofacet::N_OBJECT].copy_from_slice(&o);
+            }
+            Parametric::Disney(m) => raw[..Disney::N_RAW].copy_from_slice(&m.to_raw()),
+        }
+        (raw, object)
+    }
+
     /// The BRDF value (1/sr, linear RGB) for light from `wi` seen from `wo`, both in the local frame.
     #[inline]
     pub fn eval(&self, wi: Vec3, wo: Vec3) -> Rgb {

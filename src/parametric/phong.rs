@@ -18,7 +18,7 @@
 
 use super::raw_at;
 use crate::angles::upper_hemisphere_pair;
-use crate::math::{sanitize, sigmoid, softplus, INV_PI};
+use crate::math::{logit, sanitize, sigmoid, softplus, softplus_inv, INV_PI};
 use crate::{Rgb, Vec3, BLACK};
 
 /// Energy-preserving modified Phong ("RP").
@@ -51,6 +51,19 @@ impl Phong {
         let kd = [0, 1, 2].map(|c| sigmoid(raw_at(raw, c)));
         let ks = [0, 1, 2].map(|c| (1.0 - kd[c]) * sigmoid(raw_at(raw, 3 + c)));
         Self { kd, ks, n: softplus(raw_at(raw, 6)) }
+    }
+
+    /// Raw outputs that [`Phong::from_raw`] maps back to these parameters (the inverse of the table).
+    #[inline]
+    pub fn to_raw(&self) -> [f32; Self::N_RAW] {
+        let mut r = [0.0; Self::N_RAW];
+        for c in 0..3 {
+            r[c] = logit(self.kd[c]);
+            let rest = 1.0 - self.kd[c];
+            r[3 + c] = logit(if rest > 0.0 { self.ks[c] / rest } else { 0.0 });
+        }
+        r[6] = softplus_inv(self.n);
+        r
     }
 
     /// `cos α = wo · reflect(wi, z) = wi.z wo.z - (wi.x wo.x + wi.y wo.y)`, written so that swapping `wi`

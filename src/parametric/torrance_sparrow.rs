@@ -21,7 +21,7 @@
 
 use super::microfacet::{self, clamp_alpha, HalfGeometry};
 use super::raw_at;
-use crate::math::{sanitize, sigmoid, INV_PI};
+use crate::math::{logit, sanitize, sigmoid, INV_PI};
 use crate::{Rgb, Vec3, BLACK};
 
 /// Torrance-Sparrow (Beckmann, V-cavity, Schlick) with a Lambertian base.
@@ -56,6 +56,15 @@ impl TorranceSparrow {
             ks: [3, 4, 5].map(|c| sigmoid(raw_at(raw, c))),
             alpha: clamp_alpha(sigmoid(0.5 * raw_at(raw, 6))),
         }
+    }
+
+    /// Raw outputs that [`TorranceSparrow::from_raw`] maps back to these parameters (the inverse of the
+    /// table; the roughness pre-activation is `2 logit(α)`).
+    #[inline]
+    pub fn to_raw(&self) -> [f32; Self::N_RAW] {
+        let kd = self.kd.map(logit);
+        let ks = self.ks.map(logit);
+        [kd[0], kd[1], kd[2], ks[0], ks[1], ks[2], 2.0 * logit(self.alpha)]
     }
 
     /// Cook & Torrance 1982, Eq. 2 with the terms above.
