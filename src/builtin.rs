@@ -136,7 +136,7 @@ fn clear_coat(g: &HalfGeometry) -> Rgb {
 }
 
 /// `ρ/π + c_s D_charlie(h) V(wi, wo) + k_r (n + 2)/(2π) max(0, wi·wo)^n`:
-/// - Charlie sheen distribution (Estevez & Kulla 2017, "Production Friendly Microfacet Sheen BRDF", Eq. 2):
+/// - Charlie sheen distribution (Estevez & Kulla 2017, "Production Friendly Microfacet Sheen BRDF"):
 ///   `D = (2 + 1/α) sin^(1/α) θh / (2π)`, with the cloth visibility of Neubelt & Pettineo 2013 ("Crafting
 ///   a Next-Gen Material Pipeline for The Order: 1886"), `V = 1 / (4 (cos θi + cos θo - cos θi cos θo))`;
 /// - a Phong-normalised lobe around the incident direction (retro-reflection of fabric fibres).

@@ -16,7 +16,7 @@
 //! | model | lobes |
 //! |---|---|
 //! | Lambert | cosine |
-//! | RP (Phong) | cosine + Phong lobe `cos^n α` about the mirror of `wo` (Lafortune & Willems 1994, Sec. 4) |
+//! | RP (Phong) | cosine + Phong lobe `cos^n α` about the mirror of `wo` (Lafortune & Willems 1994) |
 //! | Torrance-Sparrow | cosine + Beckmann `D cos θh` half vectors (Walter et al. 2007, Eq. 28) |
 //! | FMBRDF | cosine + Beckmann half vectors of slope α as a proposal for its generalised Gaussian |
 //! | Disney | cosine (diffuse, subsurface, sheen) + GGX visible normals (Heitz 2018) + GTR1 clearcoat |
@@ -132,7 +132,7 @@ pub fn sample_ggx_vndf(wo: Vec3, alpha: f32, u: [f32; 2]) -> Vec3 {
 }
 
 /// Density of [`sample_ggx_vndf`] over half vectors: `D_wo(h) = G1(wo) max(0, wo·h) D(h) / cos θo`
-/// (Heitz 2018, Eq. 2).
+/// (Heitz 2018, Sec. 2).
 #[inline]
 pub fn ggx_vndf_pdf(wo: Vec3, h: Vec3, alpha: f32) -> f32 {
     let oh = wo.dot(h);
@@ -152,7 +152,7 @@ pub fn sample_beckmann(alpha: f32, u: [f32; 2]) -> Vec3 {
     around(Vec3::Z, cos_t.max(1e-7), 2.0 * PI * u[1])
 }
 
-/// A GTR1 half vector with density `D(h) cos θh` (Burley 2012, Appendix B.2, Eq. 5:
+/// A GTR1 half vector with density `D(h) cos θh` (Burley 2012, Appendix B:
 /// `cos²θh = (1 - α^(2(1-u))) / (1 - α²)`).
 #[inline]
 pub fn sample_gtr1(alpha: f32, u: [f32; 2]) -> Vec3 {
@@ -162,7 +162,7 @@ pub fn sample_gtr1(alpha: f32, u: [f32; 2]) -> Vec3 {
 }
 
 /// A direction with density `(n + 1)/(2π) cos^n α` about the unit `axis` (Lafortune & Willems 1994,
-/// Sec. 4: `cos α = u^(1/(n+1))`); may fall below the horizon.
+/// sampling of the modified Phong lobe: `cos α = u^(1/(n+1))`); may fall below the horizon.
 #[inline]
 pub fn sample_phong_lobe(axis: Vec3, n: f32, u: [f32; 2]) -> Vec3 {
     let cos_a = libm::powf(u[0], 1.0 / (n + 1.0));

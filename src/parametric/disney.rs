@@ -1,19 +1,19 @@
-//! The isotropic Disney "principled" BRDF (Burley 2012, "Physically-Based Shading at Disney", Sec. 5 and
-//! Appendix B), following the reference implementation `disney.brdf` of Disney's BRDF Explorer term by
+//! The isotropic Disney "principled" BRDF (Burley 2012, "Physically-Based Shading at Disney", Sec. 5 "The
+//! Disney BRDF" and Appendix B), following the reference implementation `disney.brdf` of Disney's BRDF Explorer term by
 //! term with `anisotropic = 0`:
 //!
 //! `f = (1 - metallic) (lerp(Fd, ss, subsurface) C / π + F_H sheen C_sheen)
 //!    + Ds Fs Gs / (4 cos θl cos θv) + clearcoat / 4 · Dr Fr Gr / (4 cos θl cos θv)`
 //!
-//! - diffuse (Burley 2012, Eq. 3): `Fd = (1 + (Fd90 - 1) F_L)(1 + (Fd90 - 1) F_V)`,
+//! - diffuse (Burley 2012, "Diffuse model details"): `Fd = (1 + (Fd90 - 1) F_L)(1 + (Fd90 - 1) F_V)`,
 //!   `Fd90 = 0.5 + 2 roughness cos²θd`, `F_x = (1 - cos θx)^5` (Schlick weights);
 //! - subsurface (Hanrahan-Krueger approximation, BRDF Explorer): `ss = 1.25 (Fss (1/(cos θl + cos θv) -
 //!   0.5) + 0.5)`, `Fss = (1 + (Fss90 - 1) F_L)(1 + (Fss90 - 1) F_V)`, `Fss90 = roughness cos²θd`;
 //! - sheen: `F_H sheen lerp(1, C_tint, sheenTint)`, `F_H = (1 - cos θd)^5`;
-//! - specular: GTR2/GGX `Ds` with `α = max(0.001, roughness²)` (Eq. 8, γ = 2), Schlick
+//! - specular: GTR2/GGX `Ds` with `α = max(0.001, roughness²)` (Burley's GTR with γ = 2), Schlick
 //!   `Fs = lerp(C_spec0, 1, F_H)`, `C_spec0 = lerp(0.08 specular lerp(1, C_tint, specularTint), C,
 //!   metallic)`, separable Smith GGX `Gs` (Walter et al. 2007);
-//! - clearcoat: GTR1 `Dr` with `α = lerp(0.1, 0.001, clearcoatGloss)` (Eq. 4, γ = 1), `Fr = lerp(0.04, 1,
+//! - clearcoat: GTR1 `Dr` with `α = lerp(0.1, 0.001, clearcoatGloss)` (GTR with γ = 1), `Fr = lerp(0.04, 1,
 //!   F_H)` (η = 1.5), Smith GGX `Gr` with fixed α = 0.25;
 //! - `C_tint = C / lum(C)`, `lum(C) = 0.3 R + 0.6 G + 0.1 B` (1 where lum = 0).
 //!

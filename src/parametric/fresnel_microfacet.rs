@@ -6,7 +6,7 @@
 //!
 //! - surface (specular) term: microfacet mirror reflection with the exact unpolarised dielectric Fresnel
 //!   reflectance `F_R` of index η ([`microfacet::fresnel_dielectric`]) at the microfacet, `cos θd = wi·h`;
-//!   a **scalar** weight `ks` (the paper's Sec. 5.4 traces the FMBRDF's "glow" to this scalar term);
+//!   a **scalar** weight `ks` (the paper's Sec. 6.1 traces the FMBRDF's "glow" to this scalar term);
 //! - body (diffuse) term: light refracted into the surface (Fresnel transmission `1 - F_R` in), scattered
 //!   diffusely with albedo `ρ`, refracted out (transmission out);
 //! - `D(h) = N · exp(-(θh / α)^β)`: a generalised Gaussian in the half-vector angle, `β = 2` the Gaussian

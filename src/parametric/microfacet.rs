@@ -81,7 +81,7 @@ pub fn clamp_alpha(alpha: f32) -> f32 {
     }
 }
 
-/// Beckmann NDF (Beckmann & Spizzichino 1963; Cook & Torrance 1982, Eq. 3; Walter et al. 2007, Eq. 25):
+/// Beckmann NDF (Beckmann & Spizzichino 1963; Cook & Torrance 1982; Walter et al. 2007, Eq. 25):
 /// `D(h) = exp(-tan²θh / α²) / (π α² cos⁴θh)`, normalised so `∫ D cos θh dω = 1`.
 /// `alpha` is the RMS slope `m`.
 #[inline]
@@ -95,7 +95,7 @@ pub fn beckmann_d(cos_h: f32, sin2_h: f32, alpha: f32) -> f32 {
     libm::expf(-sin2_h / (c2 * a2)) / (core::f32::consts::PI * a2 * c4)
 }
 
-/// GGX / Trowbridge-Reitz NDF, Disney's GTR2 (Walter et al. 2007, Eq. 33; Burley 2012, Eq. 8 with γ = 2):
+/// GGX / Trowbridge-Reitz NDF, Disney's GTR2 (Walter et al. 2007, Eq. 33; Burley 2012's GTR with γ = 2):
 /// `D(h) = α² / (π (α² cos²θh + sin²θh)²)`.
 #[inline]
 pub fn ggx_d(cos_h: f32, sin2_h: f32, alpha: f32) -> f32 {
@@ -104,7 +104,7 @@ pub fn ggx_d(cos_h: f32, sin2_h: f32, alpha: f32) -> f32 {
     a2 * INV_PI / (t * t)
 }
 
-/// Disney's GTR1 NDF for the clearcoat (Burley 2012, Eq. 4 with γ = 1, normalised as in BRDF Explorer's
+/// Disney's GTR1 NDF for the clearcoat (Burley 2012's GTR with γ = 1, normalised as in BRDF Explorer's
 /// `disney.brdf`): `D(h) = (α² - 1) / (π ln(α²) (α² cos²θh + sin²θh))`, and `1/π` for α ≥ 1.
 #[inline]
 pub fn gtr1_d(cos_h: f32, sin2_h: f32, alpha: f32) -> f32 {
@@ -132,7 +132,7 @@ pub fn smith_ggx_g1(cos_v: f32, alpha: f32) -> f32 {
     2.0 * cos_v * smith_ggx_g1_over_2cos(cos_v, alpha)
 }
 
-/// V-cavity shadowing-masking of Torrance & Sparrow (1967) in the form of Cook & Torrance (1982, Eq. 7),
+/// V-cavity shadowing-masking of Torrance & Sparrow (1967) in the form of Cook & Torrance (1982),
 /// divided by the microfacet denominator: `G / (4 cos θi cos θo)` with
 /// `G = min(1, 2 cos θh cos θo / cos θd, 2 cos θh cos θi / cos θd)`.
 ///
@@ -145,7 +145,7 @@ pub fn v_cavity_g_over_4cos(g: &HalfGeometry) -> f32 {
     a.min(k / g.cos_i).min(k / g.cos_o)
 }
 
-/// Schlick's weight `(1 - cos θ)^5` (Schlick 1994, Eq. 24), clamped to [0, 1].
+/// Schlick's weight `(1 - cos θ)^5` (Schlick 1994, "An Inexpensive BRDF Model for Physically-based Rendering"), clamped to [0, 1].
 #[inline]
 pub fn schlick_weight(cos: f32) -> f32 {
     let m = (1.0 - cos).clamp(0.0, 1.0);
@@ -153,7 +153,7 @@ pub fn schlick_weight(cos: f32) -> f32 {
     m2 * m2 * m
 }
 
-/// Schlick's Fresnel approximation (Schlick 1994, Eq. 24): `F = F0 + (1 - F0)(1 - cos θd)^5`.
+/// Schlick's Fresnel approximation (Schlick 1994): `F = F0 + (1 - F0)(1 - cos θd)^5`.
 #[inline]
 pub fn fresnel_schlick(f0: f32, cos_d: f32) -> f32 {
     f0 + (1.0 - f0) * schlick_weight(cos_d)

@@ -1,11 +1,11 @@
 //! The energy-preserving modified Phong BRDF "RP" (Lafortune & Willems 1994, "Using the modified Phong
-//! reflectance model for physically based rendering", Eqs. 3-6; the paper's "Realistic Phong", Sec. 4.1.1):
+//! reflectance model for physically based rendering"; the paper's "Realistic Phong", Sec. 4.1.1):
 //!
 //! `f(wi, wo) = kd / π + ks (n + 2) / (2π) · cos^n α`, with `cos α = max(0, wo · reflect(wi, n))`,
 //!
 //! `α` the angle between `wo` and the mirror direction of `wi`. The `(n + 2)/(2π)` factor makes the
 //! specular lobe's albedo exactly `ks` at normal incidence and less elsewhere, so `kd + ks ≤ 1` per
-//! channel makes the whole BRDF energy preserving (Lafortune & Willems, Sec. 3).
+//! channel makes the whole BRDF energy preserving (Lafortune & Willems 1994, their energy-conservation condition).
 //!
 //! The raw parametrisation enforces that constraint instead of hoping the network learns it: `kd` takes a
 //! sigmoid, and `ks` is a sigmoid *fraction of what is left*, `ks = (1 - kd) σ(raw)`.
@@ -73,7 +73,7 @@ impl Phong {
         wi.z * wo.z - (wi.x * wo.x + wi.y * wo.y)
     }
 
-    /// Lafortune & Willems 1994, Eq. 6: `kd/π + ks (n+2)/(2π) max(0, cos α)^n`.
+    /// Lafortune & Willems 1994, the modified Phong BRDF: `kd/π + ks (n+2)/(2π) max(0, cos α)^n`.
     #[inline]
     pub fn eval(&self, wi: Vec3, wo: Vec3) -> Rgb {
         let Some((wi, wo)) = upper_hemisphere_pair(wi, wo) else {

@@ -1,5 +1,5 @@
 //! Torrance-Sparrow microfacet BRDF (Torrance & Sparrow 1967, "Theory for off-specular reflection from
-//! roughened surfaces"; in the form of Cook & Torrance 1982, Eq. 2) plus a Lambertian diffuse term:
+//! roughened surfaces"; in the form of Cook & Torrance 1982 and Walter et al. 2007, Eq. 20) plus a Lambertian diffuse term:
 //!
 //! `f(wi, wo) = kd / π + D(h) G(wi, wo) F(cos θd) / (4 cos θi cos θo)`
 //!
@@ -67,7 +67,7 @@ impl TorranceSparrow {
         [kd[0], kd[1], kd[2], ks[0], ks[1], ks[2], 2.0 * logit(self.alpha)]
     }
 
-    /// Cook & Torrance 1982, Eq. 2 with the terms above.
+    /// Walter et al. 2007, Eq. 20 with the terms above, plus the Lambertian term.
     #[inline]
     pub fn eval(&self, wi: Vec3, wo: Vec3) -> Rgb {
         let Some(g) = HalfGeometry::new(wi, wo) else {
