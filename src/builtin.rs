@@ -4,7 +4,7 @@
 //! without needing any data file.
 //!
 //! All are reciprocal (every term is a symmetric function of the pair, built from
-//! [`HalfGeometry`](crate::parametric::microfacet::HalfGeometry)), finite, non-negative and
+//! [`HalfGeometry`]), finite, non-negative and
 //! energy conserving (directional albedo ≤ 1 for every incidence; the integration tests check it by Monte
 //! Carlo).
 //!
