@@ -26,10 +26,13 @@ extern crate alloc;
 extern crate std;
 
 pub mod angles;
+pub mod builtin;
 pub mod encoding;
 pub mod mlp;
 pub mod error;
 pub mod math;
+pub mod parametric;
+pub mod sampling;
 
 pub use error::Error;
 pub use glam::Vec3;
