@@ -26,8 +26,14 @@ extern crate alloc;
 extern crate std;
 
 pub mod angles;
+#[cfg(feature = "std")]
+pub mod atomic;
 pub mod error;
+#[cfg(feature = "std")]
+pub mod image;
 pub mod math;
+#[cfg(feature = "std")]
+pub mod scene;
 
 pub use error::Error;
 pub use glam::Vec3;
