@@ -28,6 +28,8 @@ extern crate std;
 pub mod angles;
 pub mod error;
 pub mod math;
+#[cfg(feature = "alloc")]
+pub mod measured;
 
 pub use error::Error;
 pub use glam::Vec3;
