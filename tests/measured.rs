@@ -663,7 +663,7 @@ fn nbrdf_json_malformed_documents_get_specific_errors() {
         parse(&doc(|v| v["layers"][0]["outputs"] = 1000.into())),
         Err(Error::TooLarge {
             found: 1000,
-            max: 128,
+            max: 64,
             ..
         })
     ));

@@ -25,8 +25,9 @@ use crate::angles::{half_diff_vectors, rusinkiewicz_angles, upper_hemisphere_pai
 use crate::math::sanitize;
 use crate::{Error, Rgb, Vec3, BLACK};
 
-/// Widest layer accepted: the size of the evaluator's stack buffers.
-pub const MAX_WIDTH: usize = 128;
+/// Widest layer accepted: the size of the evaluator's two stack buffers (zeroed on every evaluation, so
+/// kept small; the published networks are 21 wide).
+pub const MAX_WIDTH: usize = 64;
 /// Most layers accepted.
 pub const MAX_LAYERS: usize = 16;
 /// Network input size: `[hx, hy, hz, dx, dy, dz]`.
