@@ -37,6 +37,8 @@ pub mod image;
 #[cfg(feature = "std")]
 pub mod io;
 pub mod math;
+#[cfg(feature = "alloc")]
+pub mod measured;
 pub mod mlp;
 pub mod model;
 pub mod neural;
