@@ -80,14 +80,16 @@ fn m_dot(mass: &[f64], a: &[f64], b: &[f64]) -> f64 {
 
 #[test]
 fn sphere_eigenvalues_approach_l_times_l_plus_1_with_multiplicity_2l_plus_1() {
-    // 2562 vertices: above the dense limit, so this runs the shift-invert Lanczos path.
+    // 2562 vertices: above the dense limit, so this runs the shift-invert subspace path.
     let (positions, triangles) = icosphere(4);
     let (enc, report) = IntrinsicEncoding::compute_with_report(&positions, &triangles, 24).unwrap();
-    assert!(matches!(report.method, Method::ShiftInvertLanczos { .. }));
+    assert!(matches!(report.method, Method::ShiftInvertSubspace { .. }));
     assert!(report.dropped_eigenvalue.abs() < 1e-8, "constant mode λ0 = {}", report.dropped_eigenvalue);
-    // Tolerance 1.5 %: the cotangent Laplacian converges as O(h²) and the inscribed polyhedron has
-    // slightly less area than the sphere; at this resolution (edge ≈ 0.076) the l ≤ 4 eigenvalues sit
-    // 0.1–1 % above the analytic value (measured), while neighbouring clusters differ by ≥ 50 %.
+    // Tolerance 1.5 %: the cotangent discretisation converges as O(h²); at this resolution (edge ≈ 0.076)
+    // the l ≤ 4 eigenvalues deviate by at most 0.7 % (measured: 2.0000, 5.9915, 11.950–11.963,
+    // 19.869–19.877), while neighbouring clusters differ by ≥ 50 %, so 1.5 % still separates them and
+    // checks each cluster's size 2l + 1. (The icosahedral symmetry splits l = 3 into 3 + 4 and l = 4
+    // into 4 + 5 at the 1e-3 level; the analytic value does not see that.)
     let lambda = enc.eigenvalues();
     let mut i = 0;
     for l in 1..=4usize {
@@ -117,10 +119,10 @@ fn square_with_free_boundary_has_the_neumann_spectrum() {
 
 #[test]
 fn eigenvectors_are_m_orthonormal_and_solve_the_generalised_problem() {
-    let (positions, triangles) = icosphere(3); // 642 vertices, Lanczos path
+    let (positions, triangles) = icosphere(3); // 642 vertices, subspace-iteration path
     let lap = operator(&positions, &triangles);
-    let pairs = smallest_eigenpairs_with(&lap, 30, Solver::ShiftInvertLanczos).unwrap();
-    assert!(matches!(pairs.method, Method::ShiftInvertLanczos { .. }));
+    let pairs = smallest_eigenpairs_with(&lap, 30, Solver::ShiftInvertSubspace).unwrap();
+    assert!(matches!(pairs.method, Method::ShiftInvertSubspace { .. }));
     let m = lap.mass();
     let mut worst_orth = 0.0f64;
     let mut worst_res = 0.0f64;
@@ -140,26 +142,27 @@ fn eigenvectors_are_m_orthonormal_and_solve_the_generalised_problem() {
             worst_res = worst_res.max(r / norm);
         }
     }
-    // Lanczos keeps its basis orthonormal to rounding; 1e-10 leaves room for n = 642 accumulated terms.
+    // The Ritz vectors are M-orthonormal by construction (Zᵀ M_r Z = I); 1e-10 allows for the rounding of
+    // the projected Cholesky and of n = 642-term sums.
     assert!(worst_orth < 1e-10, "max |φ_iᵀ M φ_j − δ_ij| = {worst_orth:e}");
     assert!(worst_res < 1e-8, "max relative residual = {worst_res:e}");
 }
 
 #[test]
-fn lanczos_and_dense_solvers_agree() {
+fn subspace_and_dense_solvers_agree() {
     // Different algorithms, same answer: eigenvalues to 1e-9 and the same invariant subspace (1 + 3 + 5
     // + 7 = 16 pairs close the l ≤ 3 clusters, so the span is well defined despite the multiplicities).
     let (positions, triangles) = icosphere(3);
     let lap = operator(&positions, &triangles);
-    let lanczos = smallest_eigenpairs_with(&lap, 16, Solver::ShiftInvertLanczos).unwrap();
+    let iterative = smallest_eigenpairs_with(&lap, 16, Solver::ShiftInvertSubspace).unwrap();
     let dense = smallest_eigenpairs_with(&lap, 16, Solver::Dense).unwrap();
     assert_eq!(dense.method, Method::Dense);
-    for (a, b) in lanczos.values.iter().zip(&dense.values).skip(1) {
-        assert!((a - b).abs() < 1e-9 * b, "Lanczos {a} vs dense {b}");
+    for (a, b) in iterative.values.iter().zip(&dense.values).skip(1) {
+        assert!((a - b).abs() < 1e-9 * b, "subspace iteration {a} vs dense {b}");
     }
     let m = lap.mass();
     for j in 0..16 {
-        let x = column(&lanczos, j);
+        let x = column(&iterative, j);
         let projected: f64 = (0..16).map(|i| m_dot(m, &x, &column(&dense, i)).powi(2)).sum();
         assert!((projected - 1.0).abs() < 1e-8, "vector {j}: ‖P x‖² = {projected}");
     }
@@ -287,7 +290,8 @@ fn data_dir() -> PathBuf {
 }
 
 fn load_obj(path: &std::path::Path) -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
-    let options = tobj::LoadOptions { triangulate: true, single_index: true, ..Default::default() };
+    // Not `single_index`: that would split vertices along texture seams and cut the surface apart.
+    let options = tobj::LoadOptions { triangulate: true, single_index: false, ..Default::default() };
     let (models, _) = tobj::load_obj(path, &options).unwrap();
     let (mut positions, mut triangles) = (Vec::new(), Vec::new());
     for model in models {

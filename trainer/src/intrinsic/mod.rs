@@ -5,7 +5,7 @@
 //!
 //! Pipeline: [`mesh`] validates the arrays and drops degenerate triangles and isolated vertices;
 //! [`laplacian`] assembles the cotangent stiffness L and mixed-Voronoi mass M; [`eigen`] solves
-//! L φ = λ M φ by shift-invert Lanczos on a sparse Cholesky factor; [`cache`] keeps the result on disk
+//! L φ = λ M φ by shift-invert subspace iteration on a sparse Cholesky factor; [`cache`] keeps the result on disk
 //! per mesh and k. [`extrinsic`] is the baseline encoding of the 3D point itself.
 //!
 //! ```
@@ -146,7 +146,9 @@ pub struct Report {
     pub method: Method,
     /// The dropped smallest eigenvalue (≈ 0: the constant eigenfunction).
     pub dropped_eigenvalue: f64,
-    /// Largest scale-free residual `‖Lφ − λMφ‖_{M⁻¹} / (λ ‖φ‖_M)` over the kept pairs.
+    /// Largest scale-free residual `‖Lφ − λMφ‖_{M⁻¹} / (λ_k ‖φ‖_M)` over the kept pairs, relative to
+    /// the largest kept eigenvalue λ_k (not to each λ, which is 0 for the extra piecewise-constant
+    /// eigenfunctions of a mesh with several components).
     pub max_relative_residual: f64,
 }
 
@@ -187,7 +189,8 @@ impl IntrinsicEncoding {
         }
         let lap = laplacian::CotanLaplacian::assemble(&mesh);
         let pairs = eigen::smallest_eigenpairs(&lap, k + 1)?;
-        let max_relative_residual = (1..=k).map(|j| relative_residual(&lap, &pairs, j)).fold(0.0, f64::max);
+        let scale = pairs.values[k];
+        let max_relative_residual = (1..=k).map(|j| relative_residual(&lap, &pairs, j, scale)).fold(0.0, f64::max);
 
         let mut values = vec![0.0f32; positions.len() * k];
         for (a, &v) in mesh.active.iter().enumerate() {
@@ -349,9 +352,9 @@ impl IntrinsicEncoding {
     }
 }
 
-/// `‖Lφ − λMφ‖_{M⁻¹} / (λ ‖φ‖_M)` of pair `j`: the M⁻¹ norm because the residual is a load (an
+/// `‖Lφ − λMφ‖_{M⁻¹} / (scale ‖φ‖_M)` of pair `j`: the M⁻¹ norm because the residual is a load (an
 /// integrated quantity), which makes the ratio independent of mesh resolution and scale.
-fn relative_residual(lap: &laplacian::CotanLaplacian, pairs: &eigen::Eigenpairs, j: usize) -> f64 {
+fn relative_residual(lap: &laplacian::CotanLaplacian, pairs: &eigen::Eigenpairs, j: usize, scale: f64) -> f64 {
     let n = lap.len();
     let x: Vec<f64> = (0..n).map(|i| pairs.vectors[(i, j)]).collect();
     let mut lx = vec![0.0; n];
@@ -360,5 +363,5 @@ fn relative_residual(lap: &laplacian::CotanLaplacian, pairs: &eigen::Eigenpairs,
     let m = lap.mass();
     let r2: f64 = (0..n).map(|i| (lx[i] - lambda * m[i] * x[i]).powi(2) / m[i]).sum();
     let x2: f64 = (0..n).map(|i| m[i] * x[i] * x[i]).sum();
-    (r2 / x2).sqrt() / lambda.abs().max(f64::MIN_POSITIVE)
+    (r2 / x2).sqrt() / scale.abs().max(f64::MIN_POSITIVE)
 }
