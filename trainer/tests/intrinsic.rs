@@ -324,3 +324,34 @@ fn spot_k64_solves_in_seconds() {
     assert!(report.max_relative_residual < 1e-6, "{report:?}");
     assert!(enc.values().iter().all(|v| v.is_finite()));
 }
+
+/// Every mesh of the data set at k = 64: timing and what validation drops. Slow on the larger meshes
+/// (the bunny has ~35k vertices), hence ignored; run with `cargo test -p trainer --test intrinsic --
+/// --ignored --nocapture`.
+#[test]
+#[ignore]
+fn all_data_meshes_k64() {
+    let dir = data_dir().join("meshes");
+    let Ok(entries) = std::fs::read_dir(&dir) else {
+        eprintln!("SKIPPED: {} not found (set NBRDF_DATA to the data directory)", dir.display());
+        return;
+    };
+    let mut paths: Vec<PathBuf> = entries.map(|e| e.unwrap().path()).filter(|p| p.extension().is_some_and(|e| e == "obj")).collect();
+    paths.sort();
+    for path in paths {
+        let (positions, triangles) = load_obj(&path);
+        let start = Instant::now();
+        match IntrinsicEncoding::compute_with_report(&positions, &triangles, 64) {
+            Ok((enc, report)) => eprintln!(
+                "{}: {} vertices, k = 64 in {:.2} s; {:?}; λ1 = {:.4}, λ64 = {:.4}",
+                path.file_name().unwrap().to_string_lossy(),
+                positions.len(),
+                start.elapsed().as_secs_f64(),
+                report,
+                enc.eigenvalues()[0],
+                enc.eigenvalues()[63],
+            ),
+            Err(e) => eprintln!("{}: error {e}", path.display()),
+        }
+    }
+}
