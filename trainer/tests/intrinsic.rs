@@ -80,10 +80,10 @@ fn m_dot(mass: &[f64], a: &[f64], b: &[f64]) -> f64 {
 
 #[test]
 fn sphere_eigenvalues_approach_l_times_l_plus_1_with_multiplicity_2l_plus_1() {
-    // 2562 vertices: above the dense limit, so this runs the shift-invert subspace path.
+    // 2562 vertices: above the dense limit, so this runs the shift-invert block Lanczos path.
     let (positions, triangles) = icosphere(4);
     let (enc, report) = IntrinsicEncoding::compute_with_report(&positions, &triangles, 24).unwrap();
-    assert!(matches!(report.method, Method::ShiftInvertSubspace { .. }));
+    assert!(matches!(report.method, Method::ShiftInvertLanczos { .. }));
     assert!(report.dropped_eigenvalue.abs() < 1e-8, "constant mode λ0 = {}", report.dropped_eigenvalue);
     // Tolerance 1.5 %: the cotangent discretisation converges as O(h²); at this resolution (edge ≈ 0.076)
     // the l ≤ 4 eigenvalues deviate by at most 0.7 % (measured: 2.0000, 5.9915, 11.950–11.963,
@@ -119,10 +119,10 @@ fn square_with_free_boundary_has_the_neumann_spectrum() {
 
 #[test]
 fn eigenvectors_are_m_orthonormal_and_solve_the_generalised_problem() {
-    let (positions, triangles) = icosphere(3); // 642 vertices, subspace-iteration path
+    let (positions, triangles) = icosphere(3); // 642 vertices, block Lanczos path
     let lap = operator(&positions, &triangles);
-    let pairs = smallest_eigenpairs_with(&lap, 30, Solver::ShiftInvertSubspace).unwrap();
-    assert!(matches!(pairs.method, Method::ShiftInvertSubspace { .. }));
+    let pairs = smallest_eigenpairs_with(&lap, 30, Solver::ShiftInvertLanczos).unwrap();
+    assert!(matches!(pairs.method, Method::ShiftInvertLanczos { .. }));
     let m = lap.mass();
     let mut worst_orth = 0.0f64;
     let mut worst_res = 0.0f64;
@@ -142,23 +142,23 @@ fn eigenvectors_are_m_orthonormal_and_solve_the_generalised_problem() {
             worst_res = worst_res.max(r / norm);
         }
     }
-    // The Ritz vectors are M-orthonormal by construction (Zᵀ M_r Z = I); 1e-10 allows for the rounding of
-    // the projected Cholesky and of n = 642-term sums.
+    // The basis is M-orthonormalised twice per block, so the Ritz vectors are M-orthonormal to rounding;
+    // 1e-10 allows for n = 642-term sums.
     assert!(worst_orth < 1e-10, "max |φ_iᵀ M φ_j − δ_ij| = {worst_orth:e}");
     assert!(worst_res < 1e-8, "max relative residual = {worst_res:e}");
 }
 
 #[test]
-fn subspace_and_dense_solvers_agree() {
+fn lanczos_and_dense_solvers_agree() {
     // Different algorithms, same answer: eigenvalues to 1e-9 and the same invariant subspace (1 + 3 + 5
     // + 7 = 16 pairs close the l ≤ 3 clusters, so the span is well defined despite the multiplicities).
     let (positions, triangles) = icosphere(3);
     let lap = operator(&positions, &triangles);
-    let iterative = smallest_eigenpairs_with(&lap, 16, Solver::ShiftInvertSubspace).unwrap();
+    let iterative = smallest_eigenpairs_with(&lap, 16, Solver::ShiftInvertLanczos).unwrap();
     let dense = smallest_eigenpairs_with(&lap, 16, Solver::Dense).unwrap();
     assert_eq!(dense.method, Method::Dense);
     for (a, b) in iterative.values.iter().zip(&dense.values).skip(1) {
-        assert!((a - b).abs() < 1e-9 * b, "subspace iteration {a} vs dense {b}");
+        assert!((a - b).abs() < 1e-9 * b, "block Lanczos {a} vs dense {b}");
     }
     let m = lap.mass();
     for j in 0..16 {

@@ -1,35 +1,35 @@
 //! The smallest eigenpairs of the generalised problem L φ = λ M φ, L the cotangent stiffness and M the
 //! lumped mass matrix (see [`laplacian`](super::laplacian)).
 //!
-//! Method: shift-invert **block** subspace iteration with Rayleigh–Ritz projection (Bathe & Wilson 1972,
-//! "Large eigenvalue problems in dynamic analysis"; Bathe, *Finite Element Procedures*, Sec. 11.6).
-//! With K = L + sM, s > 0 (the shift σ = −s of the usual "L − σM" notation), K is symmetric positive
-//! definite although L is singular (constants are in its null space), so faer factors it once with a
-//! sparse Cholesky (AMD ordering). Each iteration
+//! Method: shift-invert **block Lanczos** with full reorthogonalisation in the M inner product. With
+//! K = L + sM, s > 0 (the shift σ = −s of the usual "L − σM" notation), K is symmetric positive definite
+//! although L is singular (constants are in its null space), so faer factors it once with a sparse
+//! Cholesky (AMD ordering). The operator `A = K⁻¹M` is self-adjoint in the M inner product with
+//! eigenvalues `θ = 1/(λ + s)`: the smallest λ become the largest, well separated θ. The block Krylov
+//! space `span{V₀, AV₀, A²V₀, …}` is built [`BLOCK`] columns at a time, every new block M-orthogonalised
+//! twice against all previous ones ("twice is enough", Giraud et al. 2005) and M-orthonormalised
+//! within itself (SVQB, Stathopoulos & Wu 2002, which also drops directions the space already holds).
+//! The coefficients of the first pass are exactly the projected matrix `T = Vᵀ M A V`; Rayleigh–Ritz on
+//! T gives the approximations, accepted once every wanted pair has a small residual
+//! `‖L x − λ M x‖_{M⁻¹}` computed with the exact sparse L.
 //!
-//! 1. applies the inverse to the whole block: `Y = (K⁻¹ M)^m X` (p right-hand sides at once,
-//!    m = [`SOLVES_PER_PROJECTION`]),
-//! 2. projects the pencil onto span(Y): `K_r = Yᵀ K Y`, `M_r = Yᵀ M Y`,
-//! 3. solves the small p × p problem `K_r Z = M_r Z Θ` densely and sets `X = Y Z`, M-orthonormal,
-//!
-//! until the residuals `‖L x_j − λ_j M x_j‖_{M⁻¹}` of the wanted pairs are small. Pair j converges like
-//! `((λ_j + s) / (λ_{p+1} + s))^(m·iterations)`; with p ≈ 2·count + 16 the ratio is about 1/2.
-//!
-//! Why a block method and not single-vector (shift-invert) Lanczos: on a symmetric mesh (the icosphere of
-//! the tests; any mirror-symmetric scan) eigenvalues are *exactly* multiple, and a single Krylov sequence
+//! Why a block and not single-vector Lanczos: on a symmetric mesh (the icosphere of the tests; any mesh
+//! with a non-abelian symmetry group) eigenvalues are *exactly* multiple, and a single Krylov sequence
 //! sees one vector per eigenspace, finding the others only through rounding errors. faer's Krylov–Schur
 //! (`partial_self_adjoint_eigen`, tried first) indeed skipped part of the 9-fold l = 4 cluster of the
-//! sphere and returned a duplicated vector. A block of size p finds every multiplicity below p. LOBPCG
-//! would need fewer iterations but is numerically delicate; with the factor at hand this costs seconds.
+//! sphere and returned a duplicated vector. A block of b columns captures multiplicities up to b. Why
+//! not restarted: the basis needed here (≈ 2–3 × the wanted count) fits in memory on every mesh of the
+//! data set, and without restarts there is nothing to tune. (Block subspace iteration, tried second,
+//! is simpler but needs ~25× more triangular solves: 60 s instead of a few for the bunny.)
 //!
 //! Small problems are solved densely instead (faer's symmetric eigendecomposition of `M^{-1/2} L M^{-1/2}`).
 //! Everything runs sequentially from a fixed pseudo-random start block, so results are bitwise
 //! reproducible on one machine.
 
+use faer::linalg::matmul::matmul;
 use faer::linalg::solvers::Solve;
-use faer::linalg::triangular_solve::{solve_lower_triangular_in_place, solve_upper_triangular_in_place};
 use faer::sparse::{SparseColMat, Triplet};
-use faer::{Mat, MatMut, Par, Side};
+use faer::{Accum, Mat, MatMut, MatRef, Par, Side};
 
 use super::laplacian::CotanLaplacian;
 use super::Error;
@@ -45,20 +45,25 @@ pub const DENSE_MAX_VERTICES: usize = 500;
 pub const SHIFT_FRACTION: f64 = 1e-2;
 
 /// A pair has converged when `‖L x − λ M x‖_{M⁻¹} ≤ TOLERANCE · (λ_max_wanted + s)` with x M-unit.
-/// Why this value: the residual is formed with the exact sparse K, so its floor is about
+/// Why this value: the residual is formed with the exact sparse L, so its floor is about
 /// ε·‖K‖ ≈ 2e-16·λ_max(mesh), a few 1e-13 of the wanted eigenvalues even on the finest meshes here;
 /// 1e-10 stays clear of it while making the eigenvectors far more accurate than their `f32` table.
 pub const TOLERANCE: f64 = 1e-10;
 
-/// Applications of K⁻¹M between two Rayleigh–Ritz projections. Why 2: on large meshes the dense
-/// n × p × p products of the projection cost several times the sparse triangular solves, so squaring
-/// the convergence factor per projection (≈ 0.45 → 0.2) for one more solve halves the total time. The
-/// block stays well conditioned because its columns are already Ritz vectors, which K⁻¹M maps to
-/// nearly M-orthogonal vectors.
-pub const SOLVES_PER_PROJECTION: usize = 2;
+/// Block size b: the largest exact eigenvalue multiplicity found without relying on rounding. Why 8:
+/// exact multiplicities come from symmetry, and the irreducible representations of the 3D point
+/// groups have dimension at most 5 (icosahedral); 8 leaves room and keeps each step's solve cheap.
+pub const BLOCK: usize = 8;
 
-/// Iterations before the solver gives up and reports [`Error::NotConverged`]; typical runs need 20–40.
-pub const MAX_ITERATIONS: usize = 500;
+/// A new direction is dropped (the Krylov space already holds it) when less than this fraction of
+/// its block's largest column survives the orthogonalisation: below that it is rounding noise.
+pub const DEFLATION: f64 = 1e-10;
+
+/// Largest basis before the solver gives up with [`Error::NotConverged`]; typical runs need 2–3 ×
+/// the wanted count.
+pub fn max_basis(count: usize) -> usize {
+    6 * count + 8 * BLOCK
+}
 
 /// Seed of the start block; fixed so that results are reproducible.
 pub const START_SEED: u64 = 0x6e62_7264_665f_6569; // "nbrdf_ei"
@@ -68,14 +73,14 @@ pub const START_SEED: u64 = 0x6e62_7264_665f_6569; // "nbrdf_ei"
 pub enum Method {
     /// Dense symmetric eigendecomposition (small meshes).
     Dense,
-    /// Shift-invert block subspace iteration; the factorised matrix is L + sM.
-    ShiftInvertSubspace {
+    /// Shift-invert block Lanczos; the factorised matrix is L + sM.
+    ShiftInvertLanczos {
         /// The shift s > 0.
         shift: f64,
-        /// Block size p.
-        block: usize,
-        /// Iterations until convergence.
-        iterations: usize,
+        /// Size of the final Krylov basis.
+        basis: usize,
+        /// Right-hand sides solved with the factor.
+        solves: usize,
     },
 }
 
@@ -94,13 +99,13 @@ pub struct Eigenpairs {
 /// Which solver [`smallest_eigenpairs_with`] uses.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Solver {
-    /// Dense up to [`DENSE_MAX_VERTICES`] (or when the block would fill the whole space), shift-invert
-    /// subspace iteration above.
+    /// Dense up to [`DENSE_MAX_VERTICES`] (or when the largest basis would fill the whole space),
+    /// shift-invert block Lanczos above.
     Auto,
     /// Always dense: O(n³) time and O(n²) memory, meant for tests and small meshes.
     Dense,
-    /// Shift-invert subspace iteration; falls back to dense when the block would fill the whole space.
-    ShiftInvertSubspace,
+    /// Shift-invert block Lanczos; falls back to dense when the largest basis would fill the whole space.
+    ShiftInvertLanczos,
 }
 
 /// Computes the `count` smallest eigenpairs of L φ = λ M φ with [`Solver::Auto`]. `count` must be in
@@ -119,19 +124,19 @@ pub fn smallest_eigenpairs_with(lap: &CotanLaplacian, count: usize, solver: Solv
         // Cannot happen for an assembled valid mesh; guards the square roots below.
         return Err(Error::Factorization { reason: "mass matrix has a non-positive or non-finite entry".into() });
     }
-    let block = block_size(count);
+    let too_big = max_basis(count) >= n;
     let use_dense = match solver {
-        Solver::Auto => n <= DENSE_MAX_VERTICES || block >= n,
+        Solver::Auto => n <= DENSE_MAX_VERTICES || too_big,
         Solver::Dense => true,
-        Solver::ShiftInvertSubspace => block >= n,
+        Solver::ShiftInvertLanczos => too_big,
     };
     let (mut values, mut vectors, method) = if use_dense {
         let (values, vectors) = dense(lap, count)?;
         (values, vectors, Method::Dense)
     } else {
         let shift = SHIFT_FRACTION * 8.0 * std::f64::consts::PI / lap.mass().iter().sum::<f64>();
-        let (values, vectors, iterations) = subspace_iteration(lap, count, shift, block)?;
-        (values, vectors, Method::ShiftInvertSubspace { shift, block, iterations })
+        let (values, vectors, basis, solves) = block_lanczos(lap, count, shift)?;
+        (values, vectors, Method::ShiftInvertLanczos { shift, basis, solves })
     };
     normalize_signs(vectors.as_mut());
     // Rayleigh quotients: more accurate than 1/μ − s, and the same formula for both methods.
@@ -150,13 +155,6 @@ pub fn smallest_eigenpairs_with(lap: &CotanLaplacian, count: usize, solver: Solv
     let values = order.iter().map(|&j| values[j]).collect();
     let vectors = Mat::from_fn(n, count, |i, j| vectors[(i, order[j])]);
     Ok(Eigenpairs { values, vectors, method })
-}
-
-/// Block size p: about twice the wanted count, as ARPACK's default `ncv = max(2k + 1, 20)`, so that
-/// `λ_count / λ_{p+1} ≈ 1/2` by Weyl's law (λ_j grows linearly with j on a surface); the extra 16
-/// covers a multiplet that straddles `count` on small k.
-fn block_size(count: usize) -> usize {
-    2 * count + 16
 }
 
 /// Dense path: eigendecomposition of the symmetric `M^{-1/2} L M^{-1/2}`.
@@ -181,12 +179,7 @@ fn dense(lap: &CotanLaplacian, count: usize) -> Result<(Vec<f64>, Mat<f64>), Err
     Ok((values, vectors))
 }
 
-fn subspace_iteration(
-    lap: &CotanLaplacian,
-    count: usize,
-    shift: f64,
-    p: usize,
-) -> Result<(Vec<f64>, Mat<f64>, usize), Error> {
+fn block_lanczos(lap: &CotanLaplacian, count: usize, shift: f64) -> Result<(Vec<f64>, Mat<f64>, usize, usize), Error> {
     let n = lap.len();
     let mass = lap.mass();
     let mut triplets: Vec<Triplet<usize, usize, f64>> = lap
@@ -200,110 +193,158 @@ fn subspace_iteration(
     let factor = k
         .sp_cholesky(Side::Lower)
         .map_err(|e| Error::Factorization { reason: format!("Cholesky of L + sM (s = {shift:e}): {e:?}") })?;
-    // K y for the first `cols` columns of a block, from the stored entries: exact, unlike the identity
-    // K K⁻¹ = I through the factor.
-    let apply_k = |y: &Mat<f64>, cols: usize| {
-        let mut out = Mat::<f64>::zeros(n, cols);
-        for j in 0..cols {
-            let (src, dst) = (y.col_as_slice(j), out.col_as_slice_mut(j));
-            for i in 0..n {
-                dst[i] = shift * mass[i] * src[i];
-            }
-            for &(row, col, value) in lap.stiffness_entries() {
-                dst[row as usize] += value * src[col as usize];
-            }
-        }
-        out
-    };
-    let scale_rows = |y: &Mat<f64>, cols: usize| {
-        let mut out = Mat::<f64>::zeros(n, cols);
-        for j in 0..cols {
-            for ((d, s), m) in out.col_as_slice_mut(j).iter_mut().zip(y.col_as_slice(j)).zip(mass) {
-                *d = m * s;
-            }
-        }
-        out
-    };
 
-    let mut x = start_block(n, p);
+    let d_max = max_basis(count).min(n);
+    let mut v = Mat::<f64>::zeros(n, d_max);
+    let mut t = Mat::<f64>::zeros(d_max, d_max);
+    let mut d = append_orthonormal(&mut v, 0, start_block(n, BLOCK.min(d_max)), mass);
+    let mut applied = 0usize; // leading columns of V whose image under A is in T
+    let mut solves = 0usize;
+    // Shift-invert Lanczos needs a basis of about 2–5 × count here; checks before 2 × count would
+    // only cost time.
+    let check_every = (count / 8).max(BLOCK);
+    let mut next_check = 2 * count;
     let mut worst = f64::INFINITY;
-    for iteration in 1..=MAX_ITERATIONS {
-        let mut y = scale_rows(&x, p);
-        factor.solve_in_place(y.as_mut());
-        for _ in 1..SOLVES_PER_PROJECTION {
-            y = scale_rows(&y, p);
-            factor.solve_in_place(y.as_mut());
-        }
-        // Unit M-norm columns keep M_r close to the identity: the raw columns differ in size by the
-        // ratio of their eigenvalues (up to 1/s for the constant), which would cost digits in its
-        // Cholesky factor.
-        for j in 0..p {
-            let col = y.col_as_slice_mut(j);
-            let norm = col.iter().zip(mass).map(|(v, m)| m * v * v).sum::<f64>().sqrt();
-            if !(norm > 0.0 && norm.is_finite()) {
-                return Err(Error::NotConverged {
-                    wanted: count,
-                    converged: 0,
-                    detail: format!("subspace iteration: block column {j} vanished or overflowed"),
-                });
+    loop {
+        let exhausted = applied == d; // no new direction: the basis spans an invariant subspace
+        if !exhausted {
+            // W = A V_new = K⁻¹ M V_new; its M-projection on the whole basis is T's new block column.
+            let mut w = scale_rows(v.as_ref().subcols(applied, d - applied), mass);
+            factor.solve_in_place(w.as_mut());
+            solves += d - applied;
+            let mw = scale_rows(w.as_ref(), mass);
+            let mut c = Mat::<f64>::zeros(d, d - applied);
+            matmul(c.as_mut(), Accum::Replace, v.as_ref().subcols(0, d).transpose(), mw.as_ref(), 1.0, Par::Seq);
+            for j in 0..d - applied {
+                for i in 0..d {
+                    t[(i, applied + j)] = c[(i, j)];
+                    if i < applied {
+                        t[(applied + j, i)] = c[(i, j)];
+                    }
+                }
             }
-            col.iter_mut().for_each(|v| *v /= norm);
+            applied = d;
+            if d < d_max {
+                d = append_orthonormal(&mut v, d, w, mass);
+            }
         }
-        let ky = apply_k(&y, p);
-        let my = scale_rows(&y, p);
-        let kr = symmetric_part(y.transpose() * &ky);
-        let mr = symmetric_part(y.transpose() * &my);
-        let (theta, z) = projected_pencil(kr, mr).map_err(|detail| Error::NotConverged { wanted: count, converged: 0, detail })?;
-        x = &y * &z;
-        // Residuals K x − θ M x = L x − λ M x of the wanted Ritz pairs. The sparse products cost
-        // O(nnz · count), less than reusing K Y through another dense n × p × p product.
-        let kx = apply_k(&x, count);
-        let scale = theta[count - 1];
-        worst = (0..count)
-            .map(|j| {
-                let (kx, x) = (kx.col_as_slice(j), x.col_as_slice(j));
-                let r2: f64 = (0..n).map(|i| (kx[i] - theta[j] * mass[i] * x[i]).powi(2) / mass[i]).sum();
-                r2.sqrt() / scale
-            })
-            .fold(0.0, f64::max);
-        if worst <= TOLERANCE {
-            let values = theta[..count].iter().map(|t| t - shift).collect();
-            let vectors = Mat::from_fn(n, count, |i, j| x[(i, j)]);
-            return Ok((values, vectors, iteration));
+        if applied >= count && (applied >= next_check || exhausted || d == applied) {
+            match rayleigh_ritz(lap, v.as_ref().subcols(0, applied), t.as_ref(), applied, count, shift) {
+                Ok((values, x)) => return Ok((values, x, applied, solves)),
+                Err(residual) => worst = residual,
+            }
+            next_check = applied + check_every;
         }
-        if !worst.is_finite() {
-            break;
+        if exhausted || (applied == d && d == d_max) {
+            return Err(Error::NotConverged {
+                wanted: count,
+                converged: 0,
+                detail: format!(
+                    "block Lanczos: relative residual {worst:e} with a basis of {applied} vectors{}",
+                    if d == d_max { " (largest basis reached)" } else { " (Krylov space exhausted)" }
+                ),
+            });
         }
     }
-    Err(Error::NotConverged {
-        wanted: count,
-        converged: 0,
-        detail: format!("subspace iteration: relative residual {worst:e} after {MAX_ITERATIONS} iterations"),
-    })
 }
 
-fn symmetric_part(a: Mat<f64>) -> Mat<f64> {
-    Mat::from_fn(a.nrows(), a.ncols(), |i, j| 0.5 * (a[(i, j)] + a[(j, i)]))
+/// The `count` Ritz pairs of largest θ from the projected `T = Vᵀ M A V` (its leading `dim` block),
+/// as eigenpairs of the original problem (λ = 1/θ − s), if all have a relative residual within
+/// [`TOLERANCE`]; otherwise `Err` with the residual that failed.
+///
+/// The wanted pair of largest λ converges last (Lanczos converges from the ends of the spectrum
+/// inwards), so its residual alone is checked first: that costs one basis combination instead of
+/// `count`, which matters because checks run every few blocks.
+fn rayleigh_ritz(
+    lap: &CotanLaplacian,
+    v: MatRef<'_, f64>,
+    t: MatRef<'_, f64>,
+    dim: usize,
+    count: usize,
+    shift: f64,
+) -> Result<(Vec<f64>, Mat<f64>), f64> {
+    let n = lap.len();
+    let mass = lap.mass();
+    let tt = Mat::from_fn(dim, dim, |i, j| 0.5 * (t[(i, j)] + t[(j, i)]));
+    let evd = tt.self_adjoint_eigen(Side::Lower).map_err(|_| f64::INFINITY)?;
+    let theta = evd.S().column_vector();
+    let mut order: Vec<usize> = (0..dim).collect();
+    order.sort_by(|&a, &b| theta[b].total_cmp(&theta[a]));
+    // θ ≤ 0 would be a Ritz value outside the spectrum of the positive definite A: not converged.
+    let values: Vec<f64> =
+        order[..count].iter().map(|&j| if theta[j] > 0.0 { 1.0 / theta[j] - shift } else { f64::INFINITY }).collect();
+    let scale = values[count - 1] + shift;
+    let mut lx = vec![0.0; n];
+    let mut residual = |x: &[f64], lambda: f64| {
+        lap.apply_stiffness(x, &mut lx);
+        let r2: f64 = (0..n).map(|i| (lx[i] - lambda * mass[i] * x[i]).powi(2) / mass[i]).sum();
+        let r = r2.sqrt() / scale;
+        if r.is_finite() { r } else { f64::INFINITY }
+    };
+    let combine = |cols: &[usize]| {
+        let z = Mat::from_fn(dim, cols.len(), |i, j| evd.U()[(i, cols[j])]);
+        let mut x = Mat::<f64>::zeros(n, cols.len());
+        matmul(x.as_mut(), Accum::Replace, v, z.as_ref(), 1.0, Par::Seq);
+        x
+    };
+    let last = combine(&order[count - 1..count]);
+    let r = residual(last.col_as_slice(0), values[count - 1]);
+    if !(r <= TOLERANCE) {
+        return Err(r);
+    }
+    let x = combine(&order[..count]);
+    let worst = (0..count).map(|j| residual(x.col_as_slice(j), values[j])).fold(0.0, f64::max);
+    if worst <= TOLERANCE { Ok((values, x)) } else { Err(worst) }
 }
 
-/// Solves the small pencil `K_r Z = M_r Z Θ` through `M_r = C Cᵀ`: the eigenvectors W of the symmetric
-/// `C⁻¹ K_r C⁻ᵀ` give `Z = C⁻ᵀ W`, hence `Zᵀ M_r Z = I` (M-orthonormal Ritz vectors). Θ ascending.
-fn projected_pencil(kr: Mat<f64>, mr: Mat<f64>) -> Result<(Vec<f64>, Mat<f64>), String> {
-    let llt = mr.llt(Side::Lower).map_err(|e| format!("projected mass matrix not positive definite: {e:?}"))?;
-    let c = llt.L();
-    let mut t = kr;
-    solve_lower_triangular_in_place(c, t.as_mut(), Par::Seq);
-    let mut a = t.transpose().to_owned();
-    solve_lower_triangular_in_place(c, a.as_mut(), Par::Seq);
-    let a = symmetric_part(a);
-    let evd = a.self_adjoint_eigen(Side::Lower).map_err(|e| format!("projected eigenproblem: {e:?}"))?;
-    let s = evd.S().column_vector();
-    let mut order: Vec<usize> = (0..s.nrows()).collect();
-    order.sort_by(|&i, &j| s[i].total_cmp(&s[j]));
-    let theta = order.iter().map(|&j| s[j]).collect();
-    let mut z = Mat::from_fn(a.nrows(), a.ncols(), |i, j| evd.U()[(i, order[j])]);
-    solve_upper_triangular_in_place(c.transpose(), z.as_mut(), Par::Seq);
-    Ok((theta, z))
+/// M-orthogonalises the columns of `w` against `v[:, ..d]` and among themselves, twice, drops the
+/// directions that do not survive ([`DEFLATION`]), stores the rest in `v[:, d..]` (as many as fit) and
+/// returns the new column count.
+fn append_orthonormal(v: &mut Mat<f64>, d: usize, w: Mat<f64>, mass: &[f64]) -> usize {
+    let mut w = w;
+    let mut floor = (0..w.ncols())
+        .map(|j| w.col_as_slice(j).iter().zip(mass).map(|(x, m)| m * x * x).sum::<f64>())
+        .fold(0.0, f64::max)
+        * DEFLATION
+        * DEFLATION;
+    for _pass in 0..2 {
+        if d > 0 {
+            let mw = scale_rows(w.as_ref(), mass);
+            let mut c = Mat::<f64>::zeros(d, w.ncols());
+            matmul(c.as_mut(), Accum::Replace, v.as_ref().subcols(0, d).transpose(), mw.as_ref(), 1.0, Par::Seq);
+            matmul(w.as_mut(), Accum::Add, v.as_ref().subcols(0, d), c.as_ref(), -1.0, Par::Seq);
+        }
+        // SVQB: with the Gram matrix G = Wᵀ M W = U D Uᵀ, the columns of W U D^{-1/2} are M-orthonormal;
+        // eigenvalues of G below the floor are directions already in the basis.
+        let mw = scale_rows(w.as_ref(), mass);
+        let mut g = Mat::<f64>::zeros(w.ncols(), w.ncols());
+        matmul(g.as_mut(), Accum::Replace, w.transpose(), mw.as_ref(), 1.0, Par::Seq);
+        let g = Mat::from_fn(g.nrows(), g.ncols(), |i, j| 0.5 * (g[(i, j)] + g[(j, i)]));
+        let Ok(evd) = g.self_adjoint_eigen(Side::Lower) else {
+            return d;
+        };
+        let s = evd.S().column_vector();
+        let keep: Vec<usize> = (0..s.nrows()).filter(|&j| s[j] > floor && s[j].is_finite()).collect();
+        if keep.is_empty() {
+            return d;
+        }
+        let q = Mat::from_fn(g.nrows(), keep.len(), |i, j| evd.U()[(i, keep[j])] / s[keep[j]].sqrt());
+        let mut next = Mat::<f64>::zeros(w.nrows(), keep.len());
+        matmul(next.as_mut(), Accum::Replace, w.as_ref(), q.as_ref(), 1.0, Par::Seq);
+        w = next;
+        // After the first pass the columns are M-unit: the second pass drops only what is now noise.
+        floor = DEFLATION * DEFLATION;
+    }
+    let cols = w.ncols().min(v.ncols() - d);
+    for j in 0..cols {
+        v.col_as_slice_mut(d + j).copy_from_slice(w.col_as_slice(j));
+    }
+    d + cols
+}
+
+/// `M y` for a block (M diagonal).
+fn scale_rows(y: MatRef<'_, f64>, mass: &[f64]) -> Mat<f64> {
+    Mat::from_fn(y.nrows(), y.ncols(), |i, j| mass[i] * y[(i, j)])
 }
 
 /// A fixed pseudo-random start block in [-1, 1)^{n×p} from SplitMix64 (Steele, Lea & Flood 2014).
