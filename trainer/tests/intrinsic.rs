@@ -15,14 +15,40 @@ use trainer::intrinsic::{cache_key, mesh, Error, IntrinsicEncoding, Method};
 fn icosphere(levels: usize) -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
     let t = (1.0 + 5f64.sqrt()) / 2.0;
     let mut p: Vec<[f64; 3]> = vec![
-        [-1.0, t, 0.0], [1.0, t, 0.0], [-1.0, -t, 0.0], [1.0, -t, 0.0],
-        [0.0, -1.0, t], [0.0, 1.0, t], [0.0, -1.0, -t], [0.0, 1.0, -t],
-        [t, 0.0, -1.0], [t, 0.0, 1.0], [-t, 0.0, -1.0], [-t, 0.0, 1.0],
+        [-1.0, t, 0.0],
+        [1.0, t, 0.0],
+        [-1.0, -t, 0.0],
+        [1.0, -t, 0.0],
+        [0.0, -1.0, t],
+        [0.0, 1.0, t],
+        [0.0, -1.0, -t],
+        [0.0, 1.0, -t],
+        [t, 0.0, -1.0],
+        [t, 0.0, 1.0],
+        [-t, 0.0, -1.0],
+        [-t, 0.0, 1.0],
     ];
     let mut tris: Vec<[u32; 3]> = vec![
-        [0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4], [11, 10, 2],
-        [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8], [3, 8, 9], [4, 9, 5],
-        [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1],
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
     ];
     let unit = |v: [f64; 3]| {
         let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
@@ -51,7 +77,9 @@ fn icosphere(levels: usize) -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
 /// The unit square as an m × m grid of right triangles with alternating diagonals.
 fn unit_square(m: usize) -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
     let side = m + 1;
-    let positions = (0..side * side).map(|i| [(i % side) as f32 / m as f32, (i / side) as f32 / m as f32, 0.0]).collect();
+    let positions = (0..side * side)
+        .map(|i| [(i % side) as f32 / m as f32, (i / side) as f32 / m as f32, 0.0])
+        .collect();
     let mut triangles = Vec::new();
     for j in 0..m {
         for i in 0..m {
@@ -84,7 +112,11 @@ fn sphere_eigenvalues_approach_l_times_l_plus_1_with_multiplicity_2l_plus_1() {
     let (positions, triangles) = icosphere(4);
     let (enc, report) = IntrinsicEncoding::compute_with_report(&positions, &triangles, 24).unwrap();
     assert!(matches!(report.method, Method::ShiftInvertLanczos { .. }));
-    assert!(report.dropped_eigenvalue.abs() < 1e-8, "constant mode λ0 = {}", report.dropped_eigenvalue);
+    assert!(
+        report.dropped_eigenvalue.abs() < 1e-8,
+        "constant mode λ0 = {}",
+        report.dropped_eigenvalue
+    );
     // Tolerance 1.5 %: the cotangent discretisation converges as O(h²); at this resolution (edge ≈ 0.076)
     // the l ≤ 4 eigenvalues deviate by at most 0.7 % (measured: 2.0000, 5.9915, 11.950–11.963,
     // 19.869–19.877), while neighbouring clusters differ by ≥ 50 %, so 1.5 % still separates them and
@@ -96,11 +128,19 @@ fn sphere_eigenvalues_approach_l_times_l_plus_1_with_multiplicity_2l_plus_1() {
         let exact = (l * (l + 1)) as f64;
         for _ in 0..2 * l + 1 {
             let rel = (lambda[i] - exact) / exact;
-            assert!(rel.abs() < 0.015, "λ_{} = {} for l = {l}: expected {exact} within 1.5 %", i + 1, lambda[i]);
+            assert!(
+                rel.abs() < 0.015,
+                "λ_{} = {} for l = {l}: expected {exact} within 1.5 %",
+                i + 1,
+                lambda[i]
+            );
             i += 1;
         }
     }
-    assert!(lambda.windows(2).all(|w| w[0] <= w[1]), "eigenvalues ascending: {lambda:?}");
+    assert!(
+        lambda.windows(2).all(|w| w[0] <= w[1]),
+        "eigenvalues ascending: {lambda:?}"
+    );
     eprintln!("sphere l=1..4: {lambda:.4?}");
 }
 
@@ -136,7 +176,13 @@ fn eigenvectors_are_m_orthonormal_and_solve_the_generalised_problem() {
         let mut lx = vec![0.0; x.len()];
         lap.apply_stiffness(&x, &mut lx);
         let lam = pairs.values[i];
-        let r: f64 = lx.iter().zip(&x).zip(m).map(|((l, x), m)| (l - lam * m * x).powi(2)).sum::<f64>().sqrt();
+        let r: f64 = lx
+            .iter()
+            .zip(&x)
+            .zip(m)
+            .map(|((l, x), m)| (l - lam * m * x).powi(2))
+            .sum::<f64>()
+            .sqrt();
         let norm: f64 = lx.iter().map(|v| v * v).sum::<f64>().sqrt();
         if i > 0 {
             worst_res = worst_res.max(r / norm);
@@ -187,7 +233,10 @@ fn interpolation_at_a_vertex_is_its_row_and_at_a_midpoint_the_mean() {
         bary[corner] = 1.0;
         enc.interpolate(tri, bary, &mut out).unwrap();
         assert_eq!(out.as_slice(), enc.vertex(v).unwrap());
-        assert_eq!(enc.vertex(v).unwrap(), &enc.values()[v as usize * 10..v as usize * 10 + 10]);
+        assert_eq!(
+            enc.vertex(v).unwrap(),
+            &enc.values()[v as usize * 10..v as usize * 10 + 10]
+        );
     }
     enc.interpolate(tri, [0.5, 0.5, 0.0], &mut out).unwrap();
     let (r0, r1) = (enc.vertex(tri[0]).unwrap(), enc.vertex(tri[1]).unwrap());
@@ -195,10 +244,17 @@ fn interpolation_at_a_vertex_is_its_row_and_at_a_midpoint_the_mean() {
         assert!((out[j] - 0.5 * (r0[j] + r1[j])).abs() < 1e-7);
     }
     let mut many = vec![0.0f32; 20];
-    enc.interpolate_many(&[tri, tri], &[[1.0, 0.0, 0.0], [0.0, 0.5, 0.5]], &mut many).unwrap();
+    enc.interpolate_many(&[tri, tri], &[[1.0, 0.0, 0.0], [0.0, 0.5, 0.5]], &mut many)
+        .unwrap();
     assert_eq!(&many[..10], enc.vertex(tri[0]).unwrap());
-    assert!(matches!(enc.interpolate(tri, [1.0, 0.0, 0.0], &mut [0.0; 3]), Err(Error::OutputLength { expected: 10, got: 3 })));
-    assert!(matches!(enc.interpolate([0, 1, 9999], [1.0, 0.0, 0.0], &mut out), Err(Error::VertexOutOfRange { vertex: 9999, .. })));
+    assert!(matches!(
+        enc.interpolate(tri, [1.0, 0.0, 0.0], &mut [0.0; 3]),
+        Err(Error::OutputLength { expected: 10, got: 3 })
+    ));
+    assert!(matches!(
+        enc.interpolate([0, 1, 9999], [1.0, 0.0, 0.0], &mut out),
+        Err(Error::VertexOutOfRange { vertex: 9999, .. })
+    ));
 }
 
 #[test]
@@ -242,15 +298,30 @@ fn an_isolated_vertex_gets_a_zero_row_and_changes_nothing_else() {
 #[test]
 fn bad_input_gives_error_values() {
     let (positions, triangles) = icosphere(0); // 12 vertices: k ≤ 11
-    assert!(matches!(IntrinsicEncoding::compute(&positions, &triangles, 12), Err(Error::InvalidK { k: 12, max: 11 })));
-    assert!(matches!(IntrinsicEncoding::compute(&positions, &triangles, 0), Err(Error::InvalidK { .. })));
+    assert!(matches!(
+        IntrinsicEncoding::compute(&positions, &triangles, 12),
+        Err(Error::InvalidK { k: 12, max: 11 })
+    ));
+    assert!(matches!(
+        IntrinsicEncoding::compute(&positions, &triangles, 0),
+        Err(Error::InvalidK { .. })
+    ));
     assert!(IntrinsicEncoding::compute(&positions, &triangles, 11).is_ok());
-    assert!(matches!(IntrinsicEncoding::compute(&[], &[], 4), Err(Error::EmptyMesh { .. })));
+    assert!(matches!(
+        IntrinsicEncoding::compute(&[], &[], 4),
+        Err(Error::EmptyMesh { .. })
+    ));
     let mut bad = positions.clone();
     bad[3][0] = f32::INFINITY;
-    assert!(matches!(IntrinsicEncoding::compute(&bad, &triangles, 4), Err(Error::NonFinitePosition { vertex: 3 })));
+    assert!(matches!(
+        IntrinsicEncoding::compute(&bad, &triangles, 4),
+        Err(Error::NonFinitePosition { vertex: 3 })
+    ));
     let flat = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0]];
-    assert!(matches!(IntrinsicEncoding::compute(&flat, &[[0, 1, 2]], 1), Err(Error::NoValidTriangles { degenerate: 1 })));
+    assert!(matches!(
+        IntrinsicEncoding::compute(&flat, &[[0, 1, 2]], 1),
+        Err(Error::NoValidTriangles { degenerate: 1 })
+    ));
 }
 
 #[test]
@@ -258,24 +329,44 @@ fn cache_round_trip_is_bit_exact_and_corruption_is_an_error() {
     let dir = tempfile::tempdir().unwrap();
     let (positions, triangles) = icosphere(2);
     let first = IntrinsicEncoding::load_or_compute(dir.path(), &positions, &triangles, 12).unwrap();
-    let files: Vec<PathBuf> = std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().path()).collect();
+    let files: Vec<PathBuf> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
     assert_eq!(files.len(), 1, "one cache file and no temporary left behind: {files:?}");
     let path = &files[0];
-    assert!(path.file_name().unwrap().to_str().unwrap().contains(&format!("{:016x}", cache_key(&positions, &triangles, 12))));
+    assert!(path
+        .file_name()
+        .unwrap()
+        .to_str()
+        .unwrap()
+        .contains(&format!("{:016x}", cache_key(&positions, &triangles, 12))));
 
     let loaded = IntrinsicEncoding::load(path).unwrap();
-    assert_eq!(loaded.values().iter().map(|v| v.to_bits()).collect::<Vec<_>>(), first.values().iter().map(|v| v.to_bits()).collect::<Vec<_>>());
-    assert_eq!(loaded.eigenvalues().iter().map(|v| v.to_bits()).collect::<Vec<_>>(), first.eigenvalues().iter().map(|v| v.to_bits()).collect::<Vec<_>>());
+    assert_eq!(
+        loaded.values().iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+        first.values().iter().map(|v| v.to_bits()).collect::<Vec<_>>()
+    );
+    assert_eq!(
+        loaded.eigenvalues().iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+        first.eigenvalues().iter().map(|v| v.to_bits()).collect::<Vec<_>>()
+    );
     assert_eq!(loaded, first);
     // The second call finds the file.
-    assert_eq!(IntrinsicEncoding::load_or_compute(dir.path(), &positions, &triangles, 12).unwrap(), first);
+    assert_eq!(
+        IntrinsicEncoding::load_or_compute(dir.path(), &positions, &triangles, 12).unwrap(),
+        first
+    );
 
     let good = std::fs::read(path).unwrap();
     let mut flipped = good.clone();
     flipped[100] ^= 0x10;
     std::fs::write(path, &flipped).unwrap();
     assert!(matches!(IntrinsicEncoding::load(path), Err(Error::CorruptCache { .. })));
-    assert!(matches!(IntrinsicEncoding::load_or_compute(dir.path(), &positions, &triangles, 12), Err(Error::CorruptCache { .. })));
+    assert!(matches!(
+        IntrinsicEncoding::load_or_compute(dir.path(), &positions, &triangles, 12),
+        Err(Error::CorruptCache { .. })
+    ));
     std::fs::write(path, &good[..good.len() - 9]).unwrap();
     assert!(matches!(IntrinsicEncoding::load(path), Err(Error::CorruptCache { .. })));
     std::fs::write(path, b"NBRDF").unwrap();
@@ -291,13 +382,23 @@ fn data_dir() -> PathBuf {
 
 fn load_obj(path: &std::path::Path) -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
     // Not `single_index`: that would split vertices along texture seams and cut the surface apart.
-    let options = tobj::LoadOptions { triangulate: true, single_index: false, ..Default::default() };
+    let options = tobj::LoadOptions {
+        triangulate: true,
+        single_index: false,
+        ..Default::default()
+    };
     let (models, _) = tobj::load_obj(path, &options).unwrap();
     let (mut positions, mut triangles) = (Vec::new(), Vec::new());
     for model in models {
         let offset = positions.len() as u32;
         positions.extend(model.mesh.positions.chunks_exact(3).map(|p| [p[0], p[1], p[2]]));
-        triangles.extend(model.mesh.indices.chunks_exact(3).map(|t| [t[0] + offset, t[1] + offset, t[2] + offset]));
+        triangles.extend(
+            model
+                .mesh
+                .indices
+                .chunks_exact(3)
+                .map(|t| [t[0] + offset, t[1] + offset, t[2] + offset]),
+        );
     }
     (positions, triangles)
 }
@@ -306,7 +407,10 @@ fn load_obj(path: &std::path::Path) -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
 fn spot_k64_solves_in_seconds() {
     let path = data_dir().join("meshes/spot.obj");
     if !path.exists() {
-        eprintln!("SKIPPED: {} not found (set NBRDF_DATA to the data directory)", path.display());
+        eprintln!(
+            "SKIPPED: {} not found (set NBRDF_DATA to the data directory)",
+            path.display()
+        );
         return;
     }
     let (positions, triangles) = load_obj(&path);
@@ -333,10 +437,16 @@ fn spot_k64_solves_in_seconds() {
 fn all_data_meshes_k64() {
     let dir = data_dir().join("meshes");
     let Ok(entries) = std::fs::read_dir(&dir) else {
-        eprintln!("SKIPPED: {} not found (set NBRDF_DATA to the data directory)", dir.display());
+        eprintln!(
+            "SKIPPED: {} not found (set NBRDF_DATA to the data directory)",
+            dir.display()
+        );
         return;
     };
-    let mut paths: Vec<PathBuf> = entries.map(|e| e.unwrap().path()).filter(|p| p.extension().is_some_and(|e| e == "obj")).collect();
+    let mut paths: Vec<PathBuf> = entries
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "obj"))
+        .collect();
     paths.sort();
     for path in paths {
         let (positions, triangles) = load_obj(&path);

@@ -82,7 +82,11 @@ pub(crate) fn encode(enc: &IntrinsicEncoding) -> Vec<u8> {
 /// Parses a cache file; the `Err` is the reason it is unusable.
 pub(crate) fn decode(bytes: &[u8]) -> Result<IntrinsicEncoding, String> {
     if bytes.len() < HEADER_LEN + 4 {
-        return Err(format!("{} bytes, shorter than the {}-byte header and checksum", bytes.len(), HEADER_LEN + 4));
+        return Err(format!(
+            "{} bytes, shorter than the {}-byte header and checksum",
+            bytes.len(),
+            HEADER_LEN + 4
+        ));
     }
     if bytes[..8] != MAGIC {
         return Err("bad magic: not an nbrdf eigenfunction cache".into());
@@ -96,7 +100,9 @@ pub(crate) fn decode(bytes: &[u8]) -> Result<IntrinsicEncoding, String> {
     let stored = u32::from_le_bytes(tail.try_into().expect("4 bytes"));
     let computed = crc32fast::hash(body);
     if stored != computed {
-        return Err(format!("checksum mismatch: stored {stored:08x}, computed {computed:08x}"));
+        return Err(format!(
+            "checksum mismatch: stored {stored:08x}, computed {computed:08x}"
+        ));
     }
     let key = u64::from_le_bytes(bytes[16..24].try_into().expect("8 bytes"));
     let n = u32_at(24) as usize;
@@ -107,7 +113,10 @@ pub(crate) fn decode(bytes: &[u8]) -> Result<IntrinsicEncoding, String> {
         .and_then(|v| v.checked_add(8 * k + HEADER_LEN + 4))
         .ok_or_else(|| format!("sizes n = {n}, k = {k} overflow"))?;
     if bytes.len() != expected {
-        return Err(format!("{} bytes, but n = {n} and k = {k} need {expected}", bytes.len()));
+        return Err(format!(
+            "{} bytes, but n = {n} and k = {k} need {expected}",
+            bytes.len()
+        ));
     }
     let mut offset = HEADER_LEN;
     let eigenvalues: Vec<f64> = (0..k)
@@ -126,8 +135,14 @@ pub(crate) fn decode(bytes: &[u8]) -> Result<IntrinsicEncoding, String> {
 
 /// Reads a cache file; any problem with its content is [`Error::CorruptCache`].
 pub(crate) fn read(path: &Path) -> Result<IntrinsicEncoding, Error> {
-    let bytes = std::fs::read(path).map_err(|source| Error::Io { path: path.to_owned(), source })?;
-    decode(&bytes).map_err(|reason| Error::CorruptCache { path: path.to_owned(), reason })
+    let bytes = std::fs::read(path).map_err(|source| Error::Io {
+        path: path.to_owned(),
+        source,
+    })?;
+    decode(&bytes).map_err(|reason| Error::CorruptCache {
+        path: path.to_owned(),
+        reason,
+    })
 }
 
 /// Writes `bytes` to `path` atomically: temporary file in the same directory, flushed, then renamed.
@@ -136,9 +151,14 @@ pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), Error> {
         let p = p.to_owned();
         move |source| Error::Io { path: p, source }
     };
-    let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let dir = path
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
     std::fs::create_dir_all(dir).map_err(io(dir))?;
-    let nanos = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.subsec_nanos());
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.subsec_nanos());
     let mut tmp_name = path.file_name().unwrap_or_default().to_owned();
     tmp_name.push(format!(".tmp-{}-{nanos}", std::process::id()));
     let tmp: PathBuf = dir.join(tmp_name);

@@ -118,11 +118,16 @@ pub fn smallest_eigenpairs(lap: &CotanLaplacian, count: usize) -> Result<Eigenpa
 pub fn smallest_eigenpairs_with(lap: &CotanLaplacian, count: usize, solver: Solver) -> Result<Eigenpairs, Error> {
     let n = lap.len();
     if count == 0 || count > n {
-        return Err(Error::InvalidK { k: count.saturating_sub(1), max: n.saturating_sub(1) });
+        return Err(Error::InvalidK {
+            k: count.saturating_sub(1),
+            max: n.saturating_sub(1),
+        });
     }
     if lap.mass().iter().any(|&m| !(m > 0.0 && m.is_finite())) {
         // Cannot happen for an assembled valid mesh; guards the square roots below.
-        return Err(Error::Factorization { reason: "mass matrix has a non-positive or non-finite entry".into() });
+        return Err(Error::Factorization {
+            reason: "mass matrix has a non-positive or non-finite entry".into(),
+        });
     }
     let too_big = max_basis(count) >= n;
     let use_dense = match solver {
@@ -154,7 +159,11 @@ pub fn smallest_eigenpairs_with(lap: &CotanLaplacian, count: usize, solver: Solv
     order.sort_by(|&a, &b| values[a].total_cmp(&values[b]));
     let values = order.iter().map(|&j| values[j]).collect();
     let vectors = Mat::from_fn(n, count, |i, j| vectors[(i, order[j])]);
-    Ok(Eigenpairs { values, vectors, method })
+    Ok(Eigenpairs {
+        values,
+        vectors,
+        method,
+    })
 }
 
 /// Dense path: eigendecomposition of the symmetric `M^{-1/2} L M^{-1/2}`.
@@ -166,9 +175,11 @@ fn dense(lap: &CotanLaplacian, count: usize) -> Result<(Vec<f64>, Mat<f64>), Err
         let (r, k) = (row as usize, col as usize);
         c[(r, k)] = value * inv_sqrt[r] * inv_sqrt[k];
     }
-    let evd = c
-        .self_adjoint_eigen(Side::Lower)
-        .map_err(|e| Error::NotConverged { wanted: count, converged: 0, detail: format!("dense eigendecomposition: {e:?}") })?;
+    let evd = c.self_adjoint_eigen(Side::Lower).map_err(|e| Error::NotConverged {
+        wanted: count,
+        converged: 0,
+        detail: format!("dense eigendecomposition: {e:?}"),
+    })?;
     let s = evd.S().column_vector();
     let u = evd.U();
     let mut order: Vec<usize> = (0..n).collect();
@@ -188,11 +199,12 @@ fn block_lanczos(lap: &CotanLaplacian, count: usize, shift: f64) -> Result<(Vec<
         .map(|&(r, c, v)| Triplet::new(r as usize, c as usize, v))
         .collect();
     triplets.extend(mass.iter().enumerate().map(|(i, &m)| Triplet::new(i, i, shift * m)));
-    let k = SparseColMat::<usize, f64>::try_new_from_triplets(n, n, &triplets)
-        .map_err(|e| Error::Factorization { reason: format!("building L + sM: {e:?}") })?;
-    let factor = k
-        .sp_cholesky(Side::Lower)
-        .map_err(|e| Error::Factorization { reason: format!("Cholesky of L + sM (s = {shift:e}): {e:?}") })?;
+    let k = SparseColMat::<usize, f64>::try_new_from_triplets(n, n, &triplets).map_err(|e| Error::Factorization {
+        reason: format!("building L + sM: {e:?}"),
+    })?;
+    let factor = k.sp_cholesky(Side::Lower).map_err(|e| Error::Factorization {
+        reason: format!("Cholesky of L + sM (s = {shift:e}): {e:?}"),
+    })?;
 
     let d_max = max_basis(count).min(n);
     let mut v = Mat::<f64>::zeros(n, d_max);
@@ -214,7 +226,14 @@ fn block_lanczos(lap: &CotanLaplacian, count: usize, shift: f64) -> Result<(Vec<
             solves += d - applied;
             let mw = scale_rows(w.as_ref(), mass);
             let mut c = Mat::<f64>::zeros(d, d - applied);
-            matmul(c.as_mut(), Accum::Replace, v.as_ref().subcols(0, d).transpose(), mw.as_ref(), 1.0, Par::Seq);
+            matmul(
+                c.as_mut(),
+                Accum::Replace,
+                v.as_ref().subcols(0, d).transpose(),
+                mw.as_ref(),
+                1.0,
+                Par::Seq,
+            );
             for j in 0..d - applied {
                 for i in 0..d {
                     t[(i, applied + j)] = c[(i, j)];
@@ -241,7 +260,11 @@ fn block_lanczos(lap: &CotanLaplacian, count: usize, shift: f64) -> Result<(Vec<
                 converged: 0,
                 detail: format!(
                     "block Lanczos: relative residual {worst:e} with a basis of {applied} vectors{}",
-                    if d == d_max { " (largest basis reached)" } else { " (Krylov space exhausted)" }
+                    if d == d_max {
+                        " (largest basis reached)"
+                    } else {
+                        " (Krylov space exhausted)"
+                    }
                 ),
             });
         }
@@ -271,15 +294,29 @@ fn rayleigh_ritz(
     let mut order: Vec<usize> = (0..dim).collect();
     order.sort_by(|&a, &b| theta[b].total_cmp(&theta[a]));
     // θ ≤ 0 would be a Ritz value outside the spectrum of the positive definite A: not converged.
-    let values: Vec<f64> =
-        order[..count].iter().map(|&j| if theta[j] > 0.0 { 1.0 / theta[j] - shift } else { f64::INFINITY }).collect();
+    let values: Vec<f64> = order[..count]
+        .iter()
+        .map(|&j| {
+            if theta[j] > 0.0 {
+                1.0 / theta[j] - shift
+            } else {
+                f64::INFINITY
+            }
+        })
+        .collect();
     let scale = values[count - 1] + shift;
     let mut lx = vec![0.0; n];
     let mut residual = |x: &[f64], lambda: f64| {
         lap.apply_stiffness(x, &mut lx);
-        let r2: f64 = (0..n).map(|i| (lx[i] - lambda * mass[i] * x[i]).powi(2) / mass[i]).sum();
+        let r2: f64 = (0..n)
+            .map(|i| (lx[i] - lambda * mass[i] * x[i]).powi(2) / mass[i])
+            .sum();
         let r = r2.sqrt() / scale;
-        if r.is_finite() { r } else { f64::INFINITY }
+        if r.is_finite() {
+            r
+        } else {
+            f64::INFINITY
+        }
     };
     let combine = |cols: &[usize]| {
         let z = Mat::from_fn(dim, cols.len(), |i, j| evd.U()[(i, cols[j])]);
@@ -293,8 +330,14 @@ fn rayleigh_ritz(
         return Err(r);
     }
     let x = combine(&order[..count]);
-    let worst = (0..count).map(|j| residual(x.col_as_slice(j), values[j])).fold(0.0, f64::max);
-    if worst <= TOLERANCE { Ok((values, x)) } else { Err(worst) }
+    let worst = (0..count)
+        .map(|j| residual(x.col_as_slice(j), values[j]))
+        .fold(0.0, f64::max);
+    if worst <= TOLERANCE {
+        Ok((values, x))
+    } else {
+        Err(worst)
+    }
 }
 
 /// M-orthogonalises the columns of `w` against `v[:, ..d]` and among themselves, twice, drops the
@@ -311,8 +354,22 @@ fn append_orthonormal(v: &mut Mat<f64>, d: usize, w: Mat<f64>, mass: &[f64]) -> 
         if d > 0 {
             let mw = scale_rows(w.as_ref(), mass);
             let mut c = Mat::<f64>::zeros(d, w.ncols());
-            matmul(c.as_mut(), Accum::Replace, v.as_ref().subcols(0, d).transpose(), mw.as_ref(), 1.0, Par::Seq);
-            matmul(w.as_mut(), Accum::Add, v.as_ref().subcols(0, d), c.as_ref(), -1.0, Par::Seq);
+            matmul(
+                c.as_mut(),
+                Accum::Replace,
+                v.as_ref().subcols(0, d).transpose(),
+                mw.as_ref(),
+                1.0,
+                Par::Seq,
+            );
+            matmul(
+                w.as_mut(),
+                Accum::Add,
+                v.as_ref().subcols(0, d),
+                c.as_ref(),
+                -1.0,
+                Par::Seq,
+            );
         }
         // SVQB: with the Gram matrix G = Wᵀ M W = U D Uᵀ, the columns of W U D^{-1/2} are M-orthonormal;
         // eigenvalues of G below the floor are directions already in the basis.

@@ -20,7 +20,10 @@ pub const fn extrinsic_len(frequencies: usize) -> usize {
 pub fn extrinsic_into(x: [f32; 3], frequencies: usize, out: &mut [f32]) -> Result<(), Error> {
     let expected = extrinsic_len(frequencies);
     if out.len() != expected {
-        return Err(Error::OutputLength { expected, got: out.len() });
+        return Err(Error::OutputLength {
+            expected,
+            got: out.len(),
+        });
     }
     let block = 1 + 2 * frequencies;
     for (v, chunk) in x.iter().zip(out.chunks_exact_mut(block)) {
@@ -68,6 +71,9 @@ mod tests {
     fn zero_frequencies_is_the_identity_and_a_wrong_length_is_an_error() {
         assert_eq!(extrinsic([1.0, 2.0, 3.0], 0), vec![1.0, 2.0, 3.0]);
         let mut short = [0.0; 8];
-        assert!(matches!(extrinsic_into([0.0; 3], 1, &mut short), Err(Error::OutputLength { expected: 9, got: 8 })));
+        assert!(matches!(
+            extrinsic_into([0.0; 3], 1, &mut short),
+            Err(Error::OutputLength { expected: 9, got: 8 })
+        ));
     }
 }

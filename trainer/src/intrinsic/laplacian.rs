@@ -206,7 +206,10 @@ mod tests {
         // Angle at vertex 2 is 2·atan(2) ≈ 127°; area = 1 · 0.25 / 2 = 0.125.
         let (_, lap) = laplacian(&[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.5, 0.25, 0.0]], &[[0, 1, 2]]);
         let m = lap.mass();
-        assert!((m[2] - 0.0625).abs() < 1e-12 && (m[0] - 0.03125).abs() < 1e-12 && (m[1] - 0.03125).abs() < 1e-12, "{m:?}");
+        assert!(
+            (m[2] - 0.0625).abs() < 1e-12 && (m[0] - 0.03125).abs() < 1e-12 && (m[1] - 0.03125).abs() < 1e-12,
+            "{m:?}"
+        );
         // The edge 0-1 faces the obtuse angle: its cotangent weight is negative.
         let w01 = lap.stiffness_entries().iter().find(|e| e.0 == 0 && e.1 == 1).unwrap().2;
         assert!(w01 > 0.0, "L_01 = -cot(127°)/2 must be positive, got {w01}");

@@ -51,11 +51,18 @@ pub struct ValidMesh {
 /// Checks `positions` and `triangles`, drops degenerate triangles and unreferenced vertices.
 pub fn validate(positions: &[[f32; 3]], triangles: &[[u32; 3]]) -> Result<ValidMesh, Error> {
     if positions.is_empty() || triangles.is_empty() {
-        return Err(Error::EmptyMesh { n_vertices: positions.len(), n_triangles: triangles.len() });
+        return Err(Error::EmptyMesh {
+            n_vertices: positions.len(),
+            n_triangles: triangles.len(),
+        });
     }
     // Triangle indices are u32, so a larger vertex array could not be addressed completely anyway.
     if positions.len() > u32::MAX as usize {
-        return Err(Error::TooLarge { what: "vertex count", found: positions.len(), max: u32::MAX as usize });
+        return Err(Error::TooLarge {
+            what: "vertex count",
+            found: positions.len(),
+            max: u32::MAX as usize,
+        });
     }
     if let Some(vertex) = positions.iter().position(|p| p.iter().any(|c| !c.is_finite())) {
         return Err(Error::NonFinitePosition { vertex });
@@ -65,7 +72,11 @@ pub fn validate(positions: &[[f32; 3]], triangles: &[[u32; 3]]) -> Result<ValidM
     let mut degenerate = 0usize;
     for (t, tri) in triangles.iter().enumerate() {
         if let Some(&vertex) = tri.iter().find(|&&v| v as usize >= n) {
-            return Err(Error::IndexOutOfRange { triangle: t, vertex, n_vertices: n });
+            return Err(Error::IndexOutOfRange {
+                triangle: t,
+                vertex,
+                n_vertices: n,
+            });
         }
         if is_degenerate(tri.map(|v| to_f64(positions[v as usize]))) || has_repeated_index(*tri) {
             degenerate += 1;
@@ -94,7 +105,10 @@ pub fn validate(positions: &[[f32; 3]], triangles: &[[u32; 3]]) -> Result<ValidM
     }
     let triangles: Vec<[u32; 3]> = kept.iter().map(|tri| tri.map(|v| compact[v as usize])).collect();
     let positions: Vec<[f64; 3]> = active.iter().map(|&v| to_f64(positions[v as usize])).collect();
-    let total_area = triangles.iter().map(|tri| 0.5 * norm(cross_edges(tri.map(|v| positions[v as usize])))).sum();
+    let total_area = triangles
+        .iter()
+        .map(|tri| 0.5 * norm(cross_edges(tri.map(|v| positions[v as usize]))))
+        .sum();
     let components = count_components(active.len(), &triangles);
     let report = MeshReport {
         n_vertices: n,
@@ -104,7 +118,12 @@ pub fn validate(positions: &[[f32; 3]], triangles: &[[u32; 3]]) -> Result<ValidM
         components,
         total_area,
     };
-    Ok(ValidMesh { active, positions, triangles, report })
+    Ok(ValidMesh {
+        active,
+        positions,
+        triangles,
+        report,
+    })
 }
 
 fn has_repeated_index([a, b, c]: [u32; 3]) -> bool {
@@ -157,7 +176,11 @@ pub(crate) fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
 }
 
 pub(crate) fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
 }
 
 pub(crate) fn norm(a: [f64; 3]) -> f64 {
@@ -199,17 +222,34 @@ mod tests {
         assert!(matches!(validate(&[], &[]), Err(Error::EmptyMesh { .. })));
         assert!(matches!(
             validate(&SQUARE, &[[0, 1, 7]]),
-            Err(Error::IndexOutOfRange { triangle: 0, vertex: 7, n_vertices: 4 })
+            Err(Error::IndexOutOfRange {
+                triangle: 0,
+                vertex: 7,
+                n_vertices: 4
+            })
         ));
         let mut nan = SQUARE;
         nan[2][1] = f32::NAN;
-        assert!(matches!(validate(&nan, &[[0, 1, 2]]), Err(Error::NonFinitePosition { vertex: 2 })));
-        assert!(matches!(validate(&SQUARE, &[[0, 0, 1]]), Err(Error::NoValidTriangles { degenerate: 1 })));
+        assert!(matches!(
+            validate(&nan, &[[0, 1, 2]]),
+            Err(Error::NonFinitePosition { vertex: 2 })
+        ));
+        assert!(matches!(
+            validate(&SQUARE, &[[0, 0, 1]]),
+            Err(Error::NoValidTriangles { degenerate: 1 })
+        ));
     }
 
     #[test]
     fn two_separate_triangles_are_two_components() {
-        let positions = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [5.0, 0.0, 0.0], [6.0, 0.0, 0.0], [5.0, 1.0, 0.0]];
+        let positions = [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [5.0, 0.0, 0.0],
+            [6.0, 0.0, 0.0],
+            [5.0, 1.0, 0.0],
+        ];
         let mesh = validate(&positions, &[[0, 1, 2], [3, 4, 5]]).unwrap();
         assert_eq!(mesh.report.components, 2);
     }

@@ -70,7 +70,9 @@ pub enum Error {
     },
     /// k is 0 or larger than (vertices in use − 1): the eigenproblem has only that many non-constant
     /// eigenfunctions.
-    #[error("k = {k} eigenfunctions requested, but this mesh has at most {max} (vertices in use − 1) and k must be ≥ 1")]
+    #[error(
+        "k = {k} eigenfunctions requested, but this mesh has at most {max} (vertices in use − 1) and k must be ≥ 1"
+    )]
     InvalidK {
         /// Requested k.
         k: usize,
@@ -185,12 +187,18 @@ impl IntrinsicEncoding {
             return Err(Error::InvalidK { k, max: n_active - 1 });
         }
         if k > u32::MAX as usize {
-            return Err(Error::TooLarge { what: "k", found: k, max: u32::MAX as usize });
+            return Err(Error::TooLarge {
+                what: "k",
+                found: k,
+                max: u32::MAX as usize,
+            });
         }
         let lap = laplacian::CotanLaplacian::assemble(&mesh);
         let pairs = eigen::smallest_eigenpairs(&lap, k + 1)?;
         let scale = pairs.values[k];
-        let max_relative_residual = (1..=k).map(|j| relative_residual(&lap, &pairs, j, scale)).fold(0.0, f64::max);
+        let max_relative_residual = (1..=k)
+            .map(|j| relative_residual(&lap, &pairs, j, scale))
+            .fold(0.0, f64::max);
 
         let mut values = vec![0.0f32; positions.len() * k];
         for (a, &v) in mesh.active.iter().enumerate() {
@@ -257,13 +265,23 @@ impl IntrinsicEncoding {
     /// Writes the cache file atomically (temporary file + rename).
     pub fn save(&self, path: &Path) -> Result<(), Error> {
         if self.n_vertices > u32::MAX as usize {
-            return Err(Error::TooLarge { what: "vertex count", found: self.n_vertices, max: u32::MAX as usize });
+            return Err(Error::TooLarge {
+                what: "vertex count",
+                found: self.n_vertices,
+                max: u32::MAX as usize,
+            });
         }
         cache::write_atomic(path, &cache::encode(self))
     }
 
     pub(crate) fn from_parts(key: u64, n_vertices: usize, k: usize, eigenvalues: Vec<f64>, values: Vec<f32>) -> Self {
-        Self { key, n_vertices, k, eigenvalues, values }
+        Self {
+            key,
+            n_vertices,
+            k,
+            eigenvalues,
+            values,
+        }
     }
 
     /// [`cache_key`] of the mesh and k this encoding was computed for.
@@ -303,9 +321,17 @@ impl IntrinsicEncoding {
     /// that vertex's row exactly.
     pub fn interpolate(&self, tri: [u32; 3], bary: [f32; 3], out: &mut [f32]) -> Result<(), Error> {
         if out.len() != self.k {
-            return Err(Error::OutputLength { expected: self.k, got: out.len() });
+            return Err(Error::OutputLength {
+                expected: self.k,
+                got: out.len(),
+            });
         }
-        let row = |v: u32| self.vertex(v).ok_or(Error::VertexOutOfRange { vertex: v, n_vertices: self.n_vertices });
+        let row = |v: u32| {
+            self.vertex(v).ok_or(Error::VertexOutOfRange {
+                vertex: v,
+                n_vertices: self.n_vertices,
+            })
+        };
         let (r0, r1, r2) = (row(tri[0])?, row(tri[1])?, row(tri[2])?);
         for (j, o) in out.iter_mut().enumerate() {
             *o = bary[0] * r0[j] + bary[1] * r1[j] + bary[2] * r2[j];
@@ -316,10 +342,16 @@ impl IntrinsicEncoding {
     /// [`interpolate`](Self::interpolate) for many points: `out` is row-major `[tris.len() × k]`.
     pub fn interpolate_many(&self, tris: &[[u32; 3]], barys: &[[f32; 3]], out: &mut [f32]) -> Result<(), Error> {
         if barys.len() != tris.len() {
-            return Err(Error::OutputLength { expected: tris.len(), got: barys.len() });
+            return Err(Error::OutputLength {
+                expected: tris.len(),
+                got: barys.len(),
+            });
         }
         if out.len() != tris.len() * self.k {
-            return Err(Error::OutputLength { expected: tris.len() * self.k, got: out.len() });
+            return Err(Error::OutputLength {
+                expected: tris.len() * self.k,
+                got: out.len(),
+            });
         }
         for ((tri, bary), o) in tris.iter().zip(barys).zip(out.chunks_exact_mut(self.k.max(1))) {
             self.interpolate(*tri, *bary, o)?;
@@ -341,7 +373,11 @@ impl IntrinsicEncoding {
                 hi[j] = hi[j].max(row[j]);
             }
         }
-        let scale: Vec<f32> = lo.iter().zip(&hi).map(|(l, h)| if h > l { 1.0 / (h - l) } else { 1.0 }).collect();
+        let scale: Vec<f32> = lo
+            .iter()
+            .zip(&hi)
+            .map(|(l, h)| if h > l { 1.0 / (h - l) } else { 1.0 })
+            .collect();
         let mut out = self.values.clone();
         for row in out.chunks_exact_mut(k.max(1)) {
             for j in 0..k {
