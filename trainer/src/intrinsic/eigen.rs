@@ -17,10 +17,11 @@
 //! with a non-abelian symmetry group) eigenvalues are *exactly* multiple, and a single Krylov sequence
 //! sees one vector per eigenspace, finding the others only through rounding errors. faer's Krylov–Schur
 //! (`partial_self_adjoint_eigen`, tried first) indeed skipped part of the 9-fold l = 4 cluster of the
-//! sphere and returned a duplicated vector. A block of b columns captures multiplicities up to b. Why
-//! not restarted: the basis needed here (≈ 2–3 × the wanted count) fits in memory on every mesh of the
-//! data set, and without restarts there is nothing to tune. (Block subspace iteration, tried second,
-//! is simpler but needs ~25× more triangular solves: 60 s instead of a few for the bunny.)
+//! sphere and returned a duplicated vector. A block of b columns captures multiplicities up to b.
+//! Why not restarted: the basis needed here (≈ 4–5 × the wanted count, measured) fits in memory on
+//! every mesh of the data set, and without restarts there is nothing to tune. (Block subspace
+//! iteration with Rayleigh–Ritz, tried second, is simpler but needed ~15× more triangular solves:
+//! 57 s instead of 18 s for the bunny on the shared build machine.)
 //!
 //! Small problems are solved densely instead (faer's symmetric eigendecomposition of `M^{-1/2} L M^{-1/2}`).
 //! Everything runs sequentially from a fixed pseudo-random start block, so results are bitwise
@@ -37,6 +38,11 @@ use super::Error;
 /// Problems with at most this many vertices are solved densely: an O(n³) eigendecomposition of a
 /// 500 × 500 matrix takes well under a second and needs no convergence control.
 pub const DENSE_MAX_VERTICES: usize = 500;
+
+/// Memory the solver may take for its dense arrays (the dense matrix, or the Krylov basis and the
+/// projected matrix) before it refuses with [`Error::TooLarge`] instead of aborting on allocation.
+/// Why 4 GiB: a quarter of a small workstation; k = 64 on the 35k-vertex bunny needs about 100 MiB.
+pub const MAX_SOLVER_BYTES: usize = 4 << 30;
 
 /// The shift is this fraction of `8π / area`. Why: by Hersch's inequality the first nonzero eigenvalue
 /// of a genus-0 surface of area A is at most 8π/A (with equality for the round sphere), so the shift sits
@@ -59,8 +65,8 @@ pub const BLOCK: usize = 8;
 /// its block's largest column survives the orthogonalisation: below that it is rounding noise.
 pub const DEFLATION: f64 = 1e-10;
 
-/// Largest basis before the solver gives up with [`Error::NotConverged`]; typical runs need 2–3 ×
-/// the wanted count.
+/// Largest basis before the solver gives up with [`Error::NotConverged`]; the meshes of the data set
+/// need 4–5 × the wanted count for k = 64.
 pub fn max_basis(count: usize) -> usize {
     6 * count + 8 * BLOCK
 }
@@ -135,6 +141,16 @@ pub fn smallest_eigenpairs_with(lap: &CotanLaplacian, count: usize, solver: Solv
         Solver::Dense => true,
         Solver::ShiftInvertLanczos => too_big,
     };
+    // Dense: the matrix and its eigenvectors. Lanczos: basis n × d and projected matrix d × d.
+    let d = max_basis(count).min(n);
+    let bytes = if use_dense { 2 * n * n * 8 } else { (n * d + d * d) * 8 };
+    if bytes > MAX_SOLVER_BYTES {
+        return Err(Error::TooLarge {
+            what: "eigensolver memory in bytes (k too large for this mesh)",
+            found: bytes,
+            max: MAX_SOLVER_BYTES,
+        });
+    }
     let (mut values, mut vectors, method) = if use_dense {
         let (values, vectors) = dense(lap, count)?;
         (values, vectors, Method::Dense)
@@ -212,7 +228,7 @@ fn block_lanczos(lap: &CotanLaplacian, count: usize, shift: f64) -> Result<(Vec<
     let mut d = append_orthonormal(&mut v, 0, start_block(n, BLOCK.min(d_max)), mass);
     let mut applied = 0usize; // leading columns of V whose image under A is in T
     let mut solves = 0usize;
-    // Shift-invert Lanczos needs a basis of about 2–5 × count here; checks before 2 × count would
+    // Shift-invert Lanczos needs a basis of about 4–5 × count here; checks before 2 × count would
     // only cost time.
     let check_every = (count / 8).max(BLOCK);
     let mut next_check = 2 * count;
