@@ -342,7 +342,8 @@ fn rayleigh_ritz(
     };
     let last = combine(&order[count - 1..count]);
     let r = residual(last.col_as_slice(0), values[count - 1]);
-    if !(r <= TOLERANCE) {
+    // `residual` maps NaN to infinity, so this comparison is total.
+    if r > TOLERANCE {
         return Err(r);
     }
     let x = combine(&order[..count]);

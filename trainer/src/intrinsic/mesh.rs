@@ -135,8 +135,8 @@ fn is_degenerate(p: [[f64; 3]; 3]) -> bool {
         .iter()
         .map(|e| dot(*e, *e))
         .fold(0.0, f64::max);
-    // `!(a > b)` rather than `a <= b` so that a NaN (which validation already excludes) would still count.
-    !(norm(cross_edges(p)) > DEGENERATE_RATIO * longest)
+    // Positions are finite (checked before) and f32-sized, so nothing here overflows f64 or is NaN.
+    norm(cross_edges(p)) <= DEGENERATE_RATIO * longest
 }
 
 /// Union–find over the kept triangles; only used for the report.
