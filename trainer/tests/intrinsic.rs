@@ -429,9 +429,10 @@ fn spot_k64_solves_in_seconds() {
     assert!(enc.values().iter().all(|v| v.is_finite()));
 }
 
-/// Every mesh of the data set at k = 64: timing and what validation drops. Slow on the larger meshes
-/// (the bunny has ~35k vertices), hence ignored; run with `cargo test -p trainer --test intrinsic --
-/// --ignored --nocapture`.
+/// Every mesh of the data set at k = 64 (or `NBRDF_INTRINSIC_K`): timing and what validation drops.
+/// Slow on the larger meshes (the bunny has ~35k vertices), hence ignored; run with
+/// `cargo test -p trainer --test intrinsic -- --ignored --nocapture`; `NBRDF_MESH=spot` picks meshes
+/// whose file name contains that text.
 #[test]
 #[ignore]
 fn all_data_meshes_k64() {
@@ -443,23 +444,29 @@ fn all_data_meshes_k64() {
         );
         return;
     };
+    let k: usize = std::env::var("NBRDF_INTRINSIC_K")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(64);
+    let only = std::env::var("NBRDF_MESH").unwrap_or_default();
     let mut paths: Vec<PathBuf> = entries
         .map(|e| e.unwrap().path())
         .filter(|p| p.extension().is_some_and(|e| e == "obj"))
+        .filter(|p| p.file_name().unwrap().to_string_lossy().contains(&only))
         .collect();
     paths.sort();
     for path in paths {
         let (positions, triangles) = load_obj(&path);
         let start = Instant::now();
-        match IntrinsicEncoding::compute_with_report(&positions, &triangles, 64) {
+        match IntrinsicEncoding::compute_with_report(&positions, &triangles, k) {
             Ok((enc, report)) => eprintln!(
-                "{}: {} vertices, k = 64 in {:.2} s; {:?}; λ1 = {:.4}, λ64 = {:.4}",
+                "{}: {} vertices, k = {k} in {:.2} s; {:?}; λ1 = {:.4}, λk = {:.4}",
                 path.file_name().unwrap().to_string_lossy(),
                 positions.len(),
                 start.elapsed().as_secs_f64(),
                 report,
                 enc.eigenvalues()[0],
-                enc.eigenvalues()[63],
+                enc.eigenvalues()[k - 1],
             ),
             Err(e) => eprintln!("{}: error {e}", path.display()),
         }

@@ -206,6 +206,8 @@ fn dense(lap: &CotanLaplacian, count: usize) -> Result<(Vec<f64>, Mat<f64>), Err
     Ok((values, vectors))
 }
 
+/// The `count` smallest eigenpairs by shift-invert block Lanczos (see the module documentation), with
+/// the final basis size and the number of right-hand sides solved.
 fn block_lanczos(lap: &CotanLaplacian, count: usize, shift: f64) -> Result<(Vec<f64>, Mat<f64>, usize, usize), Error> {
     let n = lap.len();
     let mass = lap.mass();
