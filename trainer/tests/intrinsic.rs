@@ -296,6 +296,41 @@ fn an_isolated_vertex_gets_a_zero_row_and_changes_nothing_else() {
 }
 
 #[test]
+fn two_separate_spheres_keep_one_component_indicator() {
+    // With c components the operator has c zero eigenvalues; only the global constant is dropped, so
+    // λ1 = 0 belongs to the canonical "which sphere" function, and the l = 1 cluster of the unit
+    // sphere appears twice.
+    let (positions, triangles) = icosphere(3);
+    let n = positions.len() as u32;
+    let mut both = positions.clone();
+    both.extend(positions.iter().map(|p| [p[0] + 5.0, p[1], p[2]]));
+    let mut tris = triangles.clone();
+    tris.extend(triangles.iter().map(|t| t.map(|v| v + n)));
+    let (enc, report) = IntrinsicEncoding::compute_with_report(&both, &tris, 7).unwrap();
+    assert_eq!(report.mesh.components, 2);
+    let single = IntrinsicEncoding::compute(&positions, &triangles, 3).unwrap();
+    let lambda = enc.eigenvalues();
+    assert!(lambda[0].abs() < 1e-9, "λ1 = {}", lambda[0]);
+    // 1e-6: the shifted copy's f32 coordinates are rounded to the coarser grid of values near 5, which
+    // perturbs its geometry, and so its eigenvalues, at the 1e-7 level.
+    for (i, &l) in lambda[1..].iter().enumerate() {
+        assert!(
+            (l - single.eigenvalues()[i / 2]).abs() < 1e-6 * l,
+            "λ{} = {l} vs {:?}",
+            i + 2,
+            single.eigenvalues()
+        );
+    }
+    // The indicator has one value per sphere, of opposite signs (it is M-orthogonal to the constant).
+    let first = enc.vertex(0).unwrap()[0];
+    let second = enc.vertex(n).unwrap()[0];
+    assert!(
+        first * second < 0.0 && (first.abs() - second.abs()).abs() < 1e-5,
+        "{first} vs {second}"
+    );
+}
+
+#[test]
 fn bad_input_gives_error_values() {
     let (positions, triangles) = icosphere(0); // 12 vertices: k ≤ 11
     assert!(matches!(

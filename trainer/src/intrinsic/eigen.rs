@@ -182,6 +182,47 @@ pub fn smallest_eigenpairs_with(lap: &CotanLaplacian, count: usize, solver: Solv
     })
 }
 
+/// Makes the null space of a disconnected mesh canonical.
+///
+/// With c > 1 connected components the eigenvalue 0 has multiplicity c (the locally constant
+/// functions), and any solver returns an arbitrary, rounding-dependent basis of that space. Replace the
+/// first `min(c, count)` pairs by a fixed one: the global constant first (the function the encoding
+/// drops, as on a connected mesh), then the M-orthonormalised (Gram–Schmidt) indicators of components
+/// 1, 2, …, so that the kept "which part am I on" functions do not depend on rounding. `component` is
+/// the label of each vertex, as from [`validate`](super::mesh::validate).
+pub fn canonicalize_null_space(pairs: &mut Eigenpairs, component: &[u32], components: usize, mass: &[f64]) {
+    if components < 2 {
+        return;
+    }
+    let mut area = vec![0.0f64; components];
+    for (&label, &m) in component.iter().zip(mass) {
+        area[label as usize] += m;
+    }
+    let inner = |a: &[f64], b: &[f64]| a.iter().zip(b).zip(&area).map(|((x, y), w)| x * y * w).sum::<f64>();
+    // Piecewise constant functions, as their value on each component.
+    let candidates = std::iter::once(vec![1.0; components]).chain((1..components).map(|i| {
+        let mut e = vec![0.0; components];
+        e[i] = 1.0;
+        e
+    }));
+    let mut basis: Vec<Vec<f64>> = Vec::new();
+    for mut f in candidates.take(components.min(pairs.values.len())) {
+        for b in &basis {
+            let p = inner(&f, b);
+            f.iter_mut().zip(b).for_each(|(x, y)| *x -= p * y);
+        }
+        let norm = inner(&f, &f).sqrt();
+        f.iter_mut().for_each(|x| *x /= norm);
+        basis.push(f);
+    }
+    for (j, f) in basis.iter().enumerate() {
+        for (i, &label) in component.iter().enumerate() {
+            pairs.vectors[(i, j)] = f[label as usize];
+        }
+        pairs.values[j] = 0.0;
+    }
+}
+
 /// Dense path: eigendecomposition of the symmetric `M^{-1/2} L M^{-1/2}`.
 fn dense(lap: &CotanLaplacian, count: usize) -> Result<(Vec<f64>, Mat<f64>), Error> {
     let n = lap.len();

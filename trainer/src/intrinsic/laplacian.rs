@@ -26,7 +26,8 @@ impl CotanLaplacian {
     /// `L_ij = -(cot α + cot β) / 2`, and `L_ii = -Σ_j L_ij`. A boundary edge has one term only, which
     /// is the natural (Neumann) boundary condition. Obtuse angles give negative cotangents; L then is
     /// no longer an M-matrix but stays positive semi-definite, since it is the Gram matrix of the hat
-    /// functions' gradients.
+    /// functions' gradients. The same argument (a sum of per-triangle positive semi-definite matrices)
+    /// covers non-manifold edges and inconsistent orientation, which the formula does not look at.
     ///
     /// **Mass** (Meyer, Desbrun, Schröder & Barr 2003, "Discrete Differential-Geometry Operators for
     /// Triangulated 2-Manifolds", Sec. 3.3 and Fig. 4, the mixed area A_mixed): in a non-obtuse

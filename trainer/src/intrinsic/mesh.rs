@@ -29,7 +29,9 @@ pub struct MeshReport {
     /// 0 in every eigenfunction.
     pub isolated_vertices: usize,
     /// Connected components of the kept triangles. With `c > 1` components the operator has `c` zero
-    /// eigenvalues (piecewise constant functions); only the first is dropped as "the constant one".
+    /// eigenvalues (piecewise constant functions); only the global constant is dropped, the other
+    /// `c − 1` stay in the encoding as canonical "which component" functions
+    /// ([`canonicalize_null_space`](super::eigen::canonicalize_null_space)).
     pub components: usize,
     /// Total area of the kept triangles, in squared mesh units.
     pub total_area: f64,
@@ -44,6 +46,8 @@ pub struct ValidMesh {
     pub positions: Vec<[f64; 3]>,
     /// Kept triangles, indices into `active`.
     pub triangles: Vec<[u32; 3]>,
+    /// Connected component of each active vertex, labels `0..report.components`.
+    pub component: Vec<u32>,
     /// What was kept and dropped.
     pub report: MeshReport,
 }
@@ -109,7 +113,7 @@ pub fn validate(positions: &[[f32; 3]], triangles: &[[u32; 3]]) -> Result<ValidM
         .iter()
         .map(|tri| 0.5 * norm(cross_edges(tri.map(|v| positions[v as usize]))))
         .sum();
-    let components = count_components(active.len(), &triangles);
+    let (component, components) = label_components(active.len(), &triangles);
     let report = MeshReport {
         n_vertices: n,
         n_triangles: kept.len() + degenerate,
@@ -122,6 +126,7 @@ pub fn validate(positions: &[[f32; 3]], triangles: &[[u32; 3]]) -> Result<ValidM
         active,
         positions,
         triangles,
+        component,
         report,
     })
 }
@@ -139,8 +144,9 @@ fn is_degenerate(p: [[f64; 3]; 3]) -> bool {
     norm(cross_edges(p)) <= DEGENERATE_RATIO * longest
 }
 
-/// Union–find over the kept triangles; only used for the report.
-fn count_components(n: usize, triangles: &[[u32; 3]]) -> usize {
+/// Connected component of each vertex (union–find over the kept triangles), labelled 0, 1, … in the
+/// order of each component's lowest vertex index, so that the labelling is deterministic.
+fn label_components(n: usize, triangles: &[[u32; 3]]) -> (Vec<u32>, usize) {
     fn find(parent: &mut [u32], mut v: u32) -> u32 {
         while parent[v as usize] != v {
             let grand = parent[parent[v as usize] as usize];
@@ -150,17 +156,26 @@ fn count_components(n: usize, triangles: &[[u32; 3]]) -> usize {
         v
     }
     let mut parent: Vec<u32> = (0..n as u32).collect();
-    let mut components = n;
     for tri in triangles {
         for (a, b) in [(tri[0], tri[1]), (tri[1], tri[2])] {
             let (ra, rb) = (find(&mut parent, a), find(&mut parent, b));
             if ra != rb {
+                // The smaller index becomes the root, so every root is its component's lowest vertex.
                 parent[ra.max(rb) as usize] = ra.min(rb);
-                components -= 1;
             }
         }
     }
-    components
+    let mut label = vec![u32::MAX; n];
+    let mut count = 0u32;
+    for v in 0..n as u32 {
+        let root = find(&mut parent, v);
+        if label[root as usize] == u32::MAX {
+            label[root as usize] = count;
+            count += 1;
+        }
+        label[v as usize] = label[root as usize];
+    }
+    (label, count as usize)
 }
 
 pub(crate) fn to_f64(p: [f32; 3]) -> [f64; 3] {
@@ -250,7 +265,8 @@ mod tests {
             [6.0, 0.0, 0.0],
             [5.0, 1.0, 0.0],
         ];
-        let mesh = validate(&positions, &[[0, 1, 2], [3, 4, 5]]).unwrap();
+        let mesh = validate(&positions, &[[3, 4, 5], [0, 1, 2]]).unwrap();
         assert_eq!(mesh.report.components, 2);
+        assert_eq!(mesh.component, vec![0, 0, 0, 1, 1, 1]);
     }
 }

@@ -194,7 +194,8 @@ impl IntrinsicEncoding {
             });
         }
         let lap = laplacian::CotanLaplacian::assemble(&mesh);
-        let pairs = eigen::smallest_eigenpairs(&lap, k + 1)?;
+        let mut pairs = eigen::smallest_eigenpairs(&lap, k + 1)?;
+        eigen::canonicalize_null_space(&mut pairs, &mesh.component, mesh.report.components, lap.mass());
         let scale = pairs.values[k];
         let max_relative_residual = (1..=k)
             .map(|j| relative_residual(&lap, &pairs, j, scale))
