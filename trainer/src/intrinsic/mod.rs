@@ -146,7 +146,8 @@ pub struct Report {
     pub mesh: MeshReport,
     /// Which solver ran.
     pub method: Method,
-    /// The dropped smallest eigenvalue (≈ 0: the constant eigenfunction).
+    /// The dropped smallest eigenvalue (≈ 0, exactly 0 on a disconnected mesh: the constant
+    /// eigenfunction).
     pub dropped_eigenvalue: f64,
     /// Largest scale-free residual `‖Lφ − λMφ‖_{M⁻¹} / (λ_k ‖φ‖_M)` over the kept pairs, relative to
     /// the largest kept eigenvalue λ_k (not to each λ, which is 0 for the extra piecewise-constant
@@ -159,7 +160,9 @@ pub struct Report {
 /// Values are `f32`, row-major `[n_vertices × k]`: row v holds φ_1(v) … φ_k(v). The eigenfunctions are
 /// M-orthonormal (∫ φ_i φ_j dA = δ_ij over the surface), so their magnitude scales like
 /// 1/√area; see [`scaled_to_unit_range`](Self::scaled_to_unit_range) for the rescaling Koestler et al.
-/// apply before the network. Isolated vertices (in no usable triangle) have all-zero rows.
+/// apply before the network. Isolated vertices (in no usable triangle) have all-zero rows. On a mesh
+/// with c > 1 connected components the first c − 1 columns are the canonical piecewise-constant
+/// "which component" functions (eigenvalue 0), see [`eigen::canonicalize_null_space`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct IntrinsicEncoding {
     key: u64,
