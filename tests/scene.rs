@@ -46,10 +46,10 @@ fn sphere_hits_match_the_analytic_sphere() {
         let ray = Ray::new(Vec3::new(x, y, 5.0), -Vec3::Z);
         let hit = g.accel.intersect(&ray).unwrap();
         let z = (1.0f32 - x * x - y * y).sqrt();
-        // The icosphere (level 4) lies within 1e-3 of the unit sphere radially; along the ray the
+        // The icosphere (level 4) lies within 1.5e-3 of the unit sphere radially; along the ray the
         // distance error grows as 1 / cos of the incidence angle (= z).
-        assert!((hit.t - (5.0 - z)).abs() < 1e-3 / z, "t = {} for z = {z}", hit.t);
-        assert!((ray.at(hit.t).length() - 1.0).abs() < 1e-3);
+        assert!((hit.t - (5.0 - z)).abs() < 1.5e-3 / z, "t = {} for z = {z}", hit.t);
+        assert!((ray.at(hit.t).length() - 1.0).abs() < 1.5e-3);
         // Barycentrics reproduce the hit point exactly.
         let p = g.mesh.point(hit.triangle, hit.b1, hit.b2);
         assert!((p - ray.at(hit.t)).length() < 1e-5);
@@ -61,7 +61,7 @@ fn sphere_hits_match_the_analytic_sphere() {
     assert!(g.accel.intersect(&Ray::new(Vec3::new(1.2, 0.0, 5.0), -Vec3::Z)).is_none());
     // A ray starting inside hits the far side from within.
     let inner = g.accel.intersect(&Ray::new(Vec3::ZERO, Vec3::X)).unwrap();
-    assert!((inner.t - 1.0).abs() < 1e-3);
+    assert!((inner.t - 1.0).abs() < 1.5e-3);
 }
 
 #[test]
