@@ -1,7 +1,7 @@
 //! Ground-truth materials of the semi-synthetic data set: what `--material` names, how the data set
 //! file records it, and how it is evaluated.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use nbrdf::{Error, Rgb, Vec3};
 use serde::{Deserialize, Serialize};
@@ -51,8 +51,7 @@ impl MaterialSpec {
     }
 
     /// Loads what the spec refers to; relative paths are resolved against `base`.
-    pub fn load(&self, base: &Path) -> Result<Material, Error> {
-        let _resolve = |p: &PathBuf| if p.is_absolute() { p.clone() } else { base.join(p) };
+    pub fn load(&self, _base: &Path) -> Result<Material, Error> {
         match self {
             MaterialSpec::Lambert { albedo } => Ok(Material::Lambert { albedo: *albedo }),
         }

@@ -226,7 +226,7 @@ pub fn synthesize(args: &SynthArgs) -> Result<(DatasetFile, Vec<RenderReport>), 
             bar.inc(1);
         }
         if args.verbose {
-            bar.println(format!("view {i:02} ({split:?}):\n{}", rendered.report.summary()));
+            bar.suspend(|| eprintln!("view {i:02} ({split:?}):\n{}", rendered.report.summary()));
         }
         views.push(ViewSpec {
             split,
