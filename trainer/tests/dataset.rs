@@ -311,3 +311,54 @@ fn diligent_replica_reads_into_samples() {
     assert!(e.contains("Calib_Results.mat"), "{e}");
     std::fs::remove_dir_all(&root).unwrap();
 }
+
+#[test]
+fn raw_brdf_images_hold_the_material_at_the_sample_directions() {
+    // Built-in material, MERL table and (where the shared data is present) an NBRDF-json network.
+    let dir = tmpdir("materials");
+    let merl = dir.join("grey.binary");
+    nbrdf::measured::MerlTable::tabulate(|_, _| [0.2, 0.1, 0.05]).write(&merl).unwrap();
+    // Tests run in trainer/, so the default `../shared/data` of the workspace root is two levels up.
+    let data = std::env::var("NBRDF_DATA")
+        .map(PathBuf::from)
+        .unwrap_or_else(|_| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data"));
+    let chrome = data.join("nbrdf-merl/chrome.json");
+    let mut materials = vec!["clear-coat".to_string(), merl.display().to_string()];
+    if chrome.is_file() {
+        materials.push(chrome.display().to_string());
+    } else {
+        eprintln!("skipping the NBRDF-json material: {} not found (set NBRDF_DATA)", chrome.display());
+    }
+    for (m, material) in materials.iter().enumerate() {
+        let out = dir.join(format!("m{m}"));
+        let args = SynthArgs { material: material.clone(), ..small(&out, "sphere", 0.0, 4) };
+        let (file, _) = synthesize(&args).unwrap();
+        let loaded = file.material.load(&out).unwrap();
+        let ds = Dataset::open(&out).unwrap();
+        let s = samples(&ds, Split::Train, 1).unwrap();
+        assert!(s.len() > 100);
+        let mut brdf_images = std::collections::HashMap::new();
+        for i in 0..s.len() {
+            let (v, im) = (s.view[i] as usize, s.image[i] as usize);
+            let img = brdf_images
+                .entry((v, im))
+                .or_insert_with(|| nbrdf::image::read_exr(ds.views[v].images[im].brdf.as_ref().unwrap()).unwrap());
+            let stored = img.data[s.pixel[i] as usize];
+            let f = loaded.eval(Vec3::from(s.wi[i]), Vec3::from(s.wo[i]));
+            for k in 0..3 {
+                assert_eq!(stored[k], f[k], "{material}: stored BRDF is the material's value");
+                let expected = f[k] * s.intensity[i][k] * s.wi[i][2];
+                assert!((s.radiance[i][k] - expected).abs() <= 1e-6 * expected.max(1.0), "{material}: Eq. 9");
+            }
+        }
+        if m == 1 {
+            // The constant table: 0.2 · cos θ_l, except near grazing where MERL bins whose centre lies
+            // below the horizon hold no value (0).
+            let ok = s.radiance.iter().zip(&s.wi).filter(|(r, wi)| (r[0] - 0.2 * wi[2]).abs() < 1e-6).count();
+            let zero = s.radiance.iter().filter(|r| r[0] == 0.0).count();
+            assert_eq!(ok + zero, s.len());
+            assert!(ok * 10 > s.len() * 8, "{ok} of {}", s.len());
+        }
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}

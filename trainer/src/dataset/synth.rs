@@ -29,8 +29,9 @@ pub struct SynthArgs {
     /// Mesh: a built-in id (sphere, torus, grooved) or an OBJ/PLY file.
     #[arg(long, default_value = "sphere")]
     pub mesh: String,
-    /// Ground-truth material: lambert:R,G,B.
-    #[arg(long, default_value = "lambert:0.5,0.4,0.3")]
+    /// Ground-truth material: a built-in id (two-lobe-metal, clear-coat, velvet), a MERL .binary file,
+    /// an NBRDF-json .json file (e.g. ../shared/data/nbrdf-merl/chrome.json), or lambert:R,G,B.
+    #[arg(long, default_value = "two-lobe-metal")]
     pub material: String,
     /// Image width and height in pixels.
     #[arg(long, default_value_t = 256)]
@@ -73,7 +74,7 @@ impl SynthArgs {
         SynthArgs {
             out: out.into(),
             mesh: "sphere".into(),
-            material: "lambert:0.5,0.4,0.3".into(),
+            material: "two-lobe-metal".into(),
             size: 256,
             views: 20,
             train_views: 10,
@@ -159,7 +160,7 @@ pub fn synthesize(args: &SynthArgs) -> Result<(DatasetFile, Vec<RenderReport>), 
     if let spec::MeshSpec::File { path } = &mut mesh_spec {
         *path = std::fs::canonicalize(&*path).map_err(|e| Error::io(&*path, &e))?;
     }
-    let material_spec = MaterialSpec::parse(&args.material)?;
+    let material_spec = MaterialSpec::parse(&args.material)?.canonical()?;
     let material = material_spec.load(&cwd)?;
     let (mesh, norm) = load_mesh(&mesh_spec, &cwd)?;
     let geometry = Geometry::new(mesh)?;

@@ -1,0 +1,84 @@
+//! Positional (Fourier) encoding of network inputs (Mildenhall et al. 2020, "NeRF", Eq. 4), used for the
+//! Rusinkiewicz angles and for the extrinsic position encoding (Sec. 4.2).
+//!
+//! Layout, shared with the trainer (`docs/models.md`): per input value `v` the block
+//! `[v, sin(2^0 v), cos(2^0 v), …, sin(2^(F-1) v), cos(2^(F-1) v)]`, blocks in input order. The raw value
+//! is kept so that `F = 0` is the identity. Frequencies are powers of two without a factor π because the
+//! inputs are angles in radians already.
+
+/// Number of outputs of encoding `n` values with `frequencies` octaves: `n (1 + 2F)`.
+///
+/// ```
+/// assert_eq!(nbrdf::encoding::encoded_len(3, 4), 27);
+/// ```
+#[inline]
+pub const fn encoded_len(n: usize, frequencies: usize) -> usize {
+    n * (1 + 2 * frequencies)
+}
+
+/// Writes `PE(values, frequencies)` into the front of `out` and returns the number of values written.
+///
+/// `out` must hold at least [`encoded_len`] values; a shorter slice is filled as far as it goes (no
+/// panic) and the count written is returned, so callers check it against `encoded_len`.
+///
+/// Each octave is evaluated directly as `sincos(2^k v)` rather than by the double-angle recurrence,
+/// which accumulates error at high octaves; the trainer computes the same.
+///
+/// ```
+/// use nbrdf::encoding::positional_encoding;
+/// let mut out = [0.0f32; 10];
+/// let n = positional_encoding(&[0.5, 1.0], 2, &mut out);
+/// assert_eq!(n, 10);
+/// assert_eq!(out[0], 0.5);
+/// assert!((out[1] - 0.5f32.sin()).abs() < 1e-7 && (out[4] - 1.0f32.cos()).abs() < 1e-7);
+/// assert_eq!(out[5], 1.0);
+/// ```
+#[inline]
+pub fn positional_encoding(values: &[f32], frequencies: usize, out: &mut [f32]) -> usize {
+    let block = 1 + 2 * frequencies;
+    let mut written = 0;
+    for (j, &v) in values.iter().enumerate() {
+        let Some(dst) = out.get_mut(j * block..(j + 1) * block) else {
+            break;
+        };
+        dst[0] = v;
+        let mut scale = 1.0f32;
+        for k in 0..frequencies {
+            let (s, c) = libm::sincosf(scale * v);
+            dst[1 + 2 * k] = s;
+            dst[2 + 2 * k] = c;
+            scale *= 2.0;
+        }
+        written += block;
+    }
+    written
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn zero_frequencies_is_identity() {
+        let mut out = [9.0f32; 3];
+        assert_eq!(positional_encoding(&[1.0, 2.0, 3.0], 0, &mut out), 3);
+        assert_eq!(out, [1.0, 2.0, 3.0]);
+    }
+
+    #[test]
+    fn octave_k_is_sin_and_cos_of_2_to_the_k() {
+        let mut out = [0.0f32; 9];
+        positional_encoding(&[0.3], 4, &mut out);
+        for k in 0..4 {
+            let x = 0.3f32 * (1u32 << k) as f32;
+            assert!((out[1 + 2 * k] - x.sin()).abs() < 1e-6);
+            assert!((out[2 + 2 * k] - x.cos()).abs() < 1e-6);
+        }
+    }
+
+    #[test]
+    fn short_output_is_filled_by_whole_blocks_without_panic() {
+        let mut out = [0.0f32; 4];
+        assert_eq!(positional_encoding(&[0.1, 0.2], 1, &mut out), 3);
+    }
+}

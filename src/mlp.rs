@@ -1,0 +1,396 @@
+//! Dense ReLU networks over borrowed weight slices, evaluated with stack arrays and no allocation.
+//!
+//! The layout is the contract of `docs/models.md`: `Mlp(n_in, W, H, n_out, S)` has `H` hidden layers of
+//! width `W` (Linear + ReLU), hidden layer `S ≥ 1` takes `[h, x]` (input skip; `S = 0`: none), then an
+//! output Linear to `n_out` values without activation (`n_out = 0`: no output layer, the last hidden
+//! activation is the output). Each layer stores its matrix `[in][out]` row-major followed by its bias, so
+//! `y = b + Σ_i x_i M[i]` runs as a sum of scaled rows whose inner loop over outputs vectorises.
+//!
+//! A network input is split into a *head* and a *tail*, `x = [head, tail]`. The head's contribution to
+//! every layer that reads `x` (layer 0 and the skip layer) is computed once by [`partial`] — for the BRDF
+//! networks the head is the position encoding, fixed per shading point — and [`forward`] adds only the
+//! tail (the encoded angles) per direction pair.
+
+use serde::{Deserialize, Serialize};
+
+use crate::Error;
+
+/// Largest hidden width (and output count) the stack arrays hold.
+pub const MAX_WIDTH: usize = 256;
+/// Largest number of hidden layers of one network.
+pub const MAX_HIDDEN: usize = 16;
+
+/// A weight element: `f32`, or `half::f16` for half-size model files.
+pub trait Weight: Copy + Send + Sync + 'static {
+    /// The value as `f32`.
+    fn to_f32(self) -> f32;
+}
+
+impl Weight for f32 {
+    #[inline(always)]
+    fn to_f32(self) -> f32 {
+        self
+    }
+}
+
+impl Weight for half::f16 {
+    #[inline(always)]
+    fn to_f32(self) -> f32 {
+        half::f16::to_f32(self)
+    }
+}
+
+/// Shape of one network: `Mlp(n_in, width, hidden, n_out, skip)` of `docs/models.md`.
+///
+/// ```
+/// use nbrdf::mlp::NetDesc;
+/// // The Single MLP of Sec. 4.1.2 on 64 position and 27 angle features.
+/// let net = NetDesc { n_in: 91, width: 128, hidden: 6, n_out: 3, skip: 2 };
+/// assert!(net.validate().is_ok());
+/// assert_eq!(net.layer_inputs(2), 128 + 91);
+/// assert_eq!(net.n_weights(), 91 * 128 + 128 + 4 * (128 * 128 + 128) + (219 * 128 + 128) + 128 * 3 + 3);
+/// ```
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub struct NetDesc {
+    /// Network input size.
+    pub n_in: u16,
+    /// Width of every hidden layer.
+    pub width: u16,
+    /// Number of hidden layers (Linear + ReLU).
+    pub hidden: u8,
+    /// Outputs of the final linear layer; 0 for none (the trunk networks).
+    pub n_out: u16,
+    /// 0-based hidden layer that also receives the network input; 0 for no skip.
+    pub skip: u8,
+}
+
+impl NetDesc {
+    /// Number of inputs of hidden layer `l` (`l = hidden` is the output layer).
+    #[inline]
+    pub const fn layer_inputs(&self, l: usize) -> usize {
+        if l == 0 {
+            self.n_in as usize
+        } else if self.skip != 0 && l == self.skip as usize {
+            self.width as usize + self.n_in as usize
+        } else {
+            self.width as usize
+        }
+    }
+
+    /// Number of outputs of layer `l` (`l = hidden` is the output layer).
+    #[inline]
+    pub const fn layer_outputs(&self, l: usize) -> usize {
+        if l < self.hidden as usize {
+            self.width as usize
+        } else {
+            self.n_out as usize
+        }
+    }
+
+    /// Number of layers with weights: the hidden ones plus the output layer if any.
+    #[inline]
+    pub const fn n_layers(&self) -> usize {
+        self.hidden as usize + if self.n_out > 0 { 1 } else { 0 }
+    }
+
+    /// Offset of layer `l`'s matrix in the network's weights; its bias follows the matrix.
+    #[inline]
+    pub const fn layer_offset(&self, l: usize) -> usize {
+        let mut off = 0;
+        let mut i = 0;
+        while i < l {
+            off += (self.layer_inputs(i) + 1) * self.layer_outputs(i);
+            i += 1;
+        }
+        off
+    }
+
+    /// Total number of weights and biases.
+    #[inline]
+    pub const fn n_weights(&self) -> usize {
+        self.layer_offset(self.n_layers())
+    }
+
+    /// Length of the network output: `n_out`, or `width` for a trunk without output layer.
+    #[inline]
+    pub const fn output_len(&self) -> usize {
+        if self.n_out > 0 {
+            self.n_out as usize
+        } else {
+            self.width as usize
+        }
+    }
+
+    /// Checks the shape against the evaluator's fixed limits.
+    pub fn validate(&self) -> Result<(), Error> {
+        if self.width == 0 || self.hidden == 0 {
+            return Err(Error::InvalidValue {
+                what: "network shape",
+                reason: "width and hidden layer count must be positive",
+            });
+        }
+        if self.width as usize > MAX_WIDTH {
+            return Err(Error::TooLarge { what: "network width", found: self.width as usize, max: MAX_WIDTH });
+        }
+        if self.n_out as usize > MAX_WIDTH {
+            return Err(Error::TooLarge { what: "network outputs", found: self.n_out as usize, max: MAX_WIDTH });
+        }
+        if self.hidden as usize > MAX_HIDDEN {
+            return Err(Error::TooLarge { what: "hidden layers", found: self.hidden as usize, max: MAX_HIDDEN });
+        }
+        if self.skip as usize >= self.hidden as usize {
+            return Err(Error::InvalidValue {
+                what: "network skip layer",
+                reason: "the skip must target a hidden layer after the first",
+            });
+        }
+        Ok(())
+    }
+}
+
+/// A network's shape with its weights (exactly `desc.n_weights()` of them).
+#[derive(Clone, Copy, Debug)]
+pub struct Net<'a, W> {
+    /// Shape.
+    pub desc: NetDesc,
+    /// Weights in file order.
+    pub weights: &'a [W],
+}
+
+/// The head's contribution to the layers that read the network input (layer 0 and the skip layer),
+/// biases included: the per-shading-point part of [`forward`].
+#[derive(Clone, Copy, Debug)]
+pub struct Partial {
+    /// Pre-activation of hidden layer 0 without the tail rows.
+    pub layer0: [f32; MAX_WIDTH],
+    /// Pre-activation contribution of the skip layer's bias and head rows.
+    pub skip: [f32; MAX_WIDTH],
+    /// Number of head values folded in.
+    pub head_len: usize,
+}
+
+impl Default for Partial {
+    fn default() -> Self {
+        Partial { layer0: [0.0; MAX_WIDTH], skip: [0.0; MAX_WIDTH], head_len: 0 }
+    }
+}
+
+/// `acc[o] += Σ_i x_i m[i][o]` for a row-major `[x.len()][acc.len()]` matrix `m`.
+///
+/// Rows of zero inputs are skipped: after a ReLU about half the activations are exactly zero, and a
+/// zero row contributes nothing.
+#[inline(always)]
+fn accumulate<W: Weight>(acc: &mut [f32], x: &[f32], m: &[W]) {
+    let n = acc.len();
+    for (xi, row) in x.iter().zip(m.chunks_exact(n)) {
+        if *xi == 0.0 {
+            continue;
+        }
+        for (a, w) in acc.iter_mut().zip(row) {
+            *a += *xi * w.to_f32();
+        }
+    }
+}
+
+#[inline(always)]
+fn copy_bias<W: Weight>(dst: &mut [f32], b: &[W]) {
+    for (d, w) in dst.iter_mut().zip(b) {
+        *d = w.to_f32();
+    }
+}
+
+#[inline(always)]
+fn relu(v: &mut [f32]) {
+    for x in v {
+        *x = x.max(0.0);
+    }
+}
+
+/// Folds the `head` (the first `head.len()` network inputs) into layer 0 and the skip layer.
+///
+/// ```
+/// use nbrdf::mlp::{forward, partial, Net, NetDesc};
+/// // 2 inputs -> 2 hidden (identity weights) -> 1 output summing them.
+/// let desc = NetDesc { n_in: 2, width: 2, hidden: 1, n_out: 1, skip: 0 };
+/// let w = [1.0f32, 0.0, 0.0, 1.0, /* bias */ 0.0, 0.0, /* out */ 1.0, 1.0, /* bias */ 0.5];
+/// let net = Net { desc, weights: &w[..] };
+/// let p = partial(&net, &[2.0]);         // head: first input
+/// let mut out = [0.0f32; 1];
+/// forward(&net, &p, &[3.0], &mut out);   // tail: second input
+/// assert_eq!(out[0], 5.5);
+/// ```
+#[inline]
+pub fn partial<W: Weight>(net: &Net<'_, W>, head: &[f32]) -> Partial {
+    let d = &net.desc;
+    let width = d.width as usize;
+    let head = &head[..head.len().min(d.n_in as usize)];
+    let mut p = Partial { head_len: head.len(), ..Partial::default() };
+    let n_in = d.n_in as usize;
+    let w0 = &net.weights[..(n_in + 1) * width];
+    copy_bias(&mut p.layer0[..width], &w0[n_in * width..]);
+    accumulate(&mut p.layer0[..width], head, w0);
+    if d.skip != 0 {
+        let s = d.skip as usize;
+        let off = d.layer_offset(s);
+        let rows = width + n_in;
+        let ws = &net.weights[off..off + (rows + 1) * width];
+        copy_bias(&mut p.skip[..width], &ws[rows * width..]);
+        accumulate(&mut p.skip[..width], head, &ws[width * width..]);
+    }
+    p
+}
+
+/// Runs the network on `x = [head, tail]`, the head already folded into `partial`; writes
+/// `desc.output_len()` values to the front of `out` (which must hold them; `MAX_WIDTH` always does).
+#[inline]
+pub fn forward<W: Weight>(net: &Net<'_, W>, partial: &Partial, tail: &[f32], out: &mut [f32]) {
+    let d = &net.desc;
+    let width = d.width as usize;
+    let n_in = d.n_in as usize;
+    let head = partial.head_len;
+    let tail = &tail[..tail.len().min(n_in - head)];
+    let mut h = [0.0f32; MAX_WIDTH];
+    let mut t = [0.0f32; MAX_WIDTH];
+
+    h[..width].copy_from_slice(&partial.layer0[..width]);
+    accumulate(&mut h[..width], tail, &net.weights[head * width..n_in * width]);
+    relu(&mut h[..width]);
+
+    let mut off = (n_in + 1) * width;
+    for l in 1..d.hidden as usize {
+        let t = &mut t[..width];
+        if d.skip as usize == l {
+            let rows = width + n_in;
+            let m = &net.weights[off..off + rows * width];
+            t.copy_from_slice(&partial.skip[..width]);
+            accumulate(t, &h[..width], m);
+            accumulate(t, tail, &m[(width + head) * width..]);
+            off += (rows + 1) * width;
+        } else {
+            let m = &net.weights[off..off + (width + 1) * width];
+            copy_bias(t, &m[width * width..]);
+            accumulate(t, &h[..width], m);
+            off += (width + 1) * width;
+        }
+        relu(t);
+        h[..width].copy_from_slice(t);
+    }
+
+    if d.n_out == 0 {
+        out[..width].copy_from_slice(&h[..width]);
+    } else {
+        let n_out = d.n_out as usize;
+        let m = &net.weights[off..off + (width + 1) * n_out];
+        let o = &mut out[..n_out];
+        copy_bias(o, &m[width * n_out..]);
+        accumulate(o, &h[..width], m);
+    }
+}
+
+/// Runs the network on its whole input `x` (no precomputed head).
+#[inline]
+pub fn eval<W: Weight>(net: &Net<'_, W>, x: &[f32], out: &mut [f32]) {
+    forward(net, &partial(net, x), &[], out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Reference forward pass written independently: explicit concatenation, [out][in] loops.
+    fn reference(desc: &NetDesc, w: &[f32], x: &[f32]) -> [f32; MAX_WIDTH] {
+        let mut h: [f32; MAX_WIDTH] = [0.0; MAX_WIDTH];
+        let mut input = [0.0f32; 2 * MAX_WIDTH];
+        let mut cur_len;
+        input[..x.len()].copy_from_slice(x);
+        cur_len = x.len();
+        let mut off = 0;
+        for l in 0..desc.n_layers() {
+            let n_i = desc.layer_inputs(l);
+            let n_o = desc.layer_outputs(l);
+            if l > 0 && desc.skip as usize == l {
+                input[cur_len..cur_len + x.len()].copy_from_slice(x);
+                cur_len += x.len();
+            }
+            assert_eq!(cur_len, n_i);
+            let mut y = [0.0f32; MAX_WIDTH];
+            for o in 0..n_o {
+                let mut s = w[off + n_i * n_o + o];
+                for i in 0..n_i {
+                    s += input[i] * w[off + i * n_o + o];
+                }
+                y[o] = if l < desc.hidden as usize { s.max(0.0) } else { s };
+            }
+            off += (n_i + 1) * n_o;
+            input[..n_o].copy_from_slice(&y[..n_o]);
+            cur_len = n_o;
+            h = y;
+        }
+        h
+    }
+
+    fn weights(n: usize, seed: u32) -> [f32; 4096] {
+        let mut w = [0.0f32; 4096];
+        let mut s = seed;
+        for v in w.iter_mut().take(n) {
+            s = s.wrapping_mul(1664525).wrapping_add(1013904223);
+            *v = ((s >> 8) as f32 / (1u32 << 24) as f32 - 0.5) * 0.8;
+        }
+        w
+    }
+
+    #[test]
+    fn forward_with_skip_and_head_split_matches_reference() {
+        let desc = NetDesc { n_in: 5, width: 8, hidden: 4, n_out: 3, skip: 2 };
+        desc.validate().unwrap();
+        let w = weights(desc.n_weights(), 7);
+        let net = Net { desc, weights: &w[..desc.n_weights()] };
+        let x = [0.3, -0.2, 0.9, 0.1, -0.7];
+        let want = reference(&desc, &w, &x);
+        for head in 0..=5 {
+            let p = partial(&net, &x[..head]);
+            let mut out = [0.0f32; MAX_WIDTH];
+            forward(&net, &p, &x[head..], &mut out);
+            for o in 0..3 {
+                assert!((out[o] - want[o]).abs() < 1e-5, "head {head}: {} vs {}", out[o], want[o]);
+            }
+        }
+    }
+
+    #[test]
+    fn trunk_without_output_layer_returns_last_activation() {
+        let desc = NetDesc { n_in: 3, width: 6, hidden: 3, n_out: 0, skip: 1 };
+        let w = weights(desc.n_weights(), 3);
+        let net = Net { desc, weights: &w[..desc.n_weights()] };
+        let x = [0.5, 0.25, -1.0];
+        let want = reference(&desc, &w, &x);
+        let mut out = [0.0f32; MAX_WIDTH];
+        eval(&net, &x, &mut out);
+        assert_eq!(desc.output_len(), 6);
+        for o in 0..6 {
+            assert!((out[o] - want[o]).abs() < 1e-6);
+            assert!(out[o] >= 0.0);
+        }
+    }
+
+    #[test]
+    fn f16_weights_evaluate_like_their_f32_values() {
+        let desc = NetDesc { n_in: 4, width: 8, hidden: 2, n_out: 2, skip: 1 };
+        let w = weights(desc.n_weights(), 11);
+        let w16: [half::f16; 4096] = core::array::from_fn(|i| half::f16::from_f32(w[i]));
+        let w32: [f32; 4096] = core::array::from_fn(|i| w16[i].to_f32());
+        let x = [0.1, 0.2, 0.3, 0.4];
+        let (mut a, mut b) = ([0.0f32; MAX_WIDTH], [0.0f32; MAX_WIDTH]);
+        eval(&Net { desc, weights: &w16[..desc.n_weights()] }, &x, &mut a);
+        eval(&Net { desc, weights: &w32[..desc.n_weights()] }, &x, &mut b);
+        assert_eq!(a[..2], b[..2]);
+    }
+
+    #[test]
+    fn shapes_beyond_the_stack_capacity_are_rejected() {
+        let wide = NetDesc { n_in: 3, width: 512, hidden: 2, n_out: 3, skip: 0 };
+        assert!(matches!(wide.validate(), Err(Error::TooLarge { what: "network width", .. })));
+        let bad_skip = NetDesc { n_in: 3, width: 8, hidden: 2, n_out: 3, skip: 2 };
+        assert!(matches!(bad_skip.validate(), Err(Error::InvalidValue { .. })));
+    }
+}
