@@ -208,9 +208,6 @@ impl DatasetFile {
     pub fn write(&self, dir: &Path) -> Result<(), Error> {
         let text = serde_json::to_string_pretty(self)
             .map_err(|e| Error::Parse { what: "data set description".into(), message: e.to_string() })?;
-        nbrdf::atomic::write_atomic(&dir.join("dataset.json"), |w| {
-            use std::io::Write;
-            w.write_all(text.as_bytes())
-        })
+        nbrdf::io::write_atomic(&dir.join("dataset.json"), text.as_bytes())
     }
 }
