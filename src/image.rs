@@ -6,7 +6,7 @@ use std::string::ToString;
 use std::vec::Vec;
 use std::{format, vec};
 
-use crate::{atomic::write_atomic, Error, Rgb};
+use crate::{io::write_atomic_with as write_atomic, Error, Rgb};
 
 /// A row-major linear RGB image (`data[row * width + col]`).
 #[derive(Debug, Clone, PartialEq)]

@@ -26,8 +26,6 @@ extern crate alloc;
 extern crate std;
 
 pub mod angles;
-#[cfg(feature = "std")]
-pub mod atomic;
 pub mod builtin;
 pub mod encoding;
 pub mod error;

@@ -16,6 +16,8 @@ use obvhs_glam as og;
 /// A BVH over the triangles of one mesh, answering closest-hit and any-hit queries.
 pub struct Accel {
     bvh: obvhs::cwbvh::CwBvh,
+    /// Number of mesh triangles (primitives may repeat after spatial splits).
+    triangles: usize,
     /// Triangle corners in the BVH's primitive order.
     corners: Vec<[Vec3; 3]>,
     /// Mesh triangle index of each BVH primitive.
@@ -24,13 +26,21 @@ pub struct Accel {
 
 impl core::fmt::Debug for Accel {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        f.debug_struct("Accel").field("primitives", &self.ids.len()).finish()
+        f.debug_struct("Accel").field("triangles", &self.triangles).field("primitives", &self.ids.len()).finish()
     }
 }
 
 #[inline]
 fn to_og(v: Vec3) -> og::Vec3A {
     og::Vec3A::new(v.x, v.y, v.z)
+}
+
+/// A ray direction for obvhs, with `-0.0` turned into `+0.0` (`-0.0 + 0.0 = +0.0`): obvhs takes the
+/// slab order from `d < 0` but the inverse from the sign bit, so a negative zero (as in `-Vec3::Z`)
+/// would make every box test miss.
+#[inline]
+fn dir_to_og(d: Vec3) -> og::Vec3A {
+    og::Vec3A::new(d.x + 0.0, d.y + 0.0, d.z + 0.0)
 }
 
 impl Accel {
@@ -56,7 +66,7 @@ impl Accel {
         );
         let ids: Vec<u32> = bvh.primitive_indices.clone();
         let corners = ids.iter().map(|&i| mesh.corners(i)).collect();
-        Ok(Accel { bvh, corners, ids })
+        Ok(Accel { bvh, corners, ids, triangles: mesh.triangles.len() })
     }
 
     /// The closest hit along `ray` within `[tmin, tmax]`, or `None`.
@@ -64,7 +74,7 @@ impl Accel {
         if !(ray.origin.is_finite() && ray.dir.is_finite()) || ray.dir == Vec3::ZERO {
             return None;
         }
-        let r = obvhs::ray::Ray::new(to_og(ray.origin), to_og(ray.dir), ray.tmin, ray.tmax);
+        let r = obvhs::ray::Ray::new(to_og(ray.origin), dir_to_og(ray.dir), ray.tmin, ray.tmax);
         let mut rh = obvhs::ray::RayHit::none();
         let mut best: Option<Hit> = None;
         self.bvh.ray_traverse(r, &mut rh, |cur, id| {
@@ -85,20 +95,20 @@ impl Accel {
         if !(ray.origin.is_finite() && ray.dir.is_finite()) || ray.dir == Vec3::ZERO {
             return false;
         }
-        let r = obvhs::ray::Ray::new(to_og(ray.origin), to_og(ray.dir), ray.tmin, ray.tmax);
+        let r = obvhs::ray::Ray::new(to_og(ray.origin), dir_to_og(ray.dir), ray.tmin, ray.tmax);
         !self.bvh.ray_traverse_miss(r, |cur, id| {
             intersect_triangle(ray.origin, ray.dir, ray.tmin, cur.tmax, self.corners[id])
                 .map_or(f32::INFINITY, |(t, _, _)| t)
         })
     }
 
-    /// Number of triangles.
+    /// Number of mesh triangles.
     pub fn len(&self) -> usize {
-        self.ids.len()
+        self.triangles
     }
 
     /// Never true for a hierarchy built from a valid mesh.
     pub fn is_empty(&self) -> bool {
-        self.ids.is_empty()
+        self.triangles == 0
     }
 }

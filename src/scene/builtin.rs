@@ -13,7 +13,7 @@ use crate::Vec3;
 /// The built-in meshes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum BuiltinMesh {
-    /// Unit icosphere (icosahedron subdivided three times, 1280 triangles) with exact sphere normals.
+    /// Unit icosphere (icosahedron subdivided four times, 5120 triangles, within 1.5e-3 of the sphere) with exact sphere normals.
     /// Convex: the renderer casts no shadow rays on it.
     Sphere,
     /// Torus around `z` with radii 0.7 and 0.3 (8192 triangles) and exact normals; its inner ring
@@ -52,7 +52,7 @@ impl BuiltinMesh {
     /// Builds the mesh.
     pub fn mesh(self) -> Mesh {
         match self {
-            BuiltinMesh::Sphere => icosphere(3),
+            BuiltinMesh::Sphere => icosphere(4),
             BuiltinMesh::Torus => torus(0.7, 0.3, 128, 32),
             BuiltinMesh::Grooved => grooved(64, 192),
         }

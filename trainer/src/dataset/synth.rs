@@ -1,0 +1,282 @@
+//! `trainer synth`: the semi-synthetic data set of Sec. 5.3.
+//!
+//! A mesh (normalised into the unit sphere) is seen from `views` cameras spread evenly on a sphere
+//! around it (a Fibonacci lattice, turned by a seeded angle), alternately assigned to training and
+//! test; each view is lit by directional lights drawn uniformly from the hemisphere facing its camera.
+//! Every image is rendered with Eq. 9, gets Gaussian noise of σ, and is written with its raw BRDF
+//! values and its lit mask; `dataset.json` describes it all. Same arguments and seed, same bytes.
+
+use std::path::{Path, PathBuf};
+
+use indicatif::{ProgressBar, ProgressStyle};
+use nbrdf::image::{write_exr, write_png_mask, write_png_srgb, RgbImage};
+use nbrdf::scene::render::{render_view, RenderOptions, RenderReport, ShadowPass};
+use nbrdf::scene::{Camera, DirectionalLight, Frame, Geometry};
+use nbrdf::{Error, Vec3};
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use super::material::MaterialSpec;
+use super::spec::{self, Counts, DatasetFile, ImageSpec, LightSpec, NormalizationSpec, ViewSpec};
+use super::{err, load_mesh, mesh_spec, Split};
+
+/// Arguments of `synth` (paper defaults, Sec. 5.3).
+#[derive(Debug, Clone, clap::Args)]
+pub struct SynthArgs {
+    /// Output folder (created if missing).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Mesh: a built-in id (sphere, torus, grooved) or an OBJ/PLY file.
+    #[arg(long, default_value = "sphere")]
+    pub mesh: String,
+    /// Ground-truth material: a built-in id (two-lobe-metal, clear-coat, velvet), a MERL .binary file,
+    /// an NBRDF-json .json file (e.g. ../shared/data/nbrdf-merl/chrome.json), or lambert:R,G,B.
+    #[arg(long, default_value = "two-lobe-metal")]
+    pub material: String,
+    /// Image width and height in pixels.
+    #[arg(long, default_value_t = 256)]
+    pub size: u32,
+    /// Views on the sphere around the object.
+    #[arg(long, default_value_t = 20)]
+    pub views: usize,
+    /// How many of them are training views (the rest are test views).
+    #[arg(long, default_value_t = 10)]
+    pub train_views: usize,
+    /// Lights per training view.
+    #[arg(long, default_value_t = 30)]
+    pub train_lights: usize,
+    /// Lights per test view.
+    #[arg(long, default_value_t = 12)]
+    pub test_lights: usize,
+    /// Standard deviation of the Gaussian noise on the HDR radiance.
+    #[arg(long, default_value_t = 1e-3)]
+    pub sigma: f32,
+    /// Seed of cameras, lights and noise.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Vertical field of view in degrees.
+    #[arg(long, default_value_t = 40.0)]
+    pub fov: f32,
+    /// Light intensity L_i (all channels).
+    #[arg(long, default_value_t = 1.0)]
+    pub light_intensity: f32,
+    /// Cast shadow rays even on a convex mesh (they change nothing; for checking).
+    #[arg(long)]
+    pub force_shadows: bool,
+    /// Print what the renderer simulated and skipped for each view.
+    #[arg(long)]
+    pub verbose: bool,
+}
+
+impl SynthArgs {
+    /// The paper's defaults writing to `out`.
+    pub fn new(out: impl Into<PathBuf>) -> Self {
+        SynthArgs {
+            out: out.into(),
+            mesh: "sphere".into(),
+            material: "two-lobe-metal".into(),
+            size: 256,
+            views: 20,
+            train_views: 10,
+            train_lights: 30,
+            test_lights: 12,
+            sigma: 1e-3,
+            seed: 0,
+            fov: 40.0,
+            light_intensity: 1.0,
+            force_shadows: false,
+            verbose: false,
+        }
+    }
+
+    fn check(&self) -> Result<(), Error> {
+        if self.size == 0 || self.size > 16384 {
+            return Err(err("--size", "must lie in 1..=16384"));
+        }
+        if self.views == 0 || self.train_views > self.views {
+            return Err(err("--views/--train-views", "need at least one view and no more training views than views"));
+        }
+        if !(self.sigma.is_finite() && self.sigma >= 0.0) {
+            return Err(err("--sigma", "must be finite and non-negative"));
+        }
+        if !(self.fov > 0.0 && self.fov < 180.0) {
+            return Err(err("--fov", "must lie in (0, 180) degrees"));
+        }
+        if !(self.light_intensity.is_finite() && self.light_intensity > 0.0) {
+            return Err(err("--light-intensity", "must be positive"));
+        }
+        Ok(())
+    }
+}
+
+/// `splitmix64` finaliser (Steele et al. 2014): decorrelated per-view seeds from one seed.
+fn mix(seed: u64, salt: u64) -> u64 {
+    let mut z = seed.wrapping_add(salt.wrapping_mul(0x9E37_79B9_7F4A_7C15));
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// Unit directions of a Fibonacci lattice (González 2010, "Measurement of areas on a sphere using
+/// Fibonacci and latitude–longitude lattices"), turned about `z` by `phase`.
+pub fn fibonacci_sphere(n: usize, phase: f32) -> Vec<Vec3> {
+    let golden = std::f32::consts::PI * (3.0 - 5f32.sqrt());
+    (0..n)
+        .map(|i| {
+            let z = 1.0 - 2.0 * (i as f32 + 0.5) / n as f32;
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            let phi = phase + golden * i as f32;
+            Vec3::new(r * phi.cos(), r * phi.sin(), z)
+        })
+        .collect()
+}
+
+/// `train` views spread evenly among `n`: view `i` trains when `⌊(i+1)T/n⌋ > ⌊iT/n⌋`.
+pub fn split_of(i: usize, train: usize, n: usize) -> Split {
+    if (i + 1) * train / n > i * train / n { Split::Train } else { Split::Test }
+}
+
+/// `count` lights uniform over the hemisphere around `toward_camera` (solid-angle uniform:
+/// `cos θ` uniform in `(0, 1]`).
+pub fn hemisphere_lights(rng: &mut ChaCha8Rng, toward_camera: Vec3, count: usize, intensity: f32) -> Vec<DirectionalLight> {
+    let frame = Frame::from_normal(toward_camera);
+    (0..count)
+        .map(|_| {
+            let z = 1.0 - rng.random::<f32>();
+            let phi = std::f32::consts::TAU * rng.random::<f32>();
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            let d = frame.to_world(Vec3::new(r * phi.cos(), r * phi.sin(), z));
+            // `z > 0` and a unit frame: never zero.
+            DirectionalLight::new(d, [intensity; 3]).expect("unit direction")
+        })
+        .collect()
+}
+
+/// Renders and writes the data set; returns its description and one render report per view.
+pub fn synthesize(args: &SynthArgs) -> Result<(DatasetFile, Vec<RenderReport>), Error> {
+    args.check()?;
+    let cwd = std::env::current_dir().map_err(|e| Error::io(".", &e))?;
+    let mut mesh_spec = mesh_spec(&args.mesh);
+    if let spec::MeshSpec::File { path } = &mut mesh_spec {
+        *path = std::fs::canonicalize(&*path).map_err(|e| Error::io(&*path, &e))?;
+    }
+    let material_spec = MaterialSpec::parse(&args.material)?.canonical()?;
+    let material = material_spec.load(&cwd)?;
+    let (mesh, norm) = load_mesh(&mesh_spec, &cwd)?;
+    let geometry = Geometry::new(mesh)?;
+
+    let out = &args.out;
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, &e))?;
+    let n = args.views;
+    let fov = args.fov.to_radians();
+    let distance = 1.15 / (0.5 * fov).sin();
+    let mut rng = ChaCha8Rng::seed_from_u64(mix(args.seed, 0));
+    let dirs = fibonacci_sphere(n, std::f32::consts::TAU * rng.random::<f32>());
+    let total: usize = (0..n)
+        .map(|i| match split_of(i, args.train_views, n) {
+            Split::Train => args.train_lights,
+            Split::Test => args.test_lights,
+        })
+        .sum();
+    let bar = ProgressBar::new(total as u64);
+    bar.set_style(
+        ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} images, {elapsed} (eta {eta})")
+            .expect("valid template")
+            .progress_chars("=> "),
+    );
+    bar.set_message("synth");
+
+    let mut views = Vec::with_capacity(n);
+    let mut reports = Vec::with_capacity(n);
+    for (i, d) in dirs.iter().enumerate() {
+        let split = split_of(i, args.train_views, n);
+        let up = if d.z.abs() > 0.99 { Vec3::Y } else { Vec3::Z };
+        let camera = Camera::look_at(*d * distance, Vec3::ZERO, up, fov, args.size, args.size)?;
+        let count = if split == Split::Train { args.train_lights } else { args.test_lights };
+        let mut light_rng = ChaCha8Rng::seed_from_u64(mix(args.seed, 1 + i as u64));
+        let lights = hemisphere_lights(&mut light_rng, *d, count, args.light_intensity);
+        let options = RenderOptions {
+            shadows: if args.force_shadows { ShadowPass::Force } else { ShadowPass::Auto },
+            noise_sigma: args.sigma,
+            seed: mix(args.seed, 10_000 + i as u64),
+        };
+        let rendered = render_view(&geometry, &camera, &lights, |_, wi, wo| material.eval(wi, wo), &options);
+        let dir_rel = PathBuf::from(format!("views/{i:02}"));
+        let dir = out.join(&dir_rel);
+        std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, &e))?;
+        let mask: Vec<bool> = rendered.gbuffer.samples.iter().map(Option::is_some).collect();
+        write_png_mask(dir.join("mask.png"), args.size, args.size, &mask)?;
+        let mut images = Vec::with_capacity(count);
+        for (li, (light, img)) in lights.iter().zip(&rendered.images).enumerate() {
+            let radiance = dir_rel.join(format!("{li:03}.exr"));
+            let brdf = dir_rel.join(format!("{li:03}_brdf.exr"));
+            let lit = dir_rel.join(format!("{li:03}_lit.png"));
+            let rad_img = RgbImage::from_data(args.size, args.size, img.radiance.clone())?;
+            write_exr(out.join(&radiance), &rad_img)?;
+            write_exr(out.join(&brdf), &RgbImage::from_data(args.size, args.size, img.brdf.clone())?)?;
+            write_png_mask(out.join(&lit), args.size, args.size, &img.lit)?;
+            if li == 0 {
+                write_png_srgb(dir.join("preview.png"), &rad_img, 1.0)?;
+            }
+            images.push(ImageSpec {
+                light: LightSpec { direction: light.direction.to_array(), intensity: light.intensity },
+                radiance,
+                brdf,
+                lit,
+            });
+            bar.inc(1);
+        }
+        if args.verbose {
+            bar.suspend(|| eprintln!("view {i:02} ({split:?}):\n{}", rendered.report.summary()));
+        }
+        views.push(ViewSpec {
+            split,
+            k: spec::rows(camera.k),
+            r: spec::rows(camera.r),
+            t: camera.t.to_array(),
+            mask: dir_rel.join("mask.png"),
+            images,
+        });
+        reports.push(rendered.report);
+    }
+    bar.finish();
+    let file = DatasetFile {
+        format: spec::FORMAT.into(),
+        version: spec::VERSION,
+        mesh: mesh_spec,
+        normalization: NormalizationSpec { center: norm.center.to_array(), scale: norm.scale },
+        material: material_spec,
+        width: args.size,
+        height: args.size,
+        noise_sigma: args.sigma,
+        seed: args.seed,
+        counts: Counts {
+            views: n,
+            train_views: args.train_views,
+            test_views: n - args.train_views,
+            train_lights: args.train_lights,
+            test_lights: args.test_lights,
+        },
+        views,
+    };
+    file.validate()?;
+    file.write(out)?;
+    Ok((file, reports))
+}
+
+/// `trainer synth`: renders, then prints where it went and what was simulated.
+pub fn run(args: &SynthArgs) -> Result<DatasetFile, Error> {
+    let (file, reports) = synthesize(args)?;
+    let shadow_rays: usize = reports.iter().map(|r| r.shadow_rays()).sum();
+    let images: usize = file.views.iter().map(|v| v.images.len()).sum();
+    println!("wrote {} views, {images} images to {}", file.views.len(), display(&args.out));
+    if let Some(r) = reports.first() {
+        println!("view 00:\n{}", r.summary());
+    }
+    println!("shadow rays in all views: {shadow_rays}");
+    Ok(file)
+}
+
+fn display(p: &Path) -> String {
+    p.display().to_string()
+}
