@@ -121,8 +121,7 @@ pub fn hdr_flip_at(reference: &RgbImage, test: &RgbImage, mask: Mask<'_>, ppd: f
     };
     let (w, h) = (reference.width as usize, reference.height as usize);
     let to_flip = |img: &RgbImage| {
-        flip_rs::RgbImage::new(w, h, img.data.iter().flatten().copied().collect())
-            .expect("image size checked above")
+        flip_rs::RgbImage::new(w, h, img.data.iter().flatten().copied().collect()).expect("image size checked above")
     };
     let mut options = HdrOptions::default();
     options.ppd = ppd;
@@ -199,7 +198,8 @@ mod tests {
         let data = (0..64 * 48).map(|i| [0.01 + (i % 97) as f32 * 0.05, 0.2, 0.05 * (i % 13) as f32]).collect();
         let img = RgbImage::from_data(64, 48, data).unwrap();
         let ours = exposure_range(&img, &img, None).unwrap();
-        let to_flip = |img: &RgbImage| flip_rs::RgbImage::new(64, 48, img.data.iter().flatten().copied().collect()).unwrap();
+        let to_flip =
+            |img: &RgbImage| flip_rs::RgbImage::new(64, 48, img.data.iter().flatten().copied().collect()).unwrap();
         let auto = flip_rs::hdr_flip(&to_flip(&img), &to_flip(&img), HdrOptions::default()).unwrap().parameters;
         assert!((ours.start - auto.start_exposure).abs() < 1e-4, "{ours:?} vs {auto:?}");
         assert!((ours.stop - auto.stop_exposure).abs() < 1e-4, "{ours:?} vs {auto:?}");
@@ -225,7 +225,8 @@ mod tests {
     #[test]
     fn flip_grows_with_the_error() {
         let (reference, mask) = disc(64, 64, 2.0);
-        let scaled = |k: f32| RgbImage { data: reference.data.iter().map(|p| p.map(|v| v * k)).collect(), ..reference.clone() };
+        let scaled =
+            |k: f32| RgbImage { data: reference.data.iter().map(|p| p.map(|v| v * k)).collect(), ..reference.clone() };
         let small = hdr_flip(&reference, &scaled(1.05), Some(&mask)).mean;
         let large = hdr_flip(&reference, &scaled(1.5), Some(&mask)).mean;
         assert!(0.0 < small && small < large && large <= 1.0, "{small} {large}");

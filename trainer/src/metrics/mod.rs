@@ -53,7 +53,11 @@ pub(crate) fn check_pair(a: &RgbImage, b: &RgbImage, mask: Mask<'_>) {
 /// Linear RGB to sRGB-encoded values in [0, 1] (IEC 61966-2-1 via `nbrdf::image::srgb_encode`, which
 /// clamps), the space the paper evaluates PSNR, DSSIM and LPIPS in.
 pub fn to_srgb(linear: &RgbImage) -> RgbImage {
-    RgbImage { width: linear.width, height: linear.height, data: linear.data.iter().map(|p| p.map(srgb_encode)).collect() }
+    RgbImage {
+        width: linear.width,
+        height: linear.height,
+        data: linear.data.iter().map(|p| p.map(srgb_encode)).collect(),
+    }
 }
 
 /// A copy of `test` whose pixels outside the mask are the reference's, so that both images agree off
