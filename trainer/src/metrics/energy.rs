@@ -16,7 +16,13 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-/// Monte Carlo settings. The paper's scale is 50k pairs (the caller's slice) × 20k samples.
+/// Point-light pairs per object at the paper's scale (Sec. 6); the study draws them with [`pick`].
+pub const PAPER_PAIRS: usize = 50_000;
+/// View samples per pair at the paper's scale (Sec. 6).
+pub const PAPER_SAMPLES: usize = 20_000;
+
+/// Monte Carlo settings. The paper's scale is [`PAPER_PAIRS`] pairs (the caller's slice) ×
+/// [`PAPER_SAMPLES`] samples; the default uses the paper's sample count.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct EnergyConfig {
     /// View directions per pair (paper: 20k).
@@ -31,7 +37,7 @@ pub struct EnergyConfig {
 
 impl Default for EnergyConfig {
     fn default() -> Self {
-        Self { samples: 20_000, seed: 0, z: 3.0, tolerance: 1e-5 }
+        Self { samples: PAPER_SAMPLES, seed: 0, z: 3.0, tolerance: 1e-5 }
     }
 }
 
