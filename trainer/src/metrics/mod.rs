@@ -164,8 +164,9 @@ impl ImageMetrics {
 
     /// The mean over views (the paper averages each metric over the test views of an object, then over
     /// objects). PSNR is averaged in dB, as the paper's tables do.
+    /// No views give NaN everywhere.
     pub fn mean(items: &[ImageMetrics]) -> ImageMetrics {
-        let n = items.len().max(1) as f64;
+        let n = if items.is_empty() { f64::NAN } else { items.len() as f64 };
         ImageMetrics {
             psnr: items.iter().map(|m| m.psnr).sum::<f64>() / n,
             dssim: items.iter().map(|m| m.dssim).sum::<f64>() / n,
@@ -241,5 +242,11 @@ mod tests {
         let v = MaybeMetric::mean([&MaybeMetric::Value(1.0), &MaybeMetric::Value(2.0)]);
         assert_eq!(v, MaybeMetric::Value(1.5));
         assert_eq!(serde_json::to_string(&v).unwrap(), "1.5");
+        let views =
+            [set.image.clone().unwrap(), ImageMetrics { psnr: 40.0, dssim: 0.03, ..set.image.clone().unwrap() }];
+        let mean = ImageMetrics::mean(&views);
+        assert_eq!((mean.psnr, mean.views), (35.0, 4));
+        assert!((mean.dssim - 0.02).abs() < 1e-12 && mean.lpips.value().is_none());
+        assert!(ImageMetrics::mean(&[]).psnr.is_nan());
     }
 }
