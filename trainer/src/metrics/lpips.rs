@@ -60,6 +60,14 @@ pub fn default_weights() -> PathBuf {
     data_dir().join(WEIGHTS_IN_DATA)
 }
 
+/// The unit-normalised AlexNet taps of one image (see [`Lpips::prepare`]).
+#[derive(Debug, Clone)]
+pub struct LpipsFeatures {
+    taps: Vec<Tensor>,
+    width: u32,
+    height: u32,
+}
+
 /// The loaded LPIPS network.
 #[derive(Debug, Clone)]
 pub struct Lpips {
@@ -123,13 +131,36 @@ impl Lpips {
     /// different ones. Masking, if any, is the caller's (make the backgrounds equal first).
     pub fn distance(&self, a: &RgbImage, b: &RgbImage) -> Result<f64, String> {
         check_pair(a, b, None);
-        if a.width < MIN_SIDE || a.height < MIN_SIDE {
-            return Err(format!("LPIPS needs at least {MIN_SIDE}×{MIN_SIDE} pixels, got {}×{}", a.width, a.height));
+        self.distance_to(&self.prepare(a)?, b)
+    }
+
+    /// The network's features of a reference image, to compare several test images (one per model)
+    /// against it without running the reference through AlexNet each time (half the cost).
+    pub fn prepare(&self, reference: &RgbImage) -> Result<LpipsFeatures, String> {
+        if reference.width < MIN_SIDE || reference.height < MIN_SIDE {
+            return Err(format!(
+                "LPIPS needs at least {MIN_SIDE}×{MIN_SIDE} pixels, got {}×{}",
+                reference.width, reference.height
+            ));
         }
-        let fa = self.features(a).map_err(err)?;
-        let fb = self.features(b).map_err(err)?;
+        Ok(LpipsFeatures {
+            taps: self.features(reference).map_err(err)?,
+            width: reference.width,
+            height: reference.height,
+        })
+    }
+
+    /// [`Lpips::distance`] against a [`Lpips::prepare`]d reference.
+    pub fn distance_to(&self, reference: &LpipsFeatures, test: &RgbImage) -> Result<f64, String> {
+        if (reference.width, reference.height) != (test.width, test.height) {
+            return Err(format!(
+                "LPIPS image sizes differ: {}×{} vs {}×{}",
+                reference.width, reference.height, test.width, test.height
+            ));
+        }
+        let fb = self.prepare(test)?.taps;
         let mut total = 0.0f64;
-        for ((x, y), head) in fa.iter().zip(&fb).zip(&self.heads) {
+        for ((x, y), head) in reference.taps.iter().zip(&fb).zip(&self.heads) {
             // Zhang et al. 2018, Eq. 1: Σ_l mean_hw ‖w_l ⊙ (ŷ_l - ŷ'_l)‖² with unit-normalised features.
             let d = (x - y).and_then(|d| d.sqr()).map_err(err)?;
             let weighted = d.broadcast_mul(head).and_then(|t| t.sum_keepdim(1)).map_err(err)?;
@@ -212,5 +243,9 @@ mod tests {
         let s = lpips.distance(&x, &brighter).unwrap();
         assert!(0.0 < s && s < d, "{s} vs {d}");
         assert!(lpips.distance(&pair(30, 64).0, &pair(30, 64).1).is_err());
+        // A prepared reference gives the same value.
+        let prepared = lpips.prepare(&x).unwrap();
+        assert_eq!(lpips.distance_to(&prepared, &y).unwrap(), d);
+        assert!(lpips.distance_to(&prepared, &pair(64, 64).1).is_err());
     }
 }

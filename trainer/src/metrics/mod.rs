@@ -137,29 +137,15 @@ pub struct ImageMetrics {
 impl ImageMetrics {
     /// All image metrics of a test rendering against the reference, both **linear** RGB, masked as the
     /// module table says. `lpips` is the result of [`Lpips::load_or_na`]: loaded once per study, and its
-    /// "n/a" reason is carried into the result instead of failing.
+    /// "n/a" reason is carried into the result instead of failing. To compare several models against
+    /// one reference view, use [`PreparedReference`], which runs the reference through LPIPS once.
     pub fn evaluate(
         reference: &RgbImage,
         test: &RgbImage,
         mask: Mask<'_>,
         lpips: &Result<Lpips, String>,
     ) -> ImageMetrics {
-        let test = equalize_background(reference, test, mask);
-        let (ref_srgb, test_srgb) = (to_srgb(reference), to_srgb(&test));
-        let lpips = match lpips {
-            Ok(net) => match net.distance(&ref_srgb, &test_srgb) {
-                Ok(v) => MaybeMetric::Value(v),
-                Err(e) => MaybeMetric::NotAvailable { na: format!("n/a: {e}") },
-            },
-            Err(reason) => MaybeMetric::NotAvailable { na: reason.clone() },
-        };
-        ImageMetrics {
-            psnr: psnr::psnr(&ref_srgb, &test_srgb, mask),
-            dssim: ssim::dssim(&ref_srgb, &test_srgb, mask),
-            lpips,
-            flip: flip::hdr_flip(reference, &test, mask).mean,
-            views: 1,
-        }
+        PreparedReference::new(reference, mask, lpips).evaluate(test)
     }
 
     /// The mean over views (the paper averages each metric over the test views of an object, then over
@@ -173,6 +159,50 @@ impl ImageMetrics {
             lpips: MaybeMetric::mean(items.iter().map(|m| &m.lpips)),
             flip: items.iter().map(|m| m.flip).sum::<f64>() / n,
             views: items.iter().map(|m| m.views).sum(),
+        }
+    }
+}
+
+/// One reference view, its mask and its LPIPS features, ready to score any number of test renderings.
+pub struct PreparedReference<'a> {
+    linear: &'a RgbImage,
+    srgb: RgbImage,
+    mask: Mask<'a>,
+    lpips: Result<(&'a Lpips, self::lpips::LpipsFeatures), String>,
+}
+
+impl<'a> PreparedReference<'a> {
+    /// Converts the **linear** reference to sRGB and computes its LPIPS features (or keeps the "n/a"
+    /// reason: missing weights, or an image too small for AlexNet).
+    pub fn new(reference: &'a RgbImage, mask: Mask<'a>, lpips: &'a Result<Lpips, String>) -> Self {
+        if let Some(m) = mask {
+            assert_eq!(m.len(), reference.data.len(), "mask size differs from the image's");
+        }
+        let srgb = to_srgb(reference);
+        let lpips = match lpips {
+            Ok(net) => net.prepare(&srgb).map(|f| (net, f)).map_err(|e| format!("n/a: {e}")),
+            Err(reason) => Err(reason.clone()),
+        };
+        Self { linear: reference, srgb, mask, lpips }
+    }
+
+    /// [`ImageMetrics`] of one **linear** test rendering against this reference.
+    pub fn evaluate(&self, test: &RgbImage) -> ImageMetrics {
+        let test = equalize_background(self.linear, test, self.mask);
+        let test_srgb = to_srgb(&test);
+        let lpips = match &self.lpips {
+            Ok((net, features)) => match net.distance_to(features, &test_srgb) {
+                Ok(v) => MaybeMetric::Value(v),
+                Err(e) => MaybeMetric::NotAvailable { na: format!("n/a: {e}") },
+            },
+            Err(reason) => MaybeMetric::NotAvailable { na: reason.clone() },
+        };
+        ImageMetrics {
+            psnr: psnr::psnr(&self.srgb, &test_srgb, self.mask),
+            dssim: ssim::dssim(&self.srgb, &test_srgb, self.mask),
+            lpips,
+            flip: flip::hdr_flip(self.linear, &test, self.mask).mean,
+            views: 1,
         }
     }
 }
@@ -208,6 +238,35 @@ mod tests {
         assert!(m.dssim.abs() < 1e-12 && m.flip == 0.0);
         assert_eq!(m.lpips, MaybeMetric::NotAvailable { na: "n/a: weights not found at X".into() });
         assert_eq!(m.lpips.to_string(), "n/a");
+    }
+
+    /// The full pipeline with the real LPIPS weights: masked, identical objects score perfectly whatever
+    /// the backgrounds, and a brighter object scores worse on every metric.
+    #[test]
+    fn evaluate_masked_pair_with_lpips() {
+        let lpips = Lpips::load_or_na(None);
+        if let Err(reason) = &lpips {
+            eprintln!("skipping: {reason}");
+            return;
+        }
+        let (w, h) = (48u32, 40u32);
+        let mask: Vec<bool> = (0..w * h).map(|i| (10..38).contains(&(i % w)) && (8..32).contains(&(i / w))).collect();
+        let object = |k: f32, bg: f32| {
+            let data = (0..w * h)
+                .map(|i| if mask[i as usize] { [k * (0.2 + (i % 7) as f32 * 0.1), k * 0.4, k * 0.1] } else { [bg; 3] })
+                .collect();
+            RgbImage::from_data(w, h, data).unwrap()
+        };
+        let reference = object(1.0, 0.0);
+        let prepared = PreparedReference::new(&reference, Some(&mask), &lpips);
+        let same = prepared.evaluate(&object(1.0, 0.7));
+        assert_eq!(same.psnr, f64::INFINITY);
+        assert_eq!((same.dssim, same.flip), (0.0, 0.0));
+        assert_eq!(same.lpips, MaybeMetric::Value(0.0));
+        let brighter = prepared.evaluate(&object(1.3, 0.0));
+        assert!(brighter.psnr.is_finite() && brighter.dssim > 0.0 && brighter.flip > 0.0, "{brighter:?}");
+        assert!(brighter.lpips.value().unwrap() > 0.0);
+        assert_eq!(brighter, ImageMetrics::evaluate(&reference, &object(1.3, 0.0), Some(&mask), &lpips));
     }
 
     #[test]
