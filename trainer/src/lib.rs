@@ -2,3 +2,4 @@
 //! study. This library holds the commands' bodies; `main.rs` only parses the command line.
 
 pub mod dataset;
+pub mod intrinsic;
