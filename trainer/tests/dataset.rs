@@ -84,8 +84,8 @@ fn samples_are_lit_pixels_and_satisfy_eq9() {
     for i in 0..s.len() {
         let (wi, wo) = (s.wi[i], s.wo[i]);
         assert!(wi[2] > 0.0 && wo[2] > 0.0);
-        for k in 0..3 {
-            let expected = albedo[k] / PI * s.intensity[i][k] * wi[2];
+        for (k, a) in albedo.iter().enumerate() {
+            let expected = a / PI * s.intensity[i][k] * wi[2];
             assert!((s.radiance[i][k] - expected).abs() < 1e-6, "sample {i}: {:?} vs {expected}", s.radiance[i]);
         }
         // x: barycentrics reproduce the position; the normal is unit.
