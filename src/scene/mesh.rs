@@ -126,6 +126,9 @@ impl Mesh {
     /// than three corners is an error), file normals where every face has them, else computed ones.
     /// Materials and texture coordinates are ignored.
     pub fn from_obj_reader(reader: &mut impl BufRead) -> Result<Self, Error> {
+        // `..Default::default()` stays: tobj's `merging`/`reordering` features, which another crate
+        // of a build may enable, add fields.
+        #[allow(clippy::needless_update)]
         let options = tobj::LoadOptions {
             single_index: false,
             triangulate: false,
@@ -371,7 +374,7 @@ fn validate(positions: &[Vec3], triangles: &[[u32; 3]]) -> Result<(), Error> {
             (b - a).cross(c - a).length() as f64
         })
         .sum();
-    if !(area > 0.0) {
+    if area.is_nan() || area <= 0.0 {
         return Err(Error::InvalidValue {
             what: "mesh",
             reason: "it is degenerate: every triangle has zero area",

@@ -84,8 +84,8 @@ fn samples_are_lit_pixels_and_satisfy_eq9() {
     for i in 0..s.len() {
         let (wi, wo) = (s.wi[i], s.wo[i]);
         assert!(wi[2] > 0.0 && wo[2] > 0.0);
-        for k in 0..3 {
-            let expected = albedo[k] / PI * s.intensity[i][k] * wi[2];
+        for (k, a) in albedo.iter().enumerate() {
+            let expected = a / PI * s.intensity[i][k] * wi[2];
             assert!((s.radiance[i][k] - expected).abs() < 1e-6, "sample {i}: {:?} vs {expected}", s.radiance[i]);
         }
         // x: barycentrics reproduce the position; the normal is unit.
@@ -299,6 +299,18 @@ fn diligent_replica_reads_into_samples() {
         }
     }
 
+    // The command line reads the same copy.
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_trainer"))
+        .args(["inspect", "--diligent"])
+        .arg(&root)
+        .args(["--object", "bear"])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{text}{}", String::from_utf8_lossy(&out.stderr));
+    assert!(text.contains("views: 2 (1 train, 1 test), images: 4"), "{text}");
+    assert!(text.contains(&format!("training samples (lit, unshadowed pixels): {}", s.len())), "{text}");
+
     // Broken copies fail with the file named.
     assert!(diligent::open(&root, "teddy").unwrap_err().to_string().contains("unknown object"));
     std::fs::write(obj.join("view_02/light_intensities.txt"), "1 1 1\n").unwrap();
@@ -360,5 +372,30 @@ fn raw_brdf_images_hold_the_material_at_the_sample_directions() {
             assert!(ok * 10 > s.len() * 8, "{ok} of {}", s.len());
         }
     }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn synth_command_line_writes_and_reports() {
+    let dir = tmpdir("cli");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_trainer"))
+        .args(["synth", "--mesh", "torus", "--material", "velvet", "--size", "16", "--views", "2", "--train-views", "1"])
+        .args(["--train-lights", "2", "--test-lights", "1", "--out"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{text}{}", String::from_utf8_lossy(&out.stderr));
+    assert!(text.contains("wrote 2 views, 3 images") && text.contains("shadow rays"), "{text}");
+    let ds = Dataset::open(&dir).unwrap();
+    assert_eq!(ds.views.iter().map(|v| v.images.len()).sum::<usize>(), 3);
+    // A bad argument is a clear error and a failing exit status.
+    let bad = std::process::Command::new(env!("CARGO_BIN_EXE_trainer"))
+        .args(["synth", "--material", "felt", "--out"])
+        .arg(dir.join("x"))
+        .output()
+        .unwrap();
+    assert!(!bad.status.success());
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("unknown material 'felt'"));
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -48,7 +48,7 @@ pub fn object_dir(root: &Path, object: &str) -> Result<PathBuf, Error> {
     Err(Error::io(root.join("mvpmsData").join(&name), &std::io::Error::from(std::io::ErrorKind::NotFound)))
 }
 
-fn mat_array<'a>(mat: &'a matfile::MatFile, path: &Path, name: &str, rows: usize, cols: usize) -> Result<Vec<f32>, Error> {
+fn mat_array(mat: &matfile::MatFile, path: &Path, name: &str, rows: usize, cols: usize) -> Result<Vec<f32>, Error> {
     let what = || path.display().to_string();
     let a = mat.find_by_name(name).ok_or_else(|| Error::Parse { what: what(), message: format!("no variable {name}") })?;
     if a.size() != &vec![rows, cols] {

@@ -190,7 +190,8 @@ pub fn synthesize(args: &SynthArgs) -> Result<(DatasetFile, Vec<RenderReport>), 
     let mut reports = Vec::with_capacity(n);
     for (i, d) in dirs.iter().enumerate() {
         let split = split_of(i, args.train_views, n);
-        let up = if d.z.abs() > 0.99 { Vec3::Y } else { Vec3::Z };
+        // Meshes in OBJ files are mostly y-up: keep world +y up in the image where possible.
+        let up = if d.y.abs() > 0.99 { Vec3::Z } else { Vec3::Y };
         let camera = Camera::look_at(*d * distance, Vec3::ZERO, up, fov, args.size, args.size)?;
         let count = if split == Split::Train { args.train_lights } else { args.test_lights };
         let mut light_rng = ChaCha8Rng::seed_from_u64(mix(args.seed, 1 + i as u64));
