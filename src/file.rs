@@ -6,7 +6,7 @@
 //! | 0..8 | magic `b"NBRDFMDL"` |
 //! | 8..12 | format version, `u32` LE |
 //! | 12..16 | header length `H`, `u32` LE |
-//! | 16..16+H | [`ModelHeader`], postcard-encoded; zero padding to a multiple of 4 |
+//! | 16..16+H | [`ModelHeader`], postcard-encoded (its last field, the optional sampling proxy, included); zero padding to a multiple of 4 |
 //! | … | network weights in file order (`docs/models.md`), `f32` or `f16` LE per [`Precision`]; zero padding to a multiple of 4 |
 //! | … | object parameters, `f32` LE ([`ModelHeader::n_object`]) |
 //! | … | optional per-vertex position table, `f32` LE, `n_vertices × k` row-major (intrinsic encoding) |
@@ -164,6 +164,10 @@ pub struct ModelHeader {
     pub n_nets: u8,
     /// Rows of the per-vertex position table (0: none); intrinsic encoding only.
     pub n_vertices: u32,
+    /// Importance-sampling proxy of a neural model ([`crate::sampling::Proxy`], fitted at export with
+    /// [`crate::sampling::fit_proxy`]); `None` samples the cosine lobe. Parametric models sample their
+    /// own lobes and ignore it.
+    pub proxy: Option<crate::sampling::Proxy>,
 }
 
 impl ModelHeader {
@@ -225,7 +229,24 @@ impl ModelHeader {
             nets,
             n_nets,
             n_vertices: 0,
+            proxy: None,
         }
+    }
+
+    /// The same header carrying the sampling proxy `proxy` (see [`ModelHeader::proxy`]).
+    ///
+    /// ```
+    /// use nbrdf::file::{ModelHeader, ModelKind, PositionEncoding, Reciprocity};
+    /// use nbrdf::sampling::{GgxLobe, Proxy};
+    /// let proxy = Proxy::new(0.3, [GgxLobe { weight: 0.7, alpha: 0.05 }, GgxLobe::NONE]).unwrap();
+    /// let h = ModelHeader::paper(ModelKind::SingleMlp, false, Reciprocity::Exact, PositionEncoding::Uniform, 2)
+    ///     .with_proxy(proxy);
+    /// assert_eq!(h.proxy, Some(proxy));
+    /// assert!(h.validate().is_ok());
+    /// ```
+    pub fn with_proxy(mut self, proxy: crate::sampling::Proxy) -> Self {
+        self.proxy = Some(proxy);
+        self
     }
 
     /// The same model with `nol` hidden layers after the angles enter: the "number of layers for the
@@ -343,6 +364,9 @@ impl ModelHeader {
                 what: "enhanced flag",
                 reason: "only additive models have the split of Eq. 8",
             });
+        }
+        if let Some(p) = &self.proxy {
+            p.validate()?;
         }
         if self.n_nets as usize > MAX_NETS || self.n_nets == 0 {
             return Err(Error::InvalidValue { what: "network count", reason: "must be 1 to 3" });
