@@ -5,7 +5,7 @@
 
 use nbrdf::builtin::Builtin;
 use nbrdf::image::RgbImage;
-use nbrdf::measured::NbrdfNetwork;
+use nbrdf::measured::{MerlTable, NbrdfNetwork};
 use nbrdf::parametric::{Lambert, Parametric, Phong};
 use nbrdf::pathtrace::{render, Brdf, Environment, Material, Options, Rendered, Sampling, Scene};
 use nbrdf::scene::{builtin::BuiltinMesh, Camera, DirectionalLight, Geometry, Mesh};
@@ -110,7 +110,8 @@ fn environment_sampling_matches_its_pdf() {
     let (mut s1, mut s2) = (0.0f64, 0.0f64);
     for k in 0..n {
         let rng = nbrdf::pathtrace::rng::SampleRng::new(5, 0, k);
-        let s = env.sample([rng.get(0), rng.get(1)]).unwrap();
+        // `None` only within ~1e-4 of a pole, where the direction's f32 rounding puts it on the pole.
+        let Some(s) = env.sample([rng.get(0), rng.get(1)]) else { continue };
         assert!((s.pdf - env.pdf(s.dir)).abs() <= 1e-4 * s.pdf && s.radiance == env.eval(s.dir));
         let x = s.radiance[1] as f64 / s.pdf as f64;
         s1 += x;
@@ -164,17 +165,19 @@ fn skipped_effects_leave_the_image_unchanged() {
 
 #[test]
 fn proxy_and_cosine_sampling_converge_to_the_same_image() {
-    // A specular neural BRDF whose weights need no training: a published NBRDF fit of a MERL material
-    // when the shared data is present, else the built-in two-lobe metal (not neural, same sampler path).
+    // A specular neural BRDF whose weights need no training: the published NBRDF fit of MERL's
+    // chrome-steel when the shared data is present; else the built-in two-lobe metal tabulated as a MERL
+    // table, which goes through the same fitted-proxy sampler.
     let dir = std::env::var("NBRDF_DATA").unwrap_or_else(|_| String::from("../shared/data"));
-    let path = std::path::Path::new(&dir).join("nbrdf-merl/gold-metallic-paint.json");
+    let path = std::path::Path::new(&dir).join("nbrdf-merl/chrome-steel.json");
     let brdf = if path.exists() {
         Brdf::NbrdfJson(NbrdfNetwork::load(&path).unwrap())
     } else {
-        eprintln!("{} not found (set NBRDF_DATA): using the built-in two-lobe metal", path.display());
-        Brdf::Builtin(Builtin::TwoLobeMetal)
+        eprintln!("{} not found (set NBRDF_DATA): using the built-in two-lobe metal as a table", path.display());
+        Brdf::Merl(MerlTable::tabulate(|wi, wo| Builtin::TwoLobeMetal.eval(wi, wo)))
     };
     let proxy = Material::new(brdf).unwrap();
+    assert!(proxy.proxy().diffuse < 0.5, "a specular proxy: {}", proxy.describe());
     let cosine = proxy.clone().with_sampling(Sampling::Cosine);
     let (geometry, env, cam) = (Geometry::new(BuiltinMesh::Sphere.mesh()).unwrap(), sky(), camera(12));
     let run = |m: &Material, seed| {
@@ -186,9 +189,10 @@ fn proxy_and_cosine_sampling_converge_to_the_same_image() {
         let ((ma, sa), (mb, sb)) = (mean_and_se(&a, c), mean_and_se(&b, c));
         let z = (ma - mb) / (sa * sa + sb * sb).sqrt();
         assert!(z.abs() < 4.0, "channel {c}: proxy {ma} ± {sa}, cosine {mb} ± {sb}");
-        // Same estimate, far less noise: the proxy's pixel variance is well below cosine sampling's.
+        // Same estimate, far less noise: the proxy's pixel variance is a fraction of cosine sampling's
+        // (chrome-steel: about 1/100, the built-in metal about 1/10, both under MIS with the sky).
         let va: f64 = a.variance.iter().map(|v| v[c] as f64).sum();
         let vb: f64 = b.variance.iter().map(|v| v[c] as f64).sum();
-        assert!(va < 0.5 * vb, "channel {c}: variance proxy {va} vs cosine {vb}");
+        assert!(va < 0.2 * vb, "channel {c}: variance proxy {va} vs cosine {vb}");
     }
 }
