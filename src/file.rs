@@ -456,8 +456,7 @@ pub(crate) fn parse(bytes: &[u8]) -> Result<(ModelHeader, Sections), Error> {
     let header_bytes = bytes
         .get(16..header_end)
         .ok_or(Error::Truncated { what: "model header", needed: header_end, got: bytes.len() })?;
-    let header: ModelHeader = postcard::from_bytes(header_bytes)
-        .map_err(|_| Error::InvalidValue { what: "model header", reason: "not a valid header encoding" })?;
+    let header = decode_header(header_bytes)?;
     header.validate()?;
 
     let weights_start = align4(header_end);
@@ -492,6 +491,28 @@ pub(crate) fn parse(bytes: &[u8]) -> Result<(ModelHeader, Sections), Error> {
     };
     check_finite(bytes, &header, &sections)?;
     Ok((header, sections))
+}
+
+/// Longest header accepted without the trailing proxy field (a real header is under 100 bytes).
+const MAX_LEGACY_HEADER: usize = 256;
+
+/// Decodes the postcard header. Headers written before the `proxy` field existed end where it would
+/// start; they decode as if it were `None` (its postcard encoding is the single byte 0), so models
+/// exported before the field was added keep loading.
+fn decode_header(bytes: &[u8]) -> Result<ModelHeader, Error> {
+    let bad = Error::InvalidValue { what: "model header", reason: "not a valid header encoding" };
+    match postcard::from_bytes::<ModelHeader>(bytes) {
+        Ok(h) => Ok(h),
+        Err(postcard::Error::DeserializeUnexpectedEnd) if bytes.len() < MAX_LEGACY_HEADER => {
+            let mut buf = [0u8; MAX_LEGACY_HEADER];
+            buf[..bytes.len()].copy_from_slice(bytes);
+            match postcard::from_bytes::<ModelHeader>(&buf[..bytes.len() + 1]) {
+                Ok(h) if h.proxy.is_none() => Ok(h),
+                _ => Err(bad),
+            }
+        }
+        Err(_) => Err(bad),
+    }
 }
 
 /// NaN or infinite weights would poison every evaluation; reject them at load.

@@ -218,3 +218,25 @@ fn chrome_network_gets_a_sharp_lobe() {
     let s = net.sample_with(&proxy, [0.1, 0.9, 0.6], wo).unwrap();
     assert_eq!(s.pdf, net.pdf_with(&proxy, wo, s.wi));
 }
+
+#[test]
+fn files_written_before_the_proxy_field_still_load() {
+    // Rewrite a file as the previous header layout had it: without the proxy's trailing `None` byte.
+    let h = ModelHeader::paper(ModelKind::SingleMlp, false, Reciprocity::Exact, PositionEncoding::Uniform, 2);
+    let weights: Vec<f32> = (0..h.n_weights()).map(|i| (i % 13) as f32 * 1e-2).collect();
+    let new = encode(&h, &weights, None).unwrap();
+    let len = u32::from_le_bytes(new[12..16].try_into().unwrap()) as usize;
+    assert_eq!(new[16 + len - 1], 0, "a header without a proxy ends in postcard's None");
+    let mut old = new[..12].to_vec();
+    old.extend_from_slice(&((len - 1) as u32).to_le_bytes());
+    old.extend_from_slice(&new[16..16 + len - 1]);
+    old.resize((16 + len - 1).div_ceil(4) * 4, 0);
+    old.extend_from_slice(&new[(16 + len).div_ceil(4) * 4..new.len() - 4]);
+    let crc = crc32fast::hash(&old);
+    old.extend_from_slice(&crc.to_le_bytes());
+    let buf = ModelBuf::from_bytes(&old).unwrap();
+    assert_eq!(buf.header(), &h);
+    let (wi, wo) = (dir(0.3, 0.1), dir(0.5, 2.0));
+    let (a, b) = (buf.model(), ModelBuf::from_bytes(&new).unwrap());
+    assert_eq!(a.eval(&a.prepare(&[]), wi, wo), b.model().eval(&b.model().prepare(&[]), wi, wo));
+}

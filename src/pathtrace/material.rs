@@ -51,6 +51,8 @@ pub struct Material {
     brdf: Brdf,
     proxy: Proxy,
     sampling: Sampling,
+    /// The prepared state of a spatially uniform `.nbrdf` model, computed once instead of per hit.
+    uniform: Option<Prepared>,
 }
 
 /// What a material needs to know about a surface point: the prepared state of a `.nbrdf` model.
@@ -79,7 +81,11 @@ impl Material {
             }
             Brdf::Parametric(_) | Brdf::Builtin(_) => Proxy::COSINE,
         };
-        Ok(Material { brdf, proxy, sampling: Sampling::Native })
+        let uniform = match &brdf {
+            Brdf::Model(m) if m.header().position == PositionEncoding::Uniform => Some(m.model().prepare(&[])),
+            _ => None,
+        };
+        Ok(Material { brdf, proxy, sampling: Sampling::Native, uniform })
     }
 
     /// The same material sampled with `sampling`.
@@ -132,6 +138,9 @@ impl Material {
     #[inline]
     pub fn point(&self, mesh: &Mesh, tri: u32, b1: f32, b2: f32, x: Vec3) -> ShadingPoint {
         let Brdf::Model(buf) = &self.brdf else { return ShadingPoint { prepared: None } };
+        if self.uniform.is_some() {
+            return ShadingPoint { prepared: self.uniform };
+        }
         let model = buf.model();
         let prepared = match model.header().position {
             PositionEncoding::Uniform => model.prepare(&[]),
