@@ -211,7 +211,8 @@ pub fn fit_proxy(brdf: impl Fn(Vec3, Vec3) -> Rgb) -> Proxy {
     if !(total > 0.0 && total.is_finite()) {
         return Proxy::COSINE;
     }
-    let share = |k: f64| ((1.0 - DEFENSIVE as f64) * k / total) as f32;
+    // Lobes below 0.1 % of the albedo would only cost a wasted branch: dropped.
+    let share = |k: f64| if k / total < 1e-3 { 0.0 } else { ((1.0 - DEFENSIVE as f64) * k / total) as f32 };
     let lobes = [GgxLobe { weight: share(k1), alpha: a1 }, GgxLobe { weight: share(k2), alpha: a2 }];
     Proxy::new(DEFENSIVE + share(kd), lobes).unwrap_or(Proxy::COSINE)
 }
