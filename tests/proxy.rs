@@ -240,3 +240,29 @@ fn files_written_before_the_proxy_field_still_load() {
     let (a, b) = (buf.model(), ModelBuf::from_bytes(&new).unwrap());
     assert_eq!(a.eval(&a.prepare(&[]), wi, wo), b.model().eval(&b.model().prepare(&[]), wi, wo));
 }
+
+#[test]
+fn parametric_models_sample_their_own_lobes_not_the_proxy() {
+    use nbrdf::parametric::ParametricKind;
+    let h = ModelHeader::paper(
+        ModelKind::Parametric(ParametricKind::Phong),
+        false,
+        Reciprocity::None,
+        PositionEncoding::Extrinsic { frequencies: 2 },
+        0,
+    );
+    let weights: Vec<f32> = (0..h.n_weights()).map(|i| ((i * 31) % 97) as f32 * 1e-3 - 0.05).collect();
+    // Even with a proxy in the header, the predicted Phong parameters drive sampling.
+    let proxy = Proxy::new(0.5, [GgxLobe { weight: 0.5, alpha: 0.3 }, GgxLobe::NONE]).unwrap();
+    let buf = ModelBuf::from_bytes(&encode(&h.with_proxy(proxy), &weights, None).unwrap()).unwrap();
+    let model = buf.model();
+    let p = model.prepare(&[0.2, -0.4, 0.6]);
+    let params = *p.parameters().unwrap();
+    let wo = dir(0.7, 0.3);
+    for u in [[0.1, 0.2, 0.3], [0.8, 0.5, 0.9], [0.4, 0.9, 0.6]] {
+        assert_eq!(model.sample(&p, u, wo), params.sample(u, wo));
+    }
+    let wi = dir(0.4, 2.5);
+    assert_eq!(model.pdf(&p, wo, wi), params.pdf(wo, wi));
+    assert_ne!(model.pdf(&p, wo, wi), proxy.pdf(wo, wi));
+}
