@@ -6,7 +6,7 @@
 //! | 0..8 | magic `b"NBRDFMDL"` |
 //! | 8..12 | format version, `u32` LE |
 //! | 12..16 | header length `H`, `u32` LE |
-//! | 16..16+H | [`ModelHeader`], postcard-encoded; zero padding to a multiple of 4 |
+//! | 16..16+H | [`ModelHeader`], postcard-encoded (its last field, the optional sampling proxy, included); zero padding to a multiple of 4 |
 //! | … | network weights in file order (`docs/models.md`), `f32` or `f16` LE per [`Precision`]; zero padding to a multiple of 4 |
 //! | … | object parameters, `f32` LE ([`ModelHeader::n_object`]) |
 //! | … | optional per-vertex position table, `f32` LE, `n_vertices × k` row-major (intrinsic encoding) |
@@ -164,6 +164,10 @@ pub struct ModelHeader {
     pub n_nets: u8,
     /// Rows of the per-vertex position table (0: none); intrinsic encoding only.
     pub n_vertices: u32,
+    /// Importance-sampling proxy of a neural model ([`crate::sampling::Proxy`], fitted at export with
+    /// [`crate::sampling::fit_proxy`]); `None` samples the cosine lobe. Parametric models sample their
+    /// own lobes and ignore it.
+    pub proxy: Option<crate::sampling::Proxy>,
 }
 
 impl ModelHeader {
@@ -225,7 +229,24 @@ impl ModelHeader {
             nets,
             n_nets,
             n_vertices: 0,
+            proxy: None,
         }
+    }
+
+    /// The same header carrying the sampling proxy `proxy` (see [`ModelHeader::proxy`]).
+    ///
+    /// ```
+    /// use nbrdf::file::{ModelHeader, ModelKind, PositionEncoding, Reciprocity};
+    /// use nbrdf::sampling::{GgxLobe, Proxy};
+    /// let proxy = Proxy::new(0.3, [GgxLobe { weight: 0.7, alpha: 0.05 }, GgxLobe::NONE]).unwrap();
+    /// let h = ModelHeader::paper(ModelKind::SingleMlp, false, Reciprocity::Exact, PositionEncoding::Uniform, 2)
+    ///     .with_proxy(proxy);
+    /// assert_eq!(h.proxy, Some(proxy));
+    /// assert!(h.validate().is_ok());
+    /// ```
+    pub fn with_proxy(mut self, proxy: crate::sampling::Proxy) -> Self {
+        self.proxy = Some(proxy);
+        self
     }
 
     /// The same model with `nol` hidden layers after the angles enter: the "number of layers for the
@@ -344,6 +365,9 @@ impl ModelHeader {
                 reason: "only additive models have the split of Eq. 8",
             });
         }
+        if let Some(p) = &self.proxy {
+            p.validate()?;
+        }
         if self.n_nets as usize > MAX_NETS || self.n_nets == 0 {
             return Err(Error::InvalidValue { what: "network count", reason: "must be 1 to 3" });
         }
@@ -432,8 +456,7 @@ pub(crate) fn parse(bytes: &[u8]) -> Result<(ModelHeader, Sections), Error> {
     let header_bytes = bytes
         .get(16..header_end)
         .ok_or(Error::Truncated { what: "model header", needed: header_end, got: bytes.len() })?;
-    let header: ModelHeader = postcard::from_bytes(header_bytes)
-        .map_err(|_| Error::InvalidValue { what: "model header", reason: "not a valid header encoding" })?;
+    let header = decode_header(header_bytes)?;
     header.validate()?;
 
     let weights_start = align4(header_end);
@@ -468,6 +491,28 @@ pub(crate) fn parse(bytes: &[u8]) -> Result<(ModelHeader, Sections), Error> {
     };
     check_finite(bytes, &header, &sections)?;
     Ok((header, sections))
+}
+
+/// Longest header accepted without the trailing proxy field (a real header is under 100 bytes).
+const MAX_LEGACY_HEADER: usize = 256;
+
+/// Decodes the postcard header. Headers written before the `proxy` field existed end where it would
+/// start; they decode as if it were `None` (its postcard encoding is the single byte 0), so models
+/// exported before the field was added keep loading.
+fn decode_header(bytes: &[u8]) -> Result<ModelHeader, Error> {
+    let bad = Error::InvalidValue { what: "model header", reason: "not a valid header encoding" };
+    match postcard::from_bytes::<ModelHeader>(bytes) {
+        Ok(h) => Ok(h),
+        Err(postcard::Error::DeserializeUnexpectedEnd) if bytes.len() < MAX_LEGACY_HEADER => {
+            let mut buf = [0u8; MAX_LEGACY_HEADER];
+            buf[..bytes.len()].copy_from_slice(bytes);
+            match postcard::from_bytes::<ModelHeader>(&buf[..bytes.len() + 1]) {
+                Ok(h) if h.proxy.is_none() => Ok(h),
+                _ => Err(bad),
+            }
+        }
+        Err(_) => Err(bad),
+    }
 }
 
 /// NaN or infinite weights would poison every evaluation; reject them at load.

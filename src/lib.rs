@@ -41,6 +41,8 @@ pub mod mlp;
 pub mod model;
 pub mod neural;
 pub mod parametric;
+#[cfg(feature = "std")]
+pub mod pathtrace;
 pub mod sampling;
 #[cfg(feature = "std")]
 pub mod scene;

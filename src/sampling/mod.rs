@@ -27,6 +27,19 @@
 //! The FMBRDF's generalised Gaussian has no closed-form inverse CDF; the Beckmann proposal matches it
 //! exactly for β = 2 in the small-angle limit and stays a valid (unbiased, higher-variance) proposal
 //! otherwise, because the pdf reported is always the proposal's own.
+//!
+//! Models without a closed form to sample (neural models, MERL tables, NBRDF-json networks) sample an
+//! analytic [`Proxy`] fitted to them ([`proxy`], [`fit_proxy`]) and evaluate the model itself for the
+//! weight ([`neural`]); the pdf is the proxy's, so the estimator stays unbiased.
+
+pub mod fit;
+#[cfg(feature = "alloc")]
+pub mod measured;
+pub mod neural;
+pub mod proxy;
+
+pub use fit::fit_proxy;
+pub use proxy::{GgxLobe, Proxy};
 
 use crate::builtin::{self, Builtin};
 use crate::math::{safe_sqrt, PI};
@@ -181,20 +194,20 @@ pub fn phong_lobe_pdf(cos_a: f32, n: f32) -> f32 {
 
 /// Reflects `wo` about the half vector into `wi` (`2 (wo·h) h - wo`).
 #[inline]
-fn reflect_about(wo: Vec3, h: Vec3) -> Vec3 {
+pub(crate) fn reflect_about(wo: Vec3, h: Vec3) -> Vec3 {
     h * (2.0 * wo.dot(h)) - wo
 }
 
 /// `wo` normalised if it is finite and above the horizon, else `None`.
 #[inline]
-fn valid_wo(wo: Vec3) -> Option<Vec3> {
+pub(crate) fn valid_wo(wo: Vec3) -> Option<Vec3> {
     let wo = crate::angles::unit(wo)?;
     (wo.z > 0.0).then_some(wo)
 }
 
 /// The half vector of a valid pair and `wo·h`, or `None`.
 #[inline]
-fn half_of(wo: Vec3, wi: Vec3) -> Option<(Vec3, f32)> {
+pub(crate) fn half_of(wo: Vec3, wi: Vec3) -> Option<(Vec3, f32)> {
     let (wi, wo) = crate::angles::upper_hemisphere_pair(wi, wo)?;
     let h = crate::angles::unit(wi + wo)?;
     let oh = wo.dot(h);
@@ -213,7 +226,7 @@ fn half_vector_pdf(wo: Vec3, wi: Vec3, d: impl Fn(f32, f32) -> f32) -> f32 {
 
 /// Rec. 709-like luminance used only to weigh lobes.
 #[inline]
-fn lum(c: Rgb) -> f32 {
+pub(crate) fn lum(c: Rgb) -> f32 {
     0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
 }
 
@@ -247,7 +260,7 @@ fn choose<const N: usize>(p: &[f32; N], u: f32) -> usize {
 
 /// A finished sample: `f cos θi / pdf`, or `None` where the direction is invalid or has no density.
 #[inline]
-fn finish(wi: Vec3, pdf: f32, f: Rgb) -> Option<BsdfSample> {
+pub(crate) fn finish(wi: Vec3, pdf: f32, f: Rgb) -> Option<BsdfSample> {
     if !(wi.z > 0.0 && wi.is_finite() && pdf > 0.0 && pdf.is_finite()) {
         return None;
     }
