@@ -1,0 +1,373 @@
+//! AVX2 and AVX-512 kernels (x86-64), instantiated for `f32` and `half::f16` weights by macros: the
+//! weight type only changes how a vector of weights is loaded (`vcvtph2ps` widens half weights).
+//!
+//! Register tiles (acc = accumulators, lanes = outputs):
+//! - one query: 8 vectors of outputs (128 with AVX-512, 64 with AVX2) per pass over the input rows;
+//! - a packet: `QT` queries × `K` vectors of outputs; per input row, `K` weight loads are shared by
+//!   `QT` broadcast inputs (AVX-512: 8 × 2 × 16 = 16 accumulators of 32 registers; AVX2: 4 × 2 × 8 =
+//!   8 of 16 registers, the packet run as two halves).
+//!
+//! Partial vectors at the end of a row (odd widths, the 3 or 6 outputs of the last layer) use masked
+//! loads and stores, which never touch memory outside the mask.
+//!
+//! Every function here is `unsafe` and `#[target_feature]`: callers guarantee that the CPU has the
+//! features (the dispatch in `kernels` only calls levels ≤ `detected()`) and that the `Dense` passed
+//! `Dense::check` for the extents used.
+
+use core::arch::x86_64::*;
+
+use super::{Dense, PACKET};
+
+/// Loads 16 weights widened to f32, lanes outside `m` zero (AVX-512).
+macro_rules! load16 {
+    (f32, $p:expr, $m:expr, $masked:expr) => {
+        if $masked {
+            _mm512_maskz_loadu_ps($m, $p)
+        } else {
+            _mm512_loadu_ps($p)
+        }
+    };
+    (f16, $p:expr, $m:expr, $masked:expr) => {
+        if $masked {
+            _mm512_cvtph_ps(_mm256_maskz_loadu_epi16($m, $p.cast::<i16>()))
+        } else {
+            _mm512_cvtph_ps(_mm256_loadu_si256($p.cast::<__m256i>()))
+        }
+    };
+}
+
+/// Loads 8 weights widened to f32, lanes at or after `m` zero (AVX2).
+macro_rules! load8 {
+    (f32, $p:expr, $m:expr, $masked:expr) => {
+        if $masked {
+            _mm256_maskload_ps($p, lane_mask($m))
+        } else {
+            _mm256_loadu_ps($p)
+        }
+    };
+    (f16, $p:expr, $m:expr, $masked:expr) => {
+        if $masked {
+            // No masked 16-bit load before AVX-512: copy the `m` valid halves to a zeroed buffer.
+            let mut t = [0u16; 8];
+            core::ptr::copy_nonoverlapping($p.cast::<u16>(), t.as_mut_ptr(), $m.min(8));
+            _mm256_cvtph_ps(_mm_loadu_si128(t.as_ptr().cast::<__m128i>()))
+        } else {
+            _mm256_cvtph_ps(_mm_loadu_si128($p.cast::<__m128i>()))
+        }
+    };
+}
+
+/// The AVX2 mask selecting lanes `0..m`.
+#[inline]
+#[target_feature(enable = "avx2")]
+fn lane_mask(m: usize) -> __m256i {
+    let idx = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+    _mm256_cmpgt_epi32(_mm256_set1_epi32(m.min(8) as i32), idx)
+}
+
+/// The AVX-512 mask selecting lanes `0..m`.
+#[inline(always)]
+fn mask16(m: usize) -> __mmask16 {
+    if m >= 16 {
+        0xffff
+    } else {
+        ((1u32 << m) - 1) as __mmask16
+    }
+}
+
+macro_rules! avx512 {
+    ($name:ident, $w:ty, $tag:tt) => {
+        pub(super) mod $name {
+            use super::*;
+
+            /// Outputs `o .. o + 16 K` of one query.
+            ///
+            /// # Safety
+            /// See the module docs; `m[k]` masks the valid outputs of vector `k`.
+            #[inline]
+            #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
+            unsafe fn one_tile<const K: usize, const MASKED: bool>(
+                l: &Dense<'_, $w>,
+                out: *mut f32,
+                o: usize,
+                m: [__mmask16; K],
+            ) {
+                let n = l.n_out;
+                // SAFETY (whole body): `check` bounds init/out by `n_out`, each segment's inputs by `n`
+                // and rows by `n * n_out`; every access is at `o + 16 k + lane < n_out` (masked) and
+                // row `i < n`.
+                unsafe {
+                    let init = l.init.as_ptr().add(o);
+                    let mut acc: [__m512; K] =
+                        core::array::from_fn(|k| load16!(f32, init.add(16 * k), m[k], MASKED));
+                    for s in &l.segs[..l.n_segs] {
+                        let (x, rows) = (s.x.as_ptr(), s.rows.as_ptr().add(o));
+                        for i in 0..s.n {
+                            let xi = *x.add(i);
+                            if xi == 0.0 {
+                                continue;
+                            }
+                            let xb = _mm512_set1_ps(xi);
+                            let r = rows.add(i * n);
+                            for k in 0..K {
+                                acc[k] = _mm512_fmadd_ps(xb, load16!($tag, r.add(16 * k), m[k], MASKED), acc[k]);
+                            }
+                        }
+                    }
+                    let zero = _mm512_setzero_ps();
+                    for k in 0..K {
+                        let v = if l.relu { _mm512_max_ps(acc[k], zero) } else { acc[k] };
+                        _mm512_mask_storeu_ps(out.add(o + 16 * k), m[k], v);
+                    }
+                }
+            }
+
+            /// One query through the layer.
+            ///
+            /// # Safety
+            /// See the module docs (`check(1, ..)`).
+            #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
+            pub(in crate::kernels) unsafe fn one(l: &Dense<'_, $w>, out: *mut f32) {
+                let n = l.n_out;
+                let mut o = 0;
+                // SAFETY: each tile stays below `n_out` (full tiles by the loop bounds, the rest masked).
+                unsafe {
+                    while o + 128 <= n {
+                        one_tile::<8, false>(l, out, o, [0xffff; 8]);
+                        o += 128;
+                    }
+                    while o + 32 <= n {
+                        one_tile::<2, false>(l, out, o, [0xffff; 2]);
+                        o += 32;
+                    }
+                    while o < n {
+                        one_tile::<1, true>(l, out, o, [mask16(n - o)]);
+                        o += 16;
+                    }
+                }
+            }
+
+            /// Outputs `o .. o + 16 K` of the `PACKET` queries.
+            ///
+            /// # Safety
+            /// See the module docs; `m[k]` masks the valid outputs of vector `k`.
+            #[inline]
+            #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
+            unsafe fn packet_tile<const K: usize, const MASKED: bool>(
+                l: &Dense<'_, $w>,
+                out: *mut f32,
+                os: usize,
+                o: usize,
+                m: [__mmask16; K],
+            ) {
+                let n = l.n_out;
+                // SAFETY (whole body): as in `one_tile`, with query `q < PACKET` at `q * stride` of the
+                // inputs and `q * os` of the outputs, both within the checked extents.
+                unsafe {
+                    let init = l.init.as_ptr().add(o);
+                    let init: [__m512; K] = core::array::from_fn(|k| load16!(f32, init.add(16 * k), m[k], MASKED));
+                    let mut acc: [[__m512; K]; PACKET] = [init; PACKET];
+                    for s in &l.segs[..l.n_segs] {
+                        let (x, rows) = (s.x.as_ptr(), s.rows.as_ptr().add(o));
+                        for i in 0..s.n {
+                            let r = rows.add(i * n);
+                            let w: [__m512; K] = core::array::from_fn(|k| load16!($tag, r.add(16 * k), m[k], MASKED));
+                            for q in 0..PACKET {
+                                let xb = _mm512_set1_ps(*x.add(q * s.stride + i));
+                                for k in 0..K {
+                                    acc[q][k] = _mm512_fmadd_ps(xb, w[k], acc[q][k]);
+                                }
+                            }
+                        }
+                    }
+                    let zero = _mm512_setzero_ps();
+                    for q in 0..PACKET {
+                        for k in 0..K {
+                            let v = if l.relu { _mm512_max_ps(acc[q][k], zero) } else { acc[q][k] };
+                            _mm512_mask_storeu_ps(out.add(q * os + o + 16 * k), m[k], v);
+                        }
+                    }
+                }
+            }
+
+            /// `PACKET` queries through the layer.
+            ///
+            /// # Safety
+            /// See the module docs (`check(PACKET, ..)`).
+            #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
+            pub(in crate::kernels) unsafe fn packet(l: &Dense<'_, $w>, out: *mut f32, os: usize) {
+                let n = l.n_out;
+                let mut o = 0;
+                // SAFETY: each tile stays below `n_out` (full tiles by the loop bounds, the rest masked).
+                unsafe {
+                    while o + 32 <= n {
+                        packet_tile::<2, false>(l, out, os, o, [0xffff; 2]);
+                        o += 32;
+                    }
+                    while o < n {
+                        packet_tile::<1, true>(l, out, os, o, [mask16(n - o)]);
+                        o += 16;
+                    }
+                }
+            }
+        }
+    };
+}
+
+avx512!(avx512_f32, f32, f32);
+avx512!(avx512_f16, half::f16, f16);
+
+/// Queries per AVX2 packet tile: 4 queries × 2 vectors = 8 of the 16 registers hold accumulators.
+const QT2: usize = 4;
+
+macro_rules! avx2 {
+    ($name:ident, $w:ty, $tag:tt) => {
+        pub(super) mod $name {
+            use super::*;
+
+            /// Outputs `o .. o + 8 K` of one query; `m[k]` valid lanes in vector `k`.
+            ///
+            /// # Safety
+            /// See the module docs.
+            #[inline]
+            #[target_feature(enable = "avx2,fma,f16c")]
+            unsafe fn one_tile<const K: usize, const MASKED: bool>(
+                l: &Dense<'_, $w>,
+                out: *mut f32,
+                o: usize,
+                m: [usize; K],
+            ) {
+                let n = l.n_out;
+                // SAFETY (whole body): as in the AVX-512 `one_tile`; masked lanes are never read or
+                // written (maskload/maskstore, or the bounded copy of `load8!`).
+                unsafe {
+                    let init = l.init.as_ptr().add(o);
+                    let mut acc: [__m256; K] =
+                        core::array::from_fn(|k| load8!(f32, init.add(8 * k), m[k], MASKED));
+                    for s in &l.segs[..l.n_segs] {
+                        let (x, rows) = (s.x.as_ptr(), s.rows.as_ptr().add(o));
+                        for i in 0..s.n {
+                            let xi = *x.add(i);
+                            if xi == 0.0 {
+                                continue;
+                            }
+                            let xb = _mm256_set1_ps(xi);
+                            let r = rows.add(i * n);
+                            for k in 0..K {
+                                acc[k] = _mm256_fmadd_ps(xb, load8!($tag, r.add(8 * k), m[k], MASKED), acc[k]);
+                            }
+                        }
+                    }
+                    let zero = _mm256_setzero_ps();
+                    for k in 0..K {
+                        let v = if l.relu { _mm256_max_ps(acc[k], zero) } else { acc[k] };
+                        if MASKED {
+                            _mm256_maskstore_ps(out.add(o + 8 * k), lane_mask(m[k]), v);
+                        } else {
+                            _mm256_storeu_ps(out.add(o + 8 * k), v);
+                        }
+                    }
+                }
+            }
+
+            /// One query through the layer.
+            ///
+            /// # Safety
+            /// See the module docs (`check(1, ..)`).
+            #[target_feature(enable = "avx2,fma,f16c")]
+            pub(in crate::kernels) unsafe fn one(l: &Dense<'_, $w>, out: *mut f32) {
+                let n = l.n_out;
+                let mut o = 0;
+                // SAFETY: each tile stays below `n_out` (full tiles by the loop bounds, the rest masked).
+                unsafe {
+                    while o + 64 <= n {
+                        one_tile::<8, false>(l, out, o, [8; 8]);
+                        o += 64;
+                    }
+                    while o + 16 <= n {
+                        one_tile::<2, false>(l, out, o, [8; 2]);
+                        o += 16;
+                    }
+                    while o < n {
+                        one_tile::<1, true>(l, out, o, [n - o]);
+                        o += 8;
+                    }
+                }
+            }
+
+            /// Outputs `o .. o + 8 K` of queries `q0 .. q0 + QT2`.
+            ///
+            /// # Safety
+            /// See the module docs.
+            #[inline]
+            #[target_feature(enable = "avx2,fma,f16c")]
+            unsafe fn packet_tile<const K: usize, const MASKED: bool>(
+                l: &Dense<'_, $w>,
+                out: *mut f32,
+                os: usize,
+                q0: usize,
+                o: usize,
+                m: [usize; K],
+            ) {
+                let n = l.n_out;
+                // SAFETY (whole body): as in the AVX-512 `packet_tile`, for queries `q0 + q < PACKET`.
+                unsafe {
+                    let init = l.init.as_ptr().add(o);
+                    let init: [__m256; K] = core::array::from_fn(|k| load8!(f32, init.add(8 * k), m[k], MASKED));
+                    let mut acc: [[__m256; K]; QT2] = [init; QT2];
+                    for s in &l.segs[..l.n_segs] {
+                        let (x, rows) = (s.x.as_ptr().add(q0 * s.stride), s.rows.as_ptr().add(o));
+                        for i in 0..s.n {
+                            let r = rows.add(i * n);
+                            let w: [__m256; K] = core::array::from_fn(|k| load8!($tag, r.add(8 * k), m[k], MASKED));
+                            for q in 0..QT2 {
+                                let xb = _mm256_set1_ps(*x.add(q * s.stride + i));
+                                for k in 0..K {
+                                    acc[q][k] = _mm256_fmadd_ps(xb, w[k], acc[q][k]);
+                                }
+                            }
+                        }
+                    }
+                    let zero = _mm256_setzero_ps();
+                    for q in 0..QT2 {
+                        for k in 0..K {
+                            let v = if l.relu { _mm256_max_ps(acc[q][k], zero) } else { acc[q][k] };
+                            let p = out.add((q0 + q) * os + o + 8 * k);
+                            if MASKED {
+                                _mm256_maskstore_ps(p, lane_mask(m[k]), v);
+                            } else {
+                                _mm256_storeu_ps(p, v);
+                            }
+                        }
+                    }
+                }
+            }
+
+            /// `PACKET` queries through the layer.
+            ///
+            /// # Safety
+            /// See the module docs (`check(PACKET, ..)`).
+            #[target_feature(enable = "avx2,fma,f16c")]
+            pub(in crate::kernels) unsafe fn packet(l: &Dense<'_, $w>, out: *mut f32, os: usize) {
+                let n = l.n_out;
+                // SAFETY: each tile stays below `n_out` and `PACKET` queries.
+                unsafe {
+                    for q0 in (0..PACKET).step_by(QT2) {
+                        let mut o = 0;
+                        while o + 16 <= n {
+                            packet_tile::<2, false>(l, out, os, q0, o, [8; 2]);
+                            o += 16;
+                        }
+                        while o < n {
+                            packet_tile::<1, true>(l, out, os, q0, o, [n - o]);
+                            o += 8;
+                        }
+                    }
+                }
+            }
+        }
+    };
+}
+
+avx2!(avx2_f32, f32, f32);
+avx2!(avx2_f16, half::f16, f16);
