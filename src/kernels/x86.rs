@@ -57,6 +57,48 @@ macro_rules! load8 {
     };
 }
 
+/// Inputs gathered per batch of the one-query kernels.
+const GATHER: usize = 256;
+
+/// The nonzero inputs of one query with pointers to their weight rows, in input order: the first
+/// `len` entries of `x` and `rows` (the rest uninitialised).
+struct Gathered<W> {
+    x: *const f32,
+    rows: *const *const W,
+    len: usize,
+}
+
+/// Gathers the nonzero inputs of the layer's segments into `xs`/`rs` and hands each full batch of
+/// [`GATHER`] (and the last one) to `flush(batch, first, last)`. Branch-free: every slot is written and
+/// kept only for a nonzero input (NaN is kept, as the packet kernels propagate it). `len` stays in a
+/// register (a struct field behind `&mut` made each step wait on a store-to-load round trip).
+#[inline(always)]
+fn gather<W>(l: &Dense<'_, W>, mut flush: impl FnMut(&Gathered<W>, bool, bool)) {
+    let mut xs = [core::mem::MaybeUninit::<f32>::uninit(); GATHER];
+    let mut rs = [core::mem::MaybeUninit::<*const W>::uninit(); GATHER];
+    let (xp, rp) = (xs.as_mut_ptr().cast::<f32>(), rs.as_mut_ptr().cast::<*const W>());
+    let mut len = 0usize;
+    let mut first = true;
+    for s in &l.segs[..l.n_segs] {
+        let (x, rows) = (s.x.as_ptr(), s.rows.as_ptr());
+        for i in 0..s.n {
+            if len == GATHER {
+                flush(&Gathered { x: xp, rows: rp, len }, first, false);
+                first = false;
+                len = 0;
+            }
+            // SAFETY: `len < GATHER` slots; `i < s.n` inputs and rows (`Dense::check`).
+            unsafe {
+                let v = *x.add(i);
+                xp.add(len).write(v);
+                rp.add(len).write(rows.add(i * l.n_out));
+                len += (v != 0.0) as usize;
+            }
+        }
+    }
+    flush(&Gathered { x: xp, rows: rp, len }, first, true);
+}
+
 /// The AVX2 mask selecting lanes `0..m`.
 #[inline]
 #[target_feature(enable = "avx2")]
@@ -80,71 +122,80 @@ macro_rules! avx512 {
         pub(super) mod $name {
             use super::*;
 
-            /// Outputs `o .. o + 16 K` of one query.
+            /// Outputs `o .. o + 16 K` of one query: starting from `src`, one FMA per gathered input.
             ///
             /// # Safety
-            /// See the module docs; `m[k]` masks the valid outputs of vector `k`.
+            /// See the module docs; `m[k]` masks the valid outputs of vector `k`; `src` and `out` hold
+            /// `n_out` values, each `g.rows[j]` a row of `n_out` weights.
             #[inline]
             #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
             unsafe fn one_tile<const K: usize, const MASKED: bool>(
-                l: &Dense<'_, $w>,
+                src: *const f32,
                 out: *mut f32,
                 o: usize,
                 m: [__mmask16; K],
+                g: &Gathered<$w>,
+                relu: bool,
             ) {
-                let n = l.n_out;
-                // SAFETY (whole body): `check` bounds init/out by `n_out`, each segment's inputs by `n`
-                // and rows by `n * n_out`; every access is at `o + 16 k + lane < n_out` (masked) and
-                // row `i < n`.
+                // SAFETY (whole body): every access is at `o + 16 k + lane < n_out` (masked) of `src`,
+                // `out` or a gathered row (see the caller).
                 unsafe {
-                    let init = l.init.as_ptr().add(o);
+                    let src = src.add(o);
                     let mut acc: [__m512; K] =
-                        core::array::from_fn(|k| load16!(f32, init.add(16 * k), m[k], MASKED));
-                    for s in &l.segs[..l.n_segs] {
-                        let (x, rows) = (s.x.as_ptr(), s.rows.as_ptr().add(o));
-                        for i in 0..s.n {
-                            let xi = *x.add(i);
-                            if xi == 0.0 {
-                                continue;
-                            }
-                            let xb = _mm512_set1_ps(xi);
-                            let r = rows.add(i * n);
-                            for k in 0..K {
-                                acc[k] = _mm512_fmadd_ps(xb, load16!($tag, r.add(16 * k), m[k], MASKED), acc[k]);
-                            }
+                        core::array::from_fn(|k| load16!(f32, src.add(16 * k), m[k], MASKED));
+                    for j in 0..g.len {
+                        let xb = _mm512_set1_ps(*g.x.add(j));
+                        let r = (*g.rows.add(j)).add(o);
+                        for k in 0..K {
+                            acc[k] = _mm512_fmadd_ps(xb, load16!($tag, r.add(16 * k), m[k], MASKED), acc[k]);
                         }
                     }
                     let zero = _mm512_setzero_ps();
                     for k in 0..K {
-                        let v = if l.relu { _mm512_max_ps(acc[k], zero) } else { acc[k] };
+                        let v = if relu { _mm512_max_ps(acc[k], zero) } else { acc[k] };
                         _mm512_mask_storeu_ps(out.add(o + 16 * k), m[k], v);
                     }
                 }
             }
 
-            /// One query through the layer.
+            /// All output tiles of one query over one batch of gathered inputs.
+            ///
+            /// # Safety
+            /// As `one_tile`, for outputs `0..n`.
+            #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
+            unsafe fn one_tiles(src: *const f32, out: *mut f32, n: usize, g: &Gathered<$w>, relu: bool) {
+                let mut o = 0;
+                // SAFETY: each tile stays below `n` (full tiles by the loop bounds, the rest masked).
+                unsafe {
+                    while o + 128 <= n {
+                        one_tile::<8, false>(src, out, o, [0xffff; 8], g, relu);
+                        o += 128;
+                    }
+                    while o + 32 <= n {
+                        one_tile::<2, false>(src, out, o, [0xffff; 2], g, relu);
+                        o += 32;
+                    }
+                    while o < n {
+                        one_tile::<1, true>(src, out, o, [mask16(n - o)], g, relu);
+                        o += 16;
+                    }
+                }
+            }
+
+            /// One query through the layer: its nonzero inputs are gathered without branches (after a
+            /// ReLU about half are zero, in no predictable pattern), then each output tile runs one FMA
+            /// per gathered input.
             ///
             /// # Safety
             /// See the module docs (`check(1, ..)`).
             #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
             pub(in crate::kernels) unsafe fn one(l: &Dense<'_, $w>, out: *mut f32) {
-                let n = l.n_out;
-                let mut o = 0;
-                // SAFETY: each tile stays below `n_out` (full tiles by the loop bounds, the rest masked).
-                unsafe {
-                    while o + 128 <= n {
-                        one_tile::<8, false>(l, out, o, [0xffff; 8]);
-                        o += 128;
-                    }
-                    while o + 32 <= n {
-                        one_tile::<2, false>(l, out, o, [0xffff; 2]);
-                        o += 32;
-                    }
-                    while o < n {
-                        one_tile::<1, true>(l, out, o, [mask16(n - o)]);
-                        o += 16;
-                    }
-                }
+                let init = l.init.as_ptr();
+                gather(l, |g, first, last| {
+                    // SAFETY: `init` and `out` hold `n_out` values (`check`), the gathered rows come from
+                    // checked segments; partial sums of a long input go through `out` unrounded.
+                    unsafe { one_tiles(if first { init } else { out }, out, l.n_out, g, last && l.relu) }
+                });
             }
 
             /// Outputs `o .. o + 16 K` of the `PACKET` queries.
@@ -190,7 +241,9 @@ macro_rules! avx512 {
                 }
             }
 
-            /// `PACKET` queries through the layer.
+            /// `PACKET` queries through the layer, every input row: skipping each query's zero inputs
+            /// (about half) was tried and is slower on Zen 4, whose single 512-bit load per cycle then
+            /// limits the FMAs (one weight load, one broadcast and one offset load per FMA pair).
             ///
             /// # Safety
             /// See the module docs (`check(PACKET, ..)`).
@@ -225,42 +278,37 @@ macro_rules! avx2 {
         pub(super) mod $name {
             use super::*;
 
-            /// Outputs `o .. o + 8 K` of one query; `m[k]` valid lanes in vector `k`.
+            /// Outputs `o .. o + 8 K` of one query: starting from `src`, one FMA per gathered input;
+            /// `m[k]` valid lanes in vector `k`.
             ///
             /// # Safety
-            /// See the module docs.
+            /// As the AVX-512 `one_tile`.
             #[inline]
             #[target_feature(enable = "avx2,fma,f16c")]
             unsafe fn one_tile<const K: usize, const MASKED: bool>(
-                l: &Dense<'_, $w>,
+                src: *const f32,
                 out: *mut f32,
                 o: usize,
                 m: [usize; K],
+                g: &Gathered<$w>,
+                relu: bool,
             ) {
-                let n = l.n_out;
                 // SAFETY (whole body): as in the AVX-512 `one_tile`; masked lanes are never read or
                 // written (maskload/maskstore, or the bounded copy of `load8!`).
                 unsafe {
-                    let init = l.init.as_ptr().add(o);
+                    let src = src.add(o);
                     let mut acc: [__m256; K] =
-                        core::array::from_fn(|k| load8!(f32, init.add(8 * k), m[k], MASKED));
-                    for s in &l.segs[..l.n_segs] {
-                        let (x, rows) = (s.x.as_ptr(), s.rows.as_ptr().add(o));
-                        for i in 0..s.n {
-                            let xi = *x.add(i);
-                            if xi == 0.0 {
-                                continue;
-                            }
-                            let xb = _mm256_set1_ps(xi);
-                            let r = rows.add(i * n);
-                            for k in 0..K {
-                                acc[k] = _mm256_fmadd_ps(xb, load8!($tag, r.add(8 * k), m[k], MASKED), acc[k]);
-                            }
+                        core::array::from_fn(|k| load8!(f32, src.add(8 * k), m[k], MASKED));
+                    for j in 0..g.len {
+                        let xb = _mm256_set1_ps(*g.x.add(j));
+                        let r = (*g.rows.add(j)).add(o);
+                        for k in 0..K {
+                            acc[k] = _mm256_fmadd_ps(xb, load8!($tag, r.add(8 * k), m[k], MASKED), acc[k]);
                         }
                     }
                     let zero = _mm256_setzero_ps();
                     for k in 0..K {
-                        let v = if l.relu { _mm256_max_ps(acc[k], zero) } else { acc[k] };
+                        let v = if relu { _mm256_max_ps(acc[k], zero) } else { acc[k] };
                         if MASKED {
                             _mm256_maskstore_ps(out.add(o + 8 * k), lane_mask(m[k]), v);
                         } else {
@@ -270,29 +318,42 @@ macro_rules! avx2 {
                 }
             }
 
-            /// One query through the layer.
+            /// All output tiles of one query over one batch of gathered inputs.
+            ///
+            /// # Safety
+            /// As `one_tile`, for outputs `0..n`.
+            #[target_feature(enable = "avx2,fma,f16c")]
+            unsafe fn one_tiles(src: *const f32, out: *mut f32, n: usize, g: &Gathered<$w>, relu: bool) {
+                let mut o = 0;
+                // SAFETY: each tile stays below `n` (full tiles by the loop bounds, the rest masked).
+                unsafe {
+                    while o + 64 <= n {
+                        one_tile::<8, false>(src, out, o, [8; 8], g, relu);
+                        o += 64;
+                    }
+                    while o + 16 <= n {
+                        one_tile::<2, false>(src, out, o, [8; 2], g, relu);
+                        o += 16;
+                    }
+                    while o < n {
+                        one_tile::<1, true>(src, out, o, [n - o], g, relu);
+                        o += 8;
+                    }
+                }
+            }
+
+            /// One query through the layer (nonzero inputs gathered first, as with AVX-512).
             ///
             /// # Safety
             /// See the module docs (`check(1, ..)`).
             #[target_feature(enable = "avx2,fma,f16c")]
             pub(in crate::kernels) unsafe fn one(l: &Dense<'_, $w>, out: *mut f32) {
-                let n = l.n_out;
-                let mut o = 0;
-                // SAFETY: each tile stays below `n_out` (full tiles by the loop bounds, the rest masked).
-                unsafe {
-                    while o + 64 <= n {
-                        one_tile::<8, false>(l, out, o, [8; 8]);
-                        o += 64;
-                    }
-                    while o + 16 <= n {
-                        one_tile::<2, false>(l, out, o, [8; 2]);
-                        o += 16;
-                    }
-                    while o < n {
-                        one_tile::<1, true>(l, out, o, [n - o]);
-                        o += 8;
-                    }
-                }
+                let init = l.init.as_ptr();
+                gather(l, |g, first, last| {
+                    // SAFETY: `init` and `out` hold `n_out` values (`check`), the gathered rows come from
+                    // checked segments; partial sums of a long input go through `out` unrounded.
+                    unsafe { one_tiles(if first { init } else { out }, out, l.n_out, g, last && l.relu) }
+                });
             }
 
             /// Outputs `o .. o + 8 K` of queries `q0 .. q0 + QT2`.
