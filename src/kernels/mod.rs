@@ -284,7 +284,7 @@ mod tests {
 
     fn check_shapes<W: crate::mlp::Weight>(w: &[W]) {
         for &(n_out, n1, n2, relu) in
-            &[(3, 20, 0, false), (6, 31, 0, false), (17, 9, 5, true), (128, 40, 0, true), (128, 64, 7, true), (130, 12, 3, true), (200, 3, 0, true), (48, 5, 5, false), (17, 300, 20, true), (40, 250, 9, false)]
+            &[(3, 20, 0, false), (6, 31, 0, false), (17, 9, 5, true), (21, 21, 0, true), (32, 6, 0, true), (64, 20, 0, false), (128, 40, 0, true), (128, 64, 7, true), (130, 12, 3, true), (200, 3, 0, true), (48, 5, 5, false), (17, 300, 20, true), (40, 250, 9, false)]
         {
             let stride = 330;
             let x1 = values(PACKET * stride, n_out as u32, 3);

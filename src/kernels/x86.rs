@@ -57,6 +57,10 @@ macro_rules! load8 {
     };
 }
 
+/// Layers with at most this many inputs skip the gathering of nonzero inputs in the one-query kernels
+/// (the NBRDF-json networks, 6-21-21-3): there the gathering costs more than the FMAs it saves.
+const DENSE_BELOW: usize = 32;
+
 /// Inputs gathered per batch of the one-query kernels.
 const GATHER: usize = 256;
 
@@ -182,6 +186,66 @@ macro_rules! avx512 {
                 }
             }
 
+            /// Outputs `o .. o + 16 K` of one query, every input row (small layers: see `DENSE_BELOW`).
+            ///
+            /// # Safety
+            /// As `one_tile`, over the checked segments.
+            #[inline]
+            #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
+            unsafe fn one_dense_tile<const K: usize, const MASKED: bool>(
+                l: &Dense<'_, $w>,
+                out: *mut f32,
+                o: usize,
+                m: [__mmask16; K],
+            ) {
+                let n = l.n_out;
+                // SAFETY (whole body): as in `packet_tile`, for one query.
+                unsafe {
+                    let init = l.init.as_ptr().add(o);
+                    let mut acc: [__m512; K] = core::array::from_fn(|k| load16!(f32, init.add(16 * k), m[k], MASKED));
+                    for s in &l.segs[..l.n_segs] {
+                        let (x, rows) = (s.x.as_ptr(), s.rows.as_ptr().add(o));
+                        for i in 0..s.n {
+                            let xb = _mm512_set1_ps(*x.add(i));
+                            let r = rows.add(i * n);
+                            for k in 0..K {
+                                acc[k] = _mm512_fmadd_ps(xb, load16!($tag, r.add(16 * k), m[k], MASKED), acc[k]);
+                            }
+                        }
+                    }
+                    let zero = _mm512_setzero_ps();
+                    for k in 0..K {
+                        let v = if l.relu { _mm512_max_ps(acc[k], zero) } else { acc[k] };
+                        _mm512_mask_storeu_ps(out.add(o + 16 * k), m[k], v);
+                    }
+                }
+            }
+
+            /// One query through a small layer, every input row.
+            ///
+            /// # Safety
+            /// See the module docs (`check(1, ..)`).
+            #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
+            unsafe fn one_dense(l: &Dense<'_, $w>, out: *mut f32) {
+                let n = l.n_out;
+                let mut o = 0;
+                // SAFETY: each tile stays below `n_out` (full tiles by the loop bounds, the rest masked).
+                unsafe {
+                    while o + 64 <= n {
+                        one_dense_tile::<4, false>(l, out, o, [0xffff; 4]);
+                        o += 64;
+                    }
+                    while o + 32 <= n {
+                        one_dense_tile::<2, false>(l, out, o, [0xffff; 2]);
+                        o += 32;
+                    }
+                    while o < n {
+                        one_dense_tile::<1, true>(l, out, o, [mask16(n - o)]);
+                        o += 16;
+                    }
+                }
+            }
+
             /// One query through the layer: its nonzero inputs are gathered without branches (after a
             /// ReLU about half are zero, in no predictable pattern), then each output tile runs one FMA
             /// per gathered input.
@@ -190,6 +254,10 @@ macro_rules! avx512 {
             /// See the module docs (`check(1, ..)`).
             #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
             pub(in crate::kernels) unsafe fn one(l: &Dense<'_, $w>, out: *mut f32) {
+                if l.segs[..l.n_segs].iter().map(|s| s.n).sum::<usize>() <= DENSE_BELOW {
+                    // SAFETY: same contract.
+                    return unsafe { one_dense(l, out) };
+                }
                 let init = l.init.as_ptr();
                 gather(l, |g, first, last| {
                     // SAFETY: `init` and `out` hold `n_out` values (`check`), the gathered rows come from
@@ -342,12 +410,79 @@ macro_rules! avx2 {
                 }
             }
 
+            /// Outputs `o .. o + 8 K` of one query, every input row (small layers: see `DENSE_BELOW`).
+            ///
+            /// # Safety
+            /// As `one_tile`, over the checked segments.
+            #[inline]
+            #[target_feature(enable = "avx2,fma,f16c")]
+            unsafe fn one_dense_tile<const K: usize, const MASKED: bool>(
+                l: &Dense<'_, $w>,
+                out: *mut f32,
+                o: usize,
+                m: [usize; K],
+            ) {
+                let n = l.n_out;
+                // SAFETY (whole body): as in `packet_tile`, for one query.
+                unsafe {
+                    let init = l.init.as_ptr().add(o);
+                    let mut acc: [__m256; K] = core::array::from_fn(|k| load8!(f32, init.add(8 * k), m[k], MASKED));
+                    for s in &l.segs[..l.n_segs] {
+                        let (x, rows) = (s.x.as_ptr(), s.rows.as_ptr().add(o));
+                        for i in 0..s.n {
+                            let xb = _mm256_set1_ps(*x.add(i));
+                            let r = rows.add(i * n);
+                            for k in 0..K {
+                                acc[k] = _mm256_fmadd_ps(xb, load8!($tag, r.add(8 * k), m[k], MASKED), acc[k]);
+                            }
+                        }
+                    }
+                    let zero = _mm256_setzero_ps();
+                    for k in 0..K {
+                        let v = if l.relu { _mm256_max_ps(acc[k], zero) } else { acc[k] };
+                        if MASKED {
+                            _mm256_maskstore_ps(out.add(o + 8 * k), lane_mask(m[k]), v);
+                        } else {
+                            _mm256_storeu_ps(out.add(o + 8 * k), v);
+                        }
+                    }
+                }
+            }
+
+            /// One query through a small layer, every input row.
+            ///
+            /// # Safety
+            /// See the module docs (`check(1, ..)`).
+            #[target_feature(enable = "avx2,fma,f16c")]
+            unsafe fn one_dense(l: &Dense<'_, $w>, out: *mut f32) {
+                let n = l.n_out;
+                let mut o = 0;
+                // SAFETY: each tile stays below `n_out` (full tiles by the loop bounds, the rest masked).
+                unsafe {
+                    while o + 32 <= n {
+                        one_dense_tile::<4, false>(l, out, o, [8; 4]);
+                        o += 32;
+                    }
+                    while o + 8 <= n {
+                        one_dense_tile::<1, false>(l, out, o, [8]);
+                        o += 8;
+                    }
+                    if o < n {
+                        one_dense_tile::<1, true>(l, out, o, [n - o]);
+                    }
+                }
+            }
+
             /// One query through the layer (nonzero inputs gathered first, as with AVX-512).
             ///
             /// # Safety
             /// See the module docs (`check(1, ..)`).
             #[target_feature(enable = "avx2,fma,f16c")]
             pub(in crate::kernels) unsafe fn one(l: &Dense<'_, $w>, out: *mut f32) {
+                if l.segs[..l.n_segs].iter().map(|s| s.n).sum::<usize>() <= DENSE_BELOW {
+                    // SAFETY: same contract.
+                    return unsafe { one_dense(l, out) };
+                }
                 let init = l.init.as_ptr();
                 gather(l, |g, first, last| {
                     // SAFETY: `init` and `out` hold `n_out` values (`check`), the gathered rows come from

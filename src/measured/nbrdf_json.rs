@@ -22,11 +22,13 @@ use alloc::vec::Vec;
 use serde::Deserialize;
 
 use crate::angles::{half_diff_vectors, rusinkiewicz_angles, upper_hemisphere_pair};
+use crate::kernels::{Dense, Segment};
 use crate::math::sanitize;
 use crate::{Error, Rgb, Vec3, BLACK};
 
 /// Widest layer accepted: the size of the evaluator's two stack buffers (zeroed on every evaluation, so
-/// kept small; the published networks are 21 wide).
+/// kept small; the published networks are 21 wide). A multiple of 16: layers are padded to whole
+/// SIMD vectors.
 pub const MAX_WIDTH: usize = 64;
 /// Most layers accepted.
 pub const MAX_LAYERS: usize = 16;
@@ -48,14 +50,16 @@ pub enum Activation {
     Identity,
 }
 
-/// One dense layer: its parameters are `weight` (`outputs × inputs`, row-major) then `bias` in
-/// [`NbrdfNetwork`]'s parameter buffer, starting at `offset`.
+/// One dense layer: its parameters in [`NbrdfNetwork`]'s `evaluator` buffer start at `eval_offset`.
 #[derive(Clone, Debug, PartialEq)]
 struct Layer {
     inputs: usize,
     outputs: usize,
     activation: Activation,
-    offset: usize,
+    /// Outputs rounded up to a multiple of 16 (whole SIMD vectors; the padding is zero).
+    padded: usize,
+    /// Offset of the layer in [`NbrdfNetwork`]'s `evaluator` buffer: `[inputs][padded]` then the bias.
+    eval_offset: usize,
 }
 
 /// An NBRDF-json network, validated and ready to evaluate.
@@ -74,7 +78,9 @@ struct Layer {
 pub struct NbrdfNetwork {
     name: String,
     layers: Vec<Layer>,
-    params: Vec<f32>,
+    /// The parameters rearranged for the dense-layer kernels (`crate::kernels`): each layer's matrix
+    /// transposed to `[inputs][outputs]` with the outputs zero-padded to whole vectors, then its bias.
+    evaluator: Vec<f32>,
 }
 
 /// The file as serde sees it; everything is validated afterwards so that each fault gets its own error.
@@ -162,7 +168,7 @@ impl NbrdfNetwork {
             });
         }
         let mut layers = Vec::with_capacity(doc.layers.len());
-        let mut params = Vec::new();
+        let mut evaluator = Vec::new();
         let mut width = INPUTS;
         for (l, layer) in doc.layers.iter().enumerate() {
             if layer.outputs > MAX_WIDTH {
@@ -216,8 +222,7 @@ impl NbrdfNetwork {
                 }
             };
             // serde converts an out-of-range number to an infinite f32 rather than failing.
-            let weights = layer.weight.iter().flatten();
-            if let Some(index) = weights.clone().position(|w| !w.is_finite()) {
+            if let Some(index) = layer.weight.iter().flatten().position(|w| !w.is_finite()) {
                 return Err(Error::NonFinite {
                     what: "NBRDF-json weight",
                     index,
@@ -229,14 +234,21 @@ impl NbrdfNetwork {
                     index,
                 });
             }
-            let offset = params.len();
-            params.extend(weights);
-            params.extend(&layer.bias);
+            let padded = layer.outputs.div_ceil(16) * 16;
+            let eval_offset = evaluator.len();
+            evaluator.resize(eval_offset + (layer.inputs + 1) * padded, 0.0);
+            for (o, row) in layer.weight.iter().enumerate() {
+                for (i, w) in row.iter().enumerate() {
+                    evaluator[eval_offset + i * padded + o] = *w;
+                }
+            }
+            evaluator[eval_offset + layer.inputs * padded..][..layer.outputs].copy_from_slice(&layer.bias);
             layers.push(Layer {
                 inputs: layer.inputs,
                 outputs: layer.outputs,
                 activation,
-                offset,
+                padded,
+                eval_offset,
             });
             width = layer.outputs;
         }
@@ -250,7 +262,7 @@ impl NbrdfNetwork {
         Ok(NbrdfNetwork {
             name: doc.name,
             layers,
-            params,
+            evaluator,
         })
     }
 
@@ -289,26 +301,23 @@ impl NbrdfNetwork {
             return BLACK;
         }
         let (h, d) = half_diff_vectors(theta_h, theta_d, phi_d);
+        // Padded layers are at most MAX_WIDTH wide (a multiple of 16); the padding lanes stay 0.
         let mut x = [0.0f32; MAX_WIDTH];
         let mut y = [0.0f32; MAX_WIDTH];
         x[..INPUTS].copy_from_slice(&[h.x, h.y, h.z, d.x, d.y, d.z]);
+        let k = crate::kernels::kernels::<f32>();
         for layer in &self.layers {
-            let (n_in, n_out) = (layer.inputs, layer.outputs);
-            let weight = &self.params[layer.offset..layer.offset + n_in * n_out];
-            let bias =
-                &self.params[layer.offset + n_in * n_out..layer.offset + n_in * n_out + n_out];
-            let input = &x[..n_in];
-            for ((out, row), b) in y[..n_out]
-                .iter_mut()
-                .zip(weight.chunks_exact(n_in))
-                .zip(bias)
-            {
-                let s = row.iter().zip(input).fold(*b, |acc, (w, v)| acc + w * v);
-                *out = match layer.activation {
-                    Activation::Relu => s.max(0.0),
-                    Activation::Identity => s,
-                };
-            }
+            let (n_in, n_out) = (layer.inputs, layer.padded);
+            let w = &self.evaluator[layer.eval_offset..layer.eval_offset + (n_in + 1) * n_out];
+            let seg = Segment { x: &x[..n_in], stride: 0, n: n_in, rows: &w[..n_in * n_out] };
+            let dense = Dense {
+                init: &w[n_in * n_out..],
+                segs: [seg, Segment { x: &[], stride: 0, n: 0, rows: &[] }],
+                n_segs: 1,
+                n_out,
+                relu: layer.activation == Activation::Relu,
+            };
+            k.one(&dense, &mut y[..n_out]);
             core::mem::swap(&mut x, &mut y);
         }
         // expm1 is exp(y) - 1 without the cancellation near y = 0 (the dark, diffuse end).
