@@ -192,6 +192,10 @@ fn bench_nbrdf_json(c: &mut Criterion<Clock>) {
             black_box(net.eval(black_box(wi[i]), black_box(wo[i])))
         })
     });
+    g.throughput(Throughput::Elements(wi.len() as u64));
+    let mut out: Vec<Rgb> = vec![[0.0; 3]; wi.len()];
+    g.bench_function("eval_many-1024", |b| b.iter(|| net.eval_many(black_box(&wi), black_box(&wo), &mut out)));
+    g.throughput(Throughput::Elements(1));
     g.bench_function("eval_angles", |b| {
         let mut i = 0;
         b.iter(|| {
