@@ -3,7 +3,7 @@
 //! One kernel computes one layer `y_o = init_o + Σ_s Σ_i x_s[i] M_s[i][o]` (then ReLU for hidden layers)
 //! for either one query ([`Kernels::one`]) or a packet of [`PACKET`] queries ([`Kernels::packet`]).
 //! The packet kernel keeps a tile of `PACKET ×` (16 or 32) outputs in registers and reads each weight row
-//! once per packet, so the weights stream from cache once per 8 queries instead of once per query.
+//! once per packet, so the weights stream from cache once per packet instead of once per query.
 //!
 //! Levels: [`Level::Avx512`] and [`Level::Avx2`] (x86-64, with FMA and F16C: half weights are widened
 //! by `vcvtph2ps` as they are loaded) and [`Level::Portable`] (plain Rust, every target). With the
@@ -27,8 +27,9 @@ mod x86;
 
 use core::sync::atomic::{AtomicU8, Ordering};
 
-/// Queries per packet of the batched kernels.
-pub const PACKET: usize = 8;
+/// Queries per packet of the batched kernels: 16, so that one weight vector (one f16 conversion)
+/// serves 16 FMAs in the AVX-512 kernel (8 left f16 17% slower than f32; 16: within 2%).
+pub const PACKET: usize = 16;
 
 /// An instruction-set level of the kernels.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]

@@ -2,10 +2,12 @@
 //! weight type only changes how a vector of weights is loaded (`vcvtph2ps` widens half weights).
 //!
 //! Register tiles (acc = accumulators, lanes = outputs):
-//! - one query: 8 vectors of outputs (128 with AVX-512, 64 with AVX2) per pass over the input rows;
+//! - one query: 8 vectors of outputs (128 with AVX-512, 64 with AVX2) per pass over the gathered
+//!   nonzero inputs (layers of at most `DENSE_BELOW` inputs: every input);
 //! - a packet: `QT` queries × `K` vectors of outputs; per input row, `K` weight loads are shared by
-//!   `QT` broadcast inputs (AVX-512: 8 × 2 × 16 = 16 accumulators of 32 registers; AVX2: 4 × 2 × 8 =
-//!   8 of 16 registers, the packet run as two halves).
+//!   `QT` broadcast inputs. AVX-512: all 16 queries × 1 vector = 16 accumulators of 32 registers, so
+//!   one weight load (and, for f16, one `vcvtph2ps`) serves 16 FMAs; AVX2: 4 queries × 2 vectors =
+//!   8 of 16 registers, the packet run as four quarters.
 //!
 //! Partial vectors at the end of a row (odd widths, the 3 or 6 outputs of the last layer) use masked
 //! loads and stores, which never touch memory outside the mask.
@@ -321,13 +323,12 @@ macro_rules! avx512 {
                 let mut o = 0;
                 // SAFETY: each tile stays below `n_out` (full tiles by the loop bounds, the rest masked).
                 unsafe {
-                    while o + 32 <= n {
-                        packet_tile::<2, false>(l, out, os, o, [0xffff; 2]);
-                        o += 32;
-                    }
-                    while o < n {
-                        packet_tile::<1, true>(l, out, os, o, [mask16(n - o)]);
+                    while o + 16 <= n {
+                        packet_tile::<1, false>(l, out, os, o, [0xffff]);
                         o += 16;
+                    }
+                    if o < n {
+                        packet_tile::<1, true>(l, out, os, o, [mask16(n - o)]);
                     }
                 }
             }
