@@ -1,9 +1,18 @@
 //! Evaluation cost of every model: ns per `eval` (one direction pair at a prepared point) and per
 //! `prepare` (one shading point), f32 and f16 weights, single queries and batches of many directions
-//! at one point. Run: `cargo bench --bench eval`.
+//! at one point, at every kernel level this CPU has (`portable` is the pre-SIMD scalar path, the
+//! "before" of issue 8), plus the NBRDF-json networks. Run: `cargo bench --bench eval`, or e.g.
+//! `cargo bench --bench eval -- 'eval-f32/.*single-mlp'` for one model.
+//!
+//! On Linux the clock is the thread's CPU time (`CLOCK_THREAD_CPUTIME_ID`), not wall time: the
+//! development machine is shared by several compiling users, and CPU time stays meaningful while the
+//! benchmark thread waits for a core. Set `NBRDF_BENCH_WALL=1` for wall time.
 
 use std::hint::black_box;
+use criterion::measurement::{Measurement, ValueFormatter, WallTime};
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use nbrdf::kernels::{detected, set_level, Level};
+use nbrdf::measured::NbrdfNetwork;
 use nbrdf::file::{encode, ModelBuf, ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity};
 use nbrdf::parametric::ParametricKind;
 use nbrdf::{Rgb, Vec3};
@@ -50,7 +59,77 @@ fn variants() -> Vec<(String, ModelHeader)> {
     v
 }
 
-fn bench_models(c: &mut Criterion) {
+/// The kernel levels to compare: portable (the scalar "before") and every SIMD level the CPU has.
+fn levels() -> Vec<(Level, &'static str)> {
+    Level::ALL
+        .into_iter()
+        .filter(|l| *l <= detected())
+        .map(|l| (l, match l { Level::Portable => "portable", Level::Avx2 => "avx2", Level::Avx512 => "avx512" }))
+        .collect()
+}
+
+/// Thread CPU time in ns (Linux), or wall time where `NBRDF_BENCH_WALL` is set or elsewhere.
+struct Clock {
+    wall: bool,
+}
+
+#[cfg(target_os = "linux")]
+fn cpu_ns() -> u64 {
+    #[repr(C)]
+    struct Timespec {
+        sec: i64,
+        nsec: i64,
+    }
+    extern "C" {
+        fn clock_gettime(clock: i32, tp: *mut Timespec) -> i32;
+    }
+    const CLOCK_THREAD_CPUTIME_ID: i32 = 3;
+    let mut t = Timespec { sec: 0, nsec: 0 };
+    // SAFETY: `t` is a valid, writable timespec (two C longs on 64-bit Linux).
+    unsafe { clock_gettime(CLOCK_THREAD_CPUTIME_ID, &mut t) };
+    t.sec as u64 * 1_000_000_000 + t.nsec as u64
+}
+
+impl Clock {
+    fn new() -> Self {
+        Clock { wall: !cfg!(target_os = "linux") || std::env::var_os("NBRDF_BENCH_WALL").is_some() }
+    }
+    fn now(&self) -> u64 {
+        #[cfg(target_os = "linux")]
+        if !self.wall {
+            return cpu_ns();
+        }
+        static START: std::sync::OnceLock<std::time::Instant> = std::sync::OnceLock::new();
+        START.get_or_init(std::time::Instant::now).elapsed().as_nanos() as u64
+    }
+}
+
+impl Measurement for Clock {
+    type Intermediate = u64;
+    type Value = u64;
+    fn start(&self) -> u64 {
+        self.now()
+    }
+    fn end(&self, start: u64) -> u64 {
+        self.now() - start
+    }
+    fn add(&self, a: &u64, b: &u64) -> u64 {
+        a + b
+    }
+    fn zero(&self) -> u64 {
+        0
+    }
+    fn to_f64(&self, v: &u64) -> f64 {
+        *v as f64
+    }
+    fn formatter(&self) -> &dyn ValueFormatter {
+        // Both clocks count nanoseconds, as wall time does.
+        static WALL: WallTime = WallTime;
+        WALL.formatter()
+    }
+}
+
+fn bench_models(c: &mut Criterion<Clock>) {
     let p: Vec<f32> = (0..64).map(|i| (i as f32 * 0.1).sin()).collect();
     let (wi, wo) = directions(1024);
     for precision in [Precision::F32, Precision::F16] {
@@ -59,29 +138,78 @@ fn bench_models(c: &mut Criterion) {
             h.precision = precision;
             let buf = ModelBuf::from_bytes(&encode(&h, &weights(h.n_weights()), None).unwrap()).unwrap();
             let m = buf.model();
-            let prepared = m.prepare(&p);
-            g.throughput(Throughput::Elements(1));
-            g.bench_function(BenchmarkId::new("single", &name), |b| {
-                let mut i = 0;
-                b.iter(|| {
-                    i = (i + 1) & 1023;
-                    black_box(m.eval(&prepared, black_box(wi[i]), black_box(wo[i])))
-                })
-            });
-            g.bench_function(BenchmarkId::new("prepare", &name), |b| b.iter(|| black_box(m.prepare(black_box(&p)))));
-            g.throughput(Throughput::Elements(wi.len() as u64));
-            let mut out: Vec<Rgb> = vec![[0.0; 3]; wi.len()];
-            g.bench_function(BenchmarkId::new("batch-1024", &name), |b| {
-                b.iter(|| m.eval_many(&prepared, black_box(&wi), black_box(&wo), &mut out))
-            });
+            for (level, lname) in levels() {
+                set_level(Some(level));
+                let prepared = m.prepare(&p);
+                g.throughput(Throughput::Elements(1));
+                g.bench_function(BenchmarkId::new(format!("single/{lname}"), &name), |b| {
+                    let mut i = 0;
+                    b.iter(|| {
+                        i = (i + 1) & 1023;
+                        black_box(m.eval(&prepared, black_box(wi[i]), black_box(wo[i])))
+                    })
+                });
+                g.bench_function(BenchmarkId::new(format!("prepare/{lname}"), &name), |b| {
+                    b.iter(|| black_box(m.prepare(black_box(&p))))
+                });
+                g.throughput(Throughput::Elements(wi.len() as u64));
+                let mut out: Vec<Rgb> = vec![[0.0; 3]; wi.len()];
+                g.bench_function(BenchmarkId::new(format!("batch-1024/{lname}"), &name), |b| {
+                    b.iter(|| m.eval_many(&prepared, black_box(&wi), black_box(&wo), &mut out))
+                });
+            }
+            set_level(None);
         }
         g.finish();
     }
 }
 
+/// A 6-21-21-3 NBRDF-json network (the published size) with deterministic weights.
+fn nbrdf_json() -> NbrdfNetwork {
+    let w = weights(6 * 21 + 21 + 21 * 21 + 21 + 21 * 3 + 3);
+    let mut it = w.iter();
+    let mut layer = |n_in: usize, n_out: usize, act: &str| {
+        let rows: Vec<String> = (0..n_out)
+            .map(|_| format!("[{}]", (0..n_in).map(|_| it.next().unwrap().to_string()).collect::<Vec<_>>().join(",")))
+            .collect();
+        let bias: Vec<String> = (0..n_out).map(|_| it.next().unwrap().to_string()).collect();
+        format!(r#"{{"inputs":{n_in},"outputs":{n_out},"activation":"{act}","weight":[{}],"bias":[{}]}}"#, rows.join(","), bias.join(","))
+    };
+    let layers = [layer(6, 21, "relu"), layer(21, 21, "relu"), layer(21, 3, "none")].join(",");
+    let json = format!(r#"{{"input":"rusinkiewicz_half_diff_vectors","output":"expm1_clamped","layers":[{layers}]}}"#);
+    NbrdfNetwork::from_json_str(&json).unwrap()
+}
+
+fn bench_nbrdf_json(c: &mut Criterion<Clock>) {
+    let net = nbrdf_json();
+    let (wi, wo) = directions(1024);
+    let mut g = c.benchmark_group("nbrdf-json");
+    g.throughput(Throughput::Elements(1));
+    g.bench_function("eval", |b| {
+        let mut i = 0;
+        b.iter(|| {
+            i = (i + 1) & 1023;
+            black_box(net.eval(black_box(wi[i]), black_box(wo[i])))
+        })
+    });
+    g.throughput(Throughput::Elements(wi.len() as u64));
+    let mut out: Vec<Rgb> = vec![[0.0; 3]; wi.len()];
+    g.bench_function("eval_many-1024", |b| b.iter(|| net.eval_many(black_box(&wi), black_box(&wo), &mut out)));
+    g.throughput(Throughput::Elements(1));
+    g.bench_function("eval_angles", |b| {
+        let mut i = 0;
+        b.iter(|| {
+            i = (i + 1) & 1023;
+            let t = i as f32 * 1e-3;
+            black_box(net.eval_angles(black_box(0.3 + t), black_box(0.7 - t), black_box(1.0 + t)))
+        })
+    });
+    g.finish();
+}
+
 criterion_group! {
     name = benches;
-    config = Criterion::default().sample_size(20).warm_up_time(std::time::Duration::from_millis(300)).measurement_time(std::time::Duration::from_secs(1));
-    targets = bench_models
+    config = Criterion::default().with_measurement(Clock::new()).sample_size(20).warm_up_time(std::time::Duration::from_millis(300)).measurement_time(std::time::Duration::from_secs(1));
+    targets = bench_models, bench_nbrdf_json
 }
 criterion_main!(benches);

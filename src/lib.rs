@@ -37,6 +37,7 @@ pub mod io;
 pub mod math;
 #[cfg(feature = "alloc")]
 pub mod measured;
+pub mod kernels;
 pub mod mlp;
 pub mod model;
 pub mod neural;

@@ -10,10 +10,16 @@
 //! every layer that reads `x` (layer 0 and the skip layer) is computed once by [`partial`] — for the BRDF
 //! networks the head is the position encoding, fixed per shading point — and [`forward`] adds only the
 //! tail (the encoded angles) per direction pair.
+//!
+//! Each layer runs through a [`crate::kernels`] kernel chosen for the CPU at run time; [`forward_packet`]
+//! evaluates [`PACKET`] queries at once, reading every weight row once per packet.
 
 use serde::{Deserialize, Serialize};
 
+use crate::kernels::{kernels, Dense, KernelWeight, Segment};
 use crate::Error;
+
+pub use crate::kernels::PACKET;
 
 /// Largest hidden width (and output count) the stack arrays hold.
 pub const MAX_WIDTH: usize = 256;
@@ -21,7 +27,7 @@ pub const MAX_WIDTH: usize = 256;
 pub const MAX_HIDDEN: usize = 16;
 
 /// A weight element: `f32`, or `half::f16` for half-size model files.
-pub trait Weight: Copy + Send + Sync + 'static {
+pub trait Weight: Copy + Send + Sync + 'static + KernelWeight {
     /// The value as `f32`.
     fn to_f32(self) -> f32;
 }
@@ -175,23 +181,6 @@ impl Default for Partial {
     }
 }
 
-/// `acc[o] += Σ_i x_i m[i][o]` for a row-major `[x.len()][acc.len()]` matrix `m`.
-///
-/// Rows of zero inputs are skipped: after a ReLU about half the activations are exactly zero, and a
-/// zero row contributes nothing.
-#[inline(always)]
-fn accumulate<W: Weight>(acc: &mut [f32], x: &[f32], m: &[W]) {
-    let n = acc.len();
-    for (xi, row) in x.iter().zip(m.chunks_exact(n)) {
-        if *xi == 0.0 {
-            continue;
-        }
-        for (a, w) in acc.iter_mut().zip(row) {
-            *a += *xi * w.to_f32();
-        }
-    }
-}
-
 #[inline(always)]
 fn copy_bias<W: Weight>(dst: &mut [f32], b: &[W]) {
     for (d, w) in dst.iter_mut().zip(b) {
@@ -199,11 +188,10 @@ fn copy_bias<W: Weight>(dst: &mut [f32], b: &[W]) {
     }
 }
 
+/// A segment without inputs, for layers that read one.
 #[inline(always)]
-fn relu(v: &mut [f32]) {
-    for x in v {
-        *x = x.max(0.0);
-    }
+fn none<'a, W>() -> Segment<'a, W> {
+    Segment { x: &[], stride: 0, n: 0, rows: &[] }
 }
 
 /// Folds the `head` (the first `head.len()` network inputs) into layer 0 and the skip layer.
@@ -221,70 +209,131 @@ fn relu(v: &mut [f32]) {
 /// ```
 #[inline]
 pub fn partial<W: Weight>(net: &Net<'_, W>, head: &[f32]) -> Partial {
+    let k = kernels::<W>();
     let d = &net.desc;
     let width = d.width as usize;
     let head = &head[..head.len().min(d.n_in as usize)];
     let mut p = Partial { head_len: head.len(), ..Partial::default() };
     let n_in = d.n_in as usize;
+    let mut bias = [0.0f32; MAX_WIDTH];
     let w0 = &net.weights[..(n_in + 1) * width];
-    copy_bias(&mut p.layer0[..width], &w0[n_in * width..]);
-    accumulate(&mut p.layer0[..width], head, w0);
+    copy_bias(&mut bias[..width], &w0[n_in * width..]);
+    let seg = Segment { x: head, stride: 0, n: head.len(), rows: w0 };
+    let layer = Dense { init: &bias[..width], segs: [seg, none()], n_segs: 1, n_out: width, relu: false };
+    k.one(&layer, &mut p.layer0[..width]);
     if d.skip != 0 {
         let s = d.skip as usize;
         let off = d.layer_offset(s);
         let rows = width + n_in;
         let ws = &net.weights[off..off + (rows + 1) * width];
-        copy_bias(&mut p.skip[..width], &ws[rows * width..]);
-        accumulate(&mut p.skip[..width], head, &ws[width * width..]);
+        copy_bias(&mut bias[..width], &ws[rows * width..]);
+        let seg = Segment { x: head, stride: 0, n: head.len(), rows: &ws[width * width..] };
+        let layer = Dense { init: &bias[..width], segs: [seg, none()], n_segs: 1, n_out: width, relu: false };
+        k.one(&layer, &mut p.skip[..width]);
     }
     p
+}
+
+/// The network after `partial`, for one query (`Q = 1`, the one-query kernels) or a packet of
+/// [`PACKET`] queries (`Q = PACKET`): query `q`'s tail at `tail[q * tail_stride..][..n_tail]`, its
+/// `desc.output_len()` outputs at `out[q * out_stride..]`. Activations live in `h` and `t`
+/// (`Q × width` values each, query after query).
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn run<W: Weight, const Q: usize>(
+    net: &Net<'_, W>,
+    partial: &Partial,
+    tail: &[f32],
+    tail_stride: usize,
+    n_tail: usize,
+    out: &mut [f32],
+    out_stride: usize,
+    h: &mut [f32],
+    t: &mut [f32],
+) {
+    let k = kernels::<W>();
+    let layer = |l: &Dense<'_, W>, out: &mut [f32], os: usize| {
+        if Q == 1 {
+            k.one(l, out)
+        } else {
+            k.packet(l, out, os)
+        }
+    };
+    let d = &net.desc;
+    let width = d.width as usize;
+    let n_in = d.n_in as usize;
+    let head = partial.head_len;
+    let n_tail = n_tail.min(n_in - head);
+    let tail_seg = |rows| Segment { x: tail, stride: tail_stride, n: n_tail, rows };
+    let mut bias = [0.0f32; MAX_WIDTH];
+
+    let seg = tail_seg(&net.weights[head * width..(head + n_tail) * width]);
+    let l0 = Dense { init: &partial.layer0[..width], segs: [seg, none()], n_segs: 1, n_out: width, relu: true };
+    layer(&l0, h, width);
+
+    let mut off = (n_in + 1) * width;
+    let (mut h, mut t) = (h, t);
+    for l in 1..d.hidden as usize {
+        let hs = Segment { x: &h[..], stride: width, n: width, rows: &net.weights[off..off + width * width] };
+        if d.skip as usize == l {
+            let rows = width + n_in;
+            let m = &net.weights[off..off + rows * width];
+            let ts = tail_seg(&m[(width + head) * width..(width + head + n_tail) * width]);
+            let ls = Dense { init: &partial.skip[..width], segs: [hs, ts], n_segs: 2, n_out: width, relu: true };
+            layer(&ls, t, width);
+            off += (rows + 1) * width;
+        } else {
+            copy_bias(&mut bias[..width], &net.weights[off + width * width..off + (width + 1) * width]);
+            let lh = Dense { init: &bias[..width], segs: [hs, none()], n_segs: 1, n_out: width, relu: true };
+            layer(&lh, t, width);
+            off += (width + 1) * width;
+        }
+        core::mem::swap(&mut h, &mut t);
+    }
+
+    if d.n_out == 0 {
+        for q in 0..Q {
+            out[q * out_stride..q * out_stride + width].copy_from_slice(&h[q * width..(q + 1) * width]);
+        }
+    } else {
+        let n_out = d.n_out as usize;
+        let m = &net.weights[off..off + (width + 1) * n_out];
+        copy_bias(&mut bias[..n_out], &m[width * n_out..]);
+        let hs = Segment { x: &h[..], stride: width, n: width, rows: m };
+        let lo = Dense { init: &bias[..n_out], segs: [hs, none()], n_segs: 1, n_out, relu: false };
+        layer(&lo, out, out_stride);
+    }
 }
 
 /// Runs the network on `x = [head, tail]`, the head already folded into `partial`; writes
 /// `desc.output_len()` values to the front of `out` (which must hold them; `MAX_WIDTH` always does).
 #[inline]
 pub fn forward<W: Weight>(net: &Net<'_, W>, partial: &Partial, tail: &[f32], out: &mut [f32]) {
-    let d = &net.desc;
-    let width = d.width as usize;
-    let n_in = d.n_in as usize;
-    let head = partial.head_len;
-    let tail = &tail[..tail.len().min(n_in - head)];
     let mut h = [0.0f32; MAX_WIDTH];
     let mut t = [0.0f32; MAX_WIDTH];
+    run::<W, 1>(net, partial, tail, 0, tail.len(), out, 0, &mut h, &mut t);
+}
 
-    h[..width].copy_from_slice(&partial.layer0[..width]);
-    accumulate(&mut h[..width], tail, &net.weights[head * width..n_in * width]);
-    relu(&mut h[..width]);
-
-    let mut off = (n_in + 1) * width;
-    for l in 1..d.hidden as usize {
-        let t = &mut t[..width];
-        if d.skip as usize == l {
-            let rows = width + n_in;
-            let m = &net.weights[off..off + rows * width];
-            t.copy_from_slice(&partial.skip[..width]);
-            accumulate(t, &h[..width], m);
-            accumulate(t, tail, &m[(width + head) * width..]);
-            off += (rows + 1) * width;
-        } else {
-            let m = &net.weights[off..off + (width + 1) * width];
-            copy_bias(t, &m[width * width..]);
-            accumulate(t, &h[..width], m);
-            off += (width + 1) * width;
-        }
-        relu(t);
-        h[..width].copy_from_slice(t);
-    }
-
-    if d.n_out == 0 {
-        out[..width].copy_from_slice(&h[..width]);
-    } else {
-        let n_out = d.n_out as usize;
-        let m = &net.weights[off..off + (width + 1) * n_out];
-        let o = &mut out[..n_out];
-        copy_bias(o, &m[width * n_out..]);
-        accumulate(o, &h[..width], m);
-    }
+/// [`forward`] for a packet of [`PACKET`] queries at one prepared point: query `q`'s tail is
+/// `tails[q * tail_stride..][..n_tail]`, its `desc.output_len()` outputs go to `out[q * out_stride..]`.
+///
+/// Each weight row is read once per packet. Every query gets the same bits as [`forward`] on its own
+/// tail (see [`crate::kernels`], "Determinism").
+///
+/// Panics when `tails` or `out` is too short for the packet.
+#[inline]
+pub fn forward_packet<W: Weight>(
+    net: &Net<'_, W>,
+    partial: &Partial,
+    tails: &[f32],
+    tail_stride: usize,
+    n_tail: usize,
+    out: &mut [f32],
+    out_stride: usize,
+) {
+    let mut h = [0.0f32; PACKET * MAX_WIDTH];
+    let mut t = [0.0f32; PACKET * MAX_WIDTH];
+    run::<W, PACKET>(net, partial, tails, tail_stride, n_tail, out, out_stride, &mut h, &mut t);
 }
 
 /// Runs the network on its whole input `x` (no precomputed head).

@@ -81,6 +81,18 @@ fn assert_close(got: [f32; 3], want: [f64; 3], what: &str) {
     }
 }
 
+/// `(wi, wo)` evaluated through the batched path, in the middle lane of a packet of other pairs.
+fn eval_one_batched(model: &Model<'_>, prepared: &nbrdf::file::Prepared, wi: Vec3, wo: Vec3) -> [f32; 3] {
+    let mut a: Vec<Vec3> = (0..11).map(|i| dir(0.1 * i as f32, 0.2, 0.9)).collect();
+    let mut b = a.clone();
+    b.reverse();
+    a[5] = wi;
+    b[5] = wo;
+    let mut out = vec![[0.0f32; 3]; 11];
+    model.eval_many(prepared, &a, &b, &mut out);
+    out[5]
+}
+
 const DIRS: [(f32, f32, f32, f32, f32, f32); 4] = [
     (0.3, 0.1, 0.9, -0.5, 0.2, 0.7),
     (0.0, 0.0, 1.0, 0.6, 0.0, 0.8),
@@ -113,6 +125,7 @@ fn additive_shared_enhanced_matches_the_reference_forward_pass() {
             (1.0 - sigmoid(s[3 + c])) * sigmoid(d[c]) / std::f64::consts::PI + softplus(s[c])
         });
         assert_close(model.eval(&prepared, wi, wo), want, "additive shared");
+        assert_close(eval_one_batched(&model, &prepared, wi, wo), want, "additive shared, batched");
     }
 }
 
@@ -144,6 +157,7 @@ fn single_mlp_and_additive_separate_match_the_reference() {
                 }
             };
             assert_close(model.eval(&prepared, wi, wo), want, &format!("{kind:?}"));
+            assert_close(eval_one_batched(&model, &prepared, wi, wo), want, &format!("{kind:?}, batched"));
         }
     }
 }
@@ -163,6 +177,7 @@ fn direction_layer_ablation_single_mlp_matches_trunk_plus_head() {
     let input: Vec<f64> = trunk.into_iter().chain(ref_pe(&theta_map(wi, wo).unwrap(), 2)).collect();
     let o = ref_mlp(wh, 128 + 20, 128, 3, 3, 0, &input);
     assert_close(model.eval(&prepared, wi, wo), std::array::from_fn(|c| softplus(o[c])), "NOL 3");
+    assert_close(eval_one_batched(&model, &prepared, wi, wo), std::array::from_fn(|c| softplus(o[c])), "NOL 3, batched");
 }
 
 #[test]
@@ -372,4 +387,81 @@ fn load_names_the_missing_path_and_save_is_atomic() {
     let leftovers: Vec<_> = std::fs::read_dir(&dir).unwrap().filter(|e| e.as_ref().unwrap().file_name().to_string_lossy().ends_with(".tmp")).collect();
     assert!(leftovers.is_empty());
     std::fs::remove_dir_all(&dir).ok();
+}
+
+/// Pseudo-random direction pairs, about a quarter of them invalid (below the horizon, zero, NaN).
+fn pairs(n: usize, seed: u64) -> (Vec<Vec3>, Vec<Vec3>) {
+    let r = weights(6 * n, seed, 1.0);
+    let mut wi = vec![];
+    let mut wo = vec![];
+    for (i, c) in r.chunks_exact(6).enumerate() {
+        let mut a = Vec3::new(c[0], c[1], c[2].abs() + 0.05);
+        let mut b = Vec3::new(c[3], c[4], c[5].abs() + 0.05);
+        match i % 13 {
+            3 => a.z = -a.z,
+            7 => b = Vec3::ZERO,
+            11 => a.x = f32::NAN,
+            12 => b.z = -0.0,
+            _ => {}
+        }
+        wi.push(a.normalize_or_zero());
+        wo.push(b.normalize_or_zero());
+    }
+    (wi, wo)
+}
+
+#[test]
+fn batched_evaluation_equals_single_queries_bit_for_bit() {
+    for kind in [ModelKind::SingleMlp, ModelKind::AdditiveSeparate, ModelKind::AdditiveShared] {
+        for (recip, enhanced, precision) in [
+            (Reciprocity::Exact, true, Precision::F32),
+            (Reciprocity::None, false, Precision::F16),
+            (Reciprocity::Swap, kind.is_additive(), Precision::F32),
+        ] {
+            let mut h = ModelHeader::paper(kind, enhanced && kind.is_additive(), recip, PositionEncoding::Intrinsic { k: 6 }, 3);
+            h.precision = precision;
+            let buf = ModelBuf::from_bytes(&encode(&h, &weights(h.n_weights(), 9, 0.15), None).unwrap()).unwrap();
+            let model = buf.model();
+            let p = model.prepare(&[0.1, 0.5, -0.3, 0.2, 0.0, 0.9]);
+            let n = 203; // not a multiple of the packet size
+            let (wi, wo) = pairs(n, 21);
+            let mut many = vec![[f32::NAN; 3]; n];
+            model.eval_many(&p, &wi, &wo, &mut many);
+            let mut zeros = 0;
+            for i in 0..n {
+                let single = model.eval(&p, wi[i], wo[i]);
+                assert_eq!(many[i].map(f32::to_bits), single.map(f32::to_bits), "{kind:?} {recip:?} {precision:?} pair {i}");
+                zeros += (single == [0.0; 3]) as usize;
+            }
+            assert!(zeros >= n / 5, "the invalid pairs evaluate to 0");
+            if recip == Reciprocity::Exact {
+                let mut swapped = vec![[0.0f32; 3]; n];
+                model.eval_many(&p, &wo, &wi, &mut swapped);
+                assert_eq!(many, swapped, "{kind:?}: exact reciprocity in batches");
+            }
+            // The structure-of-arrays entry point gives the same values.
+            let split = |v: &[Vec3]| -> [Vec<f32>; 3] { [v.iter().map(|d| d.x).collect(), v.iter().map(|d| d.y).collect(), v.iter().map(|d| d.z).collect()] };
+            let (a, b) = (split(&wi), split(&wo));
+            let (mut r, mut g, mut bl) = (vec![0.0f32; n], vec![0.0f32; n], vec![0.0f32; n]);
+            model.eval_many_soa(&p, [&a[0], &a[1], &a[2]], [&b[0], &b[1], &b[2]], [&mut r, &mut g, &mut bl]);
+            for i in 0..n {
+                assert_eq!([r[i], g[i], bl[i]].map(f32::to_bits), many[i].map(f32::to_bits), "SoA pair {i}");
+            }
+        }
+    }
+}
+
+#[test]
+fn batched_parametric_models_and_invalid_points_match_single_queries() {
+    let h = ModelHeader::paper(ModelKind::Parametric(ParametricKind::Phong), false, Reciprocity::None, PositionEncoding::Intrinsic { k: 4 }, 0);
+    let buf = ModelBuf::from_bytes(&encode(&h, &weights(h.n_weights(), 5, 0.1), None).unwrap()).unwrap();
+    let model = buf.model();
+    let (wi, wo) = pairs(40, 3);
+    for p in [model.prepare(&[0.1, 0.2, 0.3, 0.4]), model.prepare(&[0.1])] {
+        let mut many = vec![[f32::NAN; 3]; 40];
+        model.eval_many(&p, &wi, &wo, &mut many);
+        for i in 0..40 {
+            assert_eq!(many[i], model.eval(&p, wi[i], wo[i]));
+        }
+    }
 }

@@ -21,12 +21,14 @@ use alloc::vec::Vec;
 
 use serde::Deserialize;
 
-use crate::angles::{half_diff_vectors, rusinkiewicz_angles, upper_hemisphere_pair};
+use crate::angles::{half_diff_vectors, upper_hemisphere_pair};
+use crate::kernels::{Dense, Segment, PACKET};
 use crate::math::sanitize;
 use crate::{Error, Rgb, Vec3, BLACK};
 
 /// Widest layer accepted: the size of the evaluator's two stack buffers (zeroed on every evaluation, so
-/// kept small; the published networks are 21 wide).
+/// kept small; the published networks are 21 wide). A multiple of 16: layers are padded to whole
+/// SIMD vectors.
 pub const MAX_WIDTH: usize = 64;
 /// Most layers accepted.
 pub const MAX_LAYERS: usize = 16;
@@ -48,14 +50,16 @@ pub enum Activation {
     Identity,
 }
 
-/// One dense layer: its parameters are `weight` (`outputs × inputs`, row-major) then `bias` in
-/// [`NbrdfNetwork`]'s parameter buffer, starting at `offset`.
+/// One dense layer: its parameters in [`NbrdfNetwork`]'s `evaluator` buffer start at `eval_offset`.
 #[derive(Clone, Debug, PartialEq)]
 struct Layer {
     inputs: usize,
     outputs: usize,
     activation: Activation,
-    offset: usize,
+    /// Outputs rounded up to a multiple of 16 (whole SIMD vectors; the padding is zero).
+    padded: usize,
+    /// Offset of the layer in [`NbrdfNetwork`]'s `evaluator` buffer: `[inputs][padded]` then the bias.
+    eval_offset: usize,
 }
 
 /// An NBRDF-json network, validated and ready to evaluate.
@@ -74,7 +78,9 @@ struct Layer {
 pub struct NbrdfNetwork {
     name: String,
     layers: Vec<Layer>,
-    params: Vec<f32>,
+    /// The parameters rearranged for the dense-layer kernels (`crate::kernels`): each layer's matrix
+    /// transposed to `[inputs][outputs]` with the outputs zero-padded to whole vectors, then its bias.
+    evaluator: Vec<f32>,
 }
 
 /// The file as serde sees it; everything is validated afterwards so that each fault gets its own error.
@@ -162,7 +168,7 @@ impl NbrdfNetwork {
             });
         }
         let mut layers = Vec::with_capacity(doc.layers.len());
-        let mut params = Vec::new();
+        let mut evaluator = Vec::new();
         let mut width = INPUTS;
         for (l, layer) in doc.layers.iter().enumerate() {
             if layer.outputs > MAX_WIDTH {
@@ -216,8 +222,7 @@ impl NbrdfNetwork {
                 }
             };
             // serde converts an out-of-range number to an infinite f32 rather than failing.
-            let weights = layer.weight.iter().flatten();
-            if let Some(index) = weights.clone().position(|w| !w.is_finite()) {
+            if let Some(index) = layer.weight.iter().flatten().position(|w| !w.is_finite()) {
                 return Err(Error::NonFinite {
                     what: "NBRDF-json weight",
                     index,
@@ -229,14 +234,21 @@ impl NbrdfNetwork {
                     index,
                 });
             }
-            let offset = params.len();
-            params.extend(weights);
-            params.extend(&layer.bias);
+            let padded = layer.outputs.div_ceil(16) * 16;
+            let eval_offset = evaluator.len();
+            evaluator.resize(eval_offset + (layer.inputs + 1) * padded, 0.0);
+            for (o, row) in layer.weight.iter().enumerate() {
+                for (i, w) in row.iter().enumerate() {
+                    evaluator[eval_offset + i * padded + o] = *w;
+                }
+            }
+            evaluator[eval_offset + layer.inputs * padded..][..layer.outputs].copy_from_slice(&layer.bias);
             layers.push(Layer {
                 inputs: layer.inputs,
                 outputs: layer.outputs,
                 activation,
-                offset,
+                padded,
+                eval_offset,
             });
             width = layer.outputs;
         }
@@ -250,7 +262,7 @@ impl NbrdfNetwork {
         Ok(NbrdfNetwork {
             name: doc.name,
             layers,
-            params,
+            evaluator,
         })
     }
 
@@ -273,12 +285,55 @@ impl NbrdfNetwork {
 
     /// The BRDF at (`wi`, `wo`): 0 below the horizon and for degenerate input. No allocation.
     pub fn eval(&self, wi: Vec3, wo: Vec3) -> Rgb {
-        let Some((wi, wo)) = upper_hemisphere_pair(wi, wo) else {
-            return BLACK;
-        };
-        match rusinkiewicz_angles(wi, wo) {
-            Some([theta_h, theta_d, phi_d]) => self.eval_angles(theta_h, theta_d, phi_d),
+        match input(wi, wo) {
+            Some(x) => self.eval_input(&x),
             None => BLACK,
+        }
+    }
+
+    /// [`eval`](Self::eval) for many direction pairs: `out[i] = eval(wi[i], wo[i])` for the common
+    /// length of the slices, bit for bit. The valid pairs go through the network in packets of
+    /// [`PACKET`] (one FMA chain per query interleaved with the others', instead of one latency-bound
+    /// chain per layer). No allocation.
+    pub fn eval_many(&self, wi: &[Vec3], wo: &[Vec3], out: &mut [Rgb]) {
+        let n = out.len().min(wi.len()).min(wo.len());
+        let k = crate::kernels::kernels::<f32>();
+        let mut x = [0.0f32; PACKET * MAX_WIDTH];
+        let mut y = [0.0f32; PACKET * MAX_WIDTH];
+        let mut index = [0usize; PACKET];
+        let mut filled = 0;
+        for i in 0..n {
+            match input(wi[i], wo[i]) {
+                Some(v) => {
+                    x[filled * MAX_WIDTH..][..INPUTS].copy_from_slice(&v);
+                    index[filled] = i;
+                    filled += 1;
+                }
+                None => out[i] = BLACK,
+            }
+            if filled == PACKET || (i + 1 == n && filled > 0) {
+                // Lanes past `filled` hold stale inputs; their results are dropped.
+                let (mut a, mut b) = (&mut x, &mut y);
+                for layer in &self.layers {
+                    let (n_in, n_out) = (layer.inputs, layer.padded);
+                    let w = &self.evaluator[layer.eval_offset..layer.eval_offset + (n_in + 1) * n_out];
+                    let seg = Segment { x: &a[..], stride: MAX_WIDTH, n: n_in, rows: &w[..n_in * n_out] };
+                    let dense = Dense {
+                        init: &w[n_in * n_out..],
+                        segs: [seg, Segment { x: &[], stride: 0, n: 0, rows: &[] }],
+                        n_segs: 1,
+                        n_out,
+                        relu: layer.activation == Activation::Relu,
+                    };
+                    k.packet(&dense, &mut b[..], MAX_WIDTH);
+                    core::mem::swap(&mut a, &mut b);
+                }
+                for (q, &i) in index[..filled].iter().enumerate() {
+                    let y = &a[q * MAX_WIDTH..];
+                    out[i] = sanitize([libm::expm1f(y[0]), libm::expm1f(y[1]), libm::expm1f(y[2])]);
+                }
+                filled = 0;
+            }
         }
     }
 
@@ -289,26 +344,29 @@ impl NbrdfNetwork {
             return BLACK;
         }
         let (h, d) = half_diff_vectors(theta_h, theta_d, phi_d);
+        self.eval_input(&[h.x, h.y, h.z, d.x, d.y, d.z])
+    }
+
+    /// The network and the output map on the input `[hx, hy, hz, dx, dy, dz]`.
+    #[inline]
+    fn eval_input(&self, input: &[f32; INPUTS]) -> Rgb {
+        // Padded layers are at most MAX_WIDTH wide (a multiple of 16); the padding lanes stay 0.
         let mut x = [0.0f32; MAX_WIDTH];
         let mut y = [0.0f32; MAX_WIDTH];
-        x[..INPUTS].copy_from_slice(&[h.x, h.y, h.z, d.x, d.y, d.z]);
+        x[..INPUTS].copy_from_slice(input);
+        let k = crate::kernels::kernels::<f32>();
         for layer in &self.layers {
-            let (n_in, n_out) = (layer.inputs, layer.outputs);
-            let weight = &self.params[layer.offset..layer.offset + n_in * n_out];
-            let bias =
-                &self.params[layer.offset + n_in * n_out..layer.offset + n_in * n_out + n_out];
-            let input = &x[..n_in];
-            for ((out, row), b) in y[..n_out]
-                .iter_mut()
-                .zip(weight.chunks_exact(n_in))
-                .zip(bias)
-            {
-                let s = row.iter().zip(input).fold(*b, |acc, (w, v)| acc + w * v);
-                *out = match layer.activation {
-                    Activation::Relu => s.max(0.0),
-                    Activation::Identity => s,
-                };
-            }
+            let (n_in, n_out) = (layer.inputs, layer.padded);
+            let w = &self.evaluator[layer.eval_offset..layer.eval_offset + (n_in + 1) * n_out];
+            let seg = Segment { x: &x[..n_in], stride: 0, n: n_in, rows: &w[..n_in * n_out] };
+            let dense = Dense {
+                init: &w[n_in * n_out..],
+                segs: [seg, Segment { x: &[], stride: 0, n: 0, rows: &[] }],
+                n_segs: 1,
+                n_out,
+                relu: layer.activation == Activation::Relu,
+            };
+            k.one(&dense, &mut y[..n_out]);
             core::mem::swap(&mut x, &mut y);
         }
         // expm1 is exp(y) - 1 without the cancellation near y = 0 (the dark, diffuse end).
@@ -316,9 +374,28 @@ impl NbrdfNetwork {
     }
 }
 
+/// The network input `[h, d]` of a direction pair computed from the vectors without trigonometry (the
+/// angles and `half_diff_vectors` cost about 100 ns of libm calls per pair): `h` with `φh = 0` is
+/// `(ρ, 0, h_z)` with `ρ = |h_xy| = sin θh`, and `d` is `wi` rotated by `-φh` about z (cos and sin of
+/// `φh` are `h_x / ρ` and `h_y / ρ`; `φh = 0` for `ρ = 0`, as in `angles::to_rusinkiewicz`), then by
+/// `-θh` about y. Equal to `half_diff_vectors(rusinkiewicz_angles(wi, wo))` up to float rounding.
+#[inline]
+fn input(wi: Vec3, wo: Vec3) -> Option<[f32; INPUTS]> {
+    let (wi, wo) = upper_hemisphere_pair(wi, wo)?;
+    // Both directions are unit and above the horizon, so `wi + wo` has z > 0 and never vanishes.
+    let h = (wi + wo).normalize();
+    let rho = libm::sqrtf(h.x * h.x + h.y * h.y);
+    let (c, s) = if rho > 0.0 { (h.x / rho, h.y / rho) } else { (1.0, 0.0) };
+    let t = Vec3::new(c * wi.x + s * wi.y, c * wi.y - s * wi.x, wi.z);
+    let d = Vec3::new(h.z * t.x - rho * t.z, t.y, rho * t.x + h.z * t.z);
+    let v = [rho, 0.0, h.z, d.x, d.y, d.z];
+    v.iter().all(|c| c.is_finite()).then_some(v)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::angles::rusinkiewicz_angles;
 
     fn layer(inputs: usize, outputs: usize, act: &str, w: f32, b: f32) -> String {
         let row = alloc::format!("[{}]", alloc::vec![w.to_string(); inputs].join(","));
@@ -327,6 +404,45 @@ mod tests {
         alloc::format!(
             r#"{{"inputs":{inputs},"outputs":{outputs},"activation":"{act}","weight":[{weight}],"bias":[{bias}]}}"#
         )
+    }
+
+    #[test]
+    fn trigonometry_free_input_matches_the_angles() {
+        for i in 0..500 {
+            let t = i as f32 * 0.37;
+            let wi = Vec3::new(libm::sinf(t) * 0.9, libm::cosf(1.7 * t) * 0.8, 0.05 + (i % 7) as f32 * 0.15).normalize();
+            let wo = Vec3::new(libm::cosf(0.3 * t) * 0.7, libm::sinf(2.3 * t) * 0.9, 0.02 + (i % 5) as f32 * 0.2).normalize();
+            let got = input(wi, wo).unwrap();
+            let [th, td, pd] = rusinkiewicz_angles(wi, wo).unwrap();
+            let (h, d) = half_diff_vectors(th, td, pd);
+            let want = [h.x, h.y, h.z, d.x, d.y, d.z];
+            for c in 0..INPUTS {
+                assert!((got[c] - want[c]).abs() < 2e-5, "pair {i} component {c}: {got:?} vs {want:?}");
+            }
+        }
+        assert_eq!(input(Vec3::Z, Vec3::Z), Some([0.0, 0.0, 1.0, 0.0, 0.0, 1.0]));
+        assert_eq!(input(Vec3::new(0.0, 0.0, -1.0), Vec3::Z), None);
+    }
+
+    #[test]
+    fn eval_many_equals_eval_bit_for_bit() {
+        let json = alloc::format!(
+            r#"{{"input":"{INPUT_ENCODING}","output":"{OUTPUT_MAPPING}","layers":[{},{},{}]}}"#,
+            layer(6, 21, "relu", 0.31, -0.2),
+            layer(21, 21, "relu", -0.05, 0.1),
+            layer(21, 3, "none", 0.02, -0.1)
+        );
+        let net = NbrdfNetwork::from_json_str(&json).unwrap();
+        let n = 37;
+        let dir = |t: f32, z: f32| Vec3::new(libm::sinf(t) * 0.7, libm::cosf(1.3 * t) * 0.6, z).normalize();
+        let wi: Vec<Vec3> = (0..n).map(|i| dir(i as f32, if i % 5 == 2 { -0.3 } else { 0.5 })).collect();
+        let wo: Vec<Vec3> = (0..n).map(|i| dir(2.1 * i as f32 + 0.3, 0.4)).collect();
+        let mut out = alloc::vec![[f32::NAN; 3]; n];
+        net.eval_many(&wi, &wo, &mut out);
+        for i in 0..n {
+            assert_eq!(out[i].map(f32::to_bits), net.eval(wi[i], wo[i]).map(f32::to_bits), "pair {i}");
+        }
+        assert_eq!(out[2], BLACK);
     }
 
     #[test]

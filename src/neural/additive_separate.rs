@@ -3,7 +3,7 @@
 //! softplus; 6 outputs when enhanced, Eq. 8).
 
 use super::split;
-use crate::mlp::{self, forward, partial, Net, Partial, Weight, MAX_WIDTH};
+use crate::mlp::{self, forward, forward_packet, partial, Net, Partial, Weight, MAX_WIDTH, PACKET};
 use crate::Rgb;
 
 /// The diffuse term at the point and the position part of the specular network.
@@ -20,4 +20,21 @@ pub fn eval<W: Weight>(specular: &Net<'_, W>, f_d: Rgb, prepared: &Partial, angl
     let mut s = [0.0f32; MAX_WIDTH];
     forward(specular, prepared, angles, &mut s);
     split::combine(f_d, &s, enhanced)
+}
+
+/// [`eval`] for [`PACKET`] queries: query `q`'s encoded angles at `angles[q * stride..][..n]`.
+#[inline]
+pub fn eval_packet<W: Weight>(
+    specular: &Net<'_, W>,
+    f_d: Rgb,
+    prepared: &Partial,
+    angles: &[f32],
+    stride: usize,
+    n: usize,
+    enhanced: bool,
+) -> [Rgb; PACKET] {
+    const S: usize = super::single_mlp::OUT_STRIDE;
+    let mut s = [0.0f32; PACKET * S];
+    forward_packet(specular, prepared, angles, stride, n, &mut s, S);
+    core::array::from_fn(|q| split::combine(f_d, &s[q * S..(q + 1) * S], enhanced))
 }

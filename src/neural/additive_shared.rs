@@ -3,7 +3,7 @@
 //! `[trunk, PE(a)]` (two layers, softplus; 6 outputs when enhanced, Eq. 8).
 
 use super::split;
-use crate::mlp::{self, forward, partial, Net, Partial, Weight, MAX_WIDTH};
+use crate::mlp::{self, forward, forward_packet, partial, Net, Partial, Weight, MAX_WIDTH, PACKET};
 use crate::Rgb;
 
 /// Trunk, diffuse head and the trunk part of the specular head: everything but the angles.
@@ -28,4 +28,21 @@ pub fn eval<W: Weight>(specular: &Net<'_, W>, f_d: Rgb, prepared: &Partial, angl
     let mut s = [0.0f32; MAX_WIDTH];
     forward(specular, prepared, angles, &mut s);
     split::combine(f_d, &s, enhanced)
+}
+
+/// [`eval`] for [`PACKET`] queries: query `q`'s encoded angles at `angles[q * stride..][..n]`.
+#[inline]
+pub fn eval_packet<W: Weight>(
+    specular: &Net<'_, W>,
+    f_d: Rgb,
+    prepared: &Partial,
+    angles: &[f32],
+    stride: usize,
+    n: usize,
+    enhanced: bool,
+) -> [Rgb; PACKET] {
+    const S: usize = super::single_mlp::OUT_STRIDE;
+    let mut s = [0.0f32; PACKET * S];
+    forward_packet(specular, prepared, angles, stride, n, &mut s, S);
+    core::array::from_fn(|q| split::combine(f_d, &s[q * S..(q + 1) * S], enhanced))
 }

@@ -3,7 +3,7 @@
 //! trunk runs first and the angles join the trunk's features.
 
 use crate::math::softplus;
-use crate::mlp::{self, forward, partial, Net, Partial, Weight, MAX_WIDTH};
+use crate::mlp::{self, forward, forward_packet, partial, Net, Partial, Weight, MAX_WIDTH, PACKET};
 use crate::Rgb;
 
 /// Position-only work: the position rows of the network (one network), or the trunk and the head's
@@ -28,3 +28,17 @@ pub fn eval<W: Weight>(net: &Net<'_, W>, prepared: &Partial, angles: &[f32]) -> 
     forward(net, prepared, angles, &mut out);
     [softplus(out[0]), softplus(out[1]), softplus(out[2])]
 }
+
+/// [`eval`] for [`PACKET`] queries: query `q`'s encoded angles at `angles[q * stride..][..n]`.
+#[inline]
+pub fn eval_packet<W: Weight>(net: &Net<'_, W>, prepared: &Partial, angles: &[f32], stride: usize, n: usize) -> [Rgb; PACKET] {
+    let mut out = [0.0f32; PACKET * OUT_STRIDE];
+    forward_packet(net, prepared, angles, stride, n, &mut out, OUT_STRIDE);
+    core::array::from_fn(|q| {
+        let o = &out[q * OUT_STRIDE..];
+        [softplus(o[0]), softplus(o[1]), softplus(o[2])]
+    })
+}
+
+/// Room per query for the raw outputs of a packet (3, or 6 when enhanced).
+pub(crate) const OUT_STRIDE: usize = 8;

@@ -1,0 +1,338 @@
+//! Dense-layer kernels of the neural evaluator, selected by the CPU at run time.
+//!
+//! One kernel computes one layer `y_o = init_o + Σ_s Σ_i x_s[i] M_s[i][o]` (then ReLU for hidden layers)
+//! for either one query ([`Kernels::one`]) or a packet of [`PACKET`] queries ([`Kernels::packet`]).
+//! The packet kernel keeps a tile of `PACKET ×` (16 or 32) outputs in registers and reads each weight row
+//! once per packet, so the weights stream from cache once per packet instead of once per query.
+//!
+//! Levels: [`Level::Avx512`] and [`Level::Avx2`] (x86-64, with FMA and F16C: half weights are widened
+//! by `vcvtph2ps` as they are loaded) and [`Level::Portable`] (plain Rust, every target). With the
+//! `std` feature the level is detected once at run time (`is_x86_feature_detected!`), so a default
+//! release build uses AVX-512 where the CPU has it; without `std` the level is what the compile-time
+//! target features allow (`-C target-cpu=…`).
+//!
+//! # Determinism
+//! Every query's accumulator sees the same operations in the same order whatever the kernel shape:
+//! `acc = init`, then one fused multiply-add per input row in row order (`Portable`: multiply, then add).
+//! So at one level, the single and the packet path give the same bits for the same query, and a query's
+//! result does not depend on its neighbours in the packet — which keeps exact reciprocity bitwise in
+//! batches. The one-query kernels skip rows whose input is exactly zero (half the activations after a
+//! ReLU); `fma(0, w, acc) = acc` for finite weights, except that `-0 + 0 = +0`, and the sign of a zero
+//! pre-activation is erased by the ReLU (`max(acc, 0)` returns `+0`) and by every output map.
+//! Levels differ from each other by rounding only (FMA versus multiply-then-add).
+
+mod portable;
+#[cfg(target_arch = "x86_64")]
+mod x86;
+
+use core::sync::atomic::{AtomicU8, Ordering};
+
+/// Queries per packet of the batched kernels: 16, so that one weight vector (one f16 conversion)
+/// serves 16 FMAs in the AVX-512 kernel (8 left f16 17% slower than f32; 16: within 2%).
+pub const PACKET: usize = 16;
+
+/// An instruction-set level of the kernels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Level {
+    /// Plain Rust (autovectorised for the compile-time target only).
+    Portable,
+    /// x86-64 AVX2 + FMA + F16C, 8 lanes.
+    Avx2,
+    /// x86-64 AVX-512 (F, BW, VL) + FMA + F16C, 16 lanes.
+    Avx512,
+}
+
+impl Level {
+    /// Every level, slowest first.
+    pub const ALL: [Level; 3] = [Level::Portable, Level::Avx2, Level::Avx512];
+
+    fn from_u8(v: u8) -> Level {
+        match v {
+            2 => Level::Avx2,
+            3 => Level::Avx512,
+            _ => Level::Portable,
+        }
+    }
+
+    fn to_u8(self) -> u8 {
+        match self {
+            Level::Portable => 1,
+            Level::Avx2 => 2,
+            Level::Avx512 => 3,
+        }
+    }
+}
+
+/// The best level this CPU supports (detected once with `std`; compile-time features without it).
+pub fn detected() -> Level {
+    static DETECTED: AtomicU8 = AtomicU8::new(0);
+    match DETECTED.load(Ordering::Relaxed) {
+        0 => {
+            let l = detect();
+            DETECTED.store(l.to_u8(), Ordering::Relaxed);
+            l
+        }
+        v => Level::from_u8(v),
+    }
+}
+
+/// 0: not chosen yet; otherwise the level the evaluator uses.
+static ACTIVE: AtomicU8 = AtomicU8::new(0);
+
+/// The level the evaluator uses now: [`detected`], unless lowered by [`set_level`].
+#[inline]
+pub fn level() -> Level {
+    match ACTIVE.load(Ordering::Relaxed) {
+        0 => {
+            let l = detected();
+            ACTIVE.store(l.to_u8(), Ordering::Relaxed);
+            l
+        }
+        v => Level::from_u8(v),
+    }
+}
+
+/// Makes the evaluator use `level` (clamped to [`detected`]), or the detected level for `None`;
+/// returns the level now in use. Process-wide: for benchmarks and tests that compare levels.
+pub fn set_level(level: Option<Level>) -> Level {
+    let l = level.map_or(detected(), |l| l.min(detected()));
+    ACTIVE.store(l.to_u8(), Ordering::Relaxed);
+    l
+}
+
+#[cfg(all(target_arch = "x86_64", feature = "std"))]
+fn detect() -> Level {
+    let base = std::is_x86_feature_detected!("avx2")
+        && std::is_x86_feature_detected!("fma")
+        && std::is_x86_feature_detected!("f16c");
+    if base
+        && std::is_x86_feature_detected!("avx512f")
+        && std::is_x86_feature_detected!("avx512bw")
+        && std::is_x86_feature_detected!("avx512vl")
+    {
+        Level::Avx512
+    } else if base {
+        Level::Avx2
+    } else {
+        Level::Portable
+    }
+}
+
+#[cfg(all(target_arch = "x86_64", not(feature = "std")))]
+fn detect() -> Level {
+    if cfg!(all(
+        target_feature = "avx512f",
+        target_feature = "avx512bw",
+        target_feature = "avx512vl",
+        target_feature = "avx2",
+        target_feature = "fma",
+        target_feature = "f16c"
+    )) {
+        Level::Avx512
+    } else if cfg!(all(target_feature = "avx2", target_feature = "fma", target_feature = "f16c")) {
+        Level::Avx2
+    } else {
+        Level::Portable
+    }
+}
+
+#[cfg(not(target_arch = "x86_64"))]
+fn detect() -> Level {
+    Level::Portable
+}
+
+/// One input segment of a layer: `n` inputs per query read from `x` (query `q` at `x[q * stride..]`)
+/// against the `n` weight rows `rows` (`[n][n_out]`, row-major).
+#[derive(Clone, Copy, Debug)]
+pub struct Segment<'a, W> {
+    /// Inputs, query after query.
+    pub x: &'a [f32],
+    /// Distance between two queries' inputs in `x`.
+    pub stride: usize,
+    /// Number of inputs (and weight rows).
+    pub n: usize,
+    /// The weight rows.
+    pub rows: &'a [W],
+}
+
+/// One dense layer: `out[q][o] = act(init[o] + Σ over segments Σ_i x[q][i] rows[i][o])`.
+#[derive(Clone, Copy, Debug)]
+pub struct Dense<'a, W> {
+    /// Starting accumulators (bias, or bias plus precomputed rows), shared by every query.
+    pub init: &'a [f32],
+    /// Input segments, accumulated in order; only the first `n_segs` are used.
+    pub segs: [Segment<'a, W>; 2],
+    /// Number of segments used (1 or 2).
+    pub n_segs: usize,
+    /// Number of outputs.
+    pub n_out: usize,
+    /// Apply ReLU.
+    pub relu: bool,
+}
+
+impl<W> Dense<'_, W> {
+    /// Checks every slice against the extents that `queries` queries with outputs `out_stride` apart
+    /// in a buffer of `out_len` values will touch: the kernels read and write through raw pointers.
+    fn check(&self, queries: usize, out_len: usize, out_stride: usize) {
+        assert!((1..=2).contains(&self.n_segs), "1 or 2 segments");
+        assert!(self.init.len() >= self.n_out, "init shorter than the outputs");
+        for s in &self.segs[..self.n_segs] {
+            assert!(s.rows.len() >= s.n * self.n_out, "fewer weight rows than inputs");
+            assert!(s.n == 0 || s.x.len() >= (queries - 1) * s.stride + s.n, "inputs out of bounds");
+        }
+        assert!(self.n_out == 0 || out_len >= (queries - 1) * out_stride + self.n_out, "outputs out of bounds");
+    }
+}
+
+/// The kernel pair of one weight type at one level.
+pub struct Kernels<W: 'static> {
+    /// One query. # Safety: callers pass a [`Dense`] that passed `check(1, ..)` and a supported level.
+    one: unsafe fn(&Dense<'_, W>, *mut f32),
+    /// [`PACKET`] queries. # Safety: as `one`, `check(PACKET, ..)`.
+    packet: unsafe fn(&Dense<'_, W>, *mut f32, usize),
+}
+
+impl<W: 'static> Kernels<W> {
+    /// Runs the layer for one query, writing `layer.n_out` values to the front of `out`.
+    #[inline]
+    pub fn one(&self, layer: &Dense<'_, W>, out: &mut [f32]) {
+        layer.check(1, out.len(), 0);
+        // SAFETY: the table holds kernels of a level the CPU supports (`table` only hands out detected
+        // levels), and `check` verified every extent the kernel touches.
+        unsafe { (self.one)(layer, out.as_mut_ptr()) }
+    }
+
+    /// Runs the layer for [`PACKET`] queries, query `q`'s outputs at `out[q * out_stride..]`.
+    #[inline]
+    pub fn packet(&self, layer: &Dense<'_, W>, out: &mut [f32], out_stride: usize) {
+        layer.check(PACKET, out.len(), out_stride);
+        // SAFETY: as in `one`.
+        unsafe { (self.packet)(layer, out.as_mut_ptr(), out_stride) }
+    }
+}
+
+/// A weight type with kernels: `f32` and `half::f16`.
+pub trait KernelWeight: Sized + 'static {
+    /// The kernels of `level`, which must be at most [`detected`] (lower levels are always safe).
+    #[doc(hidden)]
+    fn table(level: Level) -> &'static Kernels<Self>;
+}
+
+macro_rules! tables {
+    ($w:ty, $avx2:ident, $avx512:ident) => {
+        impl KernelWeight for $w {
+            #[inline]
+            fn table(level: Level) -> &'static Kernels<$w> {
+                static PORTABLE: Kernels<$w> =
+                    Kernels { one: portable::one::<$w>, packet: portable::packet::<$w> };
+                #[cfg(target_arch = "x86_64")]
+                static AVX2: Kernels<$w> = Kernels { one: x86::$avx2::one, packet: x86::$avx2::packet };
+                #[cfg(target_arch = "x86_64")]
+                static AVX512: Kernels<$w> = Kernels { one: x86::$avx512::one, packet: x86::$avx512::packet };
+                // Never hand out a level above the detected one, whatever the caller asked for.
+                match level.min(detected()) {
+                    Level::Portable => &PORTABLE,
+                    #[cfg(target_arch = "x86_64")]
+                    Level::Avx2 => &AVX2,
+                    #[cfg(target_arch = "x86_64")]
+                    Level::Avx512 => &AVX512,
+                    #[cfg(not(target_arch = "x86_64"))]
+                    _ => &PORTABLE,
+                }
+            }
+        }
+    };
+}
+tables!(f32, avx2_f32, avx512_f32);
+tables!(half::f16, avx2_f16, avx512_f16);
+
+/// The kernels of the active [`level`] for weights `W`.
+#[inline]
+pub fn kernels<W: KernelWeight>() -> &'static Kernels<W> {
+    W::table(level())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const N: usize = 16384;
+
+    fn values(n: usize, seed: u32, zero_every: usize) -> [f32; N] {
+        let mut v = [0.0f32; N];
+        let mut s = seed;
+        for (i, x) in v.iter_mut().take(n).enumerate() {
+            s = s.wrapping_mul(1664525).wrapping_add(1013904223);
+            *x = if zero_every > 0 && i % zero_every == 0 { 0.0 } else { ((s >> 8) as f32 / (1u32 << 24) as f32 - 0.5) * 0.8 };
+        }
+        v
+    }
+
+    /// f64 reference of one query of a layer.
+    fn reference<W: crate::mlp::Weight>(l: &Dense<'_, W>, q: usize) -> [f64; 256] {
+        let mut y = [0.0f64; 256];
+        for (o, y) in y.iter_mut().enumerate().take(l.n_out) {
+            let mut a = l.init[o] as f64;
+            for s in &l.segs[..l.n_segs] {
+                for i in 0..s.n {
+                    a += s.x[q * s.stride + i] as f64 * s.rows[i * l.n_out + o].to_f32() as f64;
+                }
+            }
+            *y = if l.relu { a.max(0.0) } else { a };
+        }
+        y
+    }
+
+    fn check_shapes<W: crate::mlp::Weight>(w: &[W]) {
+        for &(n_out, n1, n2, relu) in
+            &[(3, 20, 0, false), (6, 31, 0, false), (17, 9, 5, true), (21, 21, 0, true), (32, 6, 0, true), (64, 20, 0, false), (128, 40, 0, true), (128, 64, 7, true), (130, 12, 3, true), (200, 3, 0, true), (48, 5, 5, false), (17, 300, 20, true), (40, 250, 9, false)]
+        {
+            let stride = 330;
+            let x1 = values(PACKET * stride, n_out as u32, 3);
+            let x2 = values(PACKET * stride, 99 + n1 as u32, 4);
+            let init = values(n_out, 5, 0);
+            let seg1 = Segment { x: &x1[..], stride, n: n1, rows: &w[..n1 * n_out] };
+            let seg2 = Segment { x: &x2[..], stride, n: n2, rows: &w[n1 * n_out..(n1 + n2) * n_out] };
+            let layer = Dense { init: &init[..n_out], segs: [seg1, seg2], n_segs: if n2 > 0 { 2 } else { 1 }, n_out, relu };
+            let os = n_out + 3;
+            let mut portable = [0.0f32; PACKET * 260];
+            W::table(Level::Portable).packet(&layer, &mut portable, os);
+            for level in Level::ALL.into_iter().filter(|l| *l <= detected()) {
+                let k = W::table(level);
+                let mut packed = [f32::NAN; PACKET * 260];
+                k.packet(&layer, &mut packed, os);
+                for q in 0..PACKET {
+                    let want = reference(&layer, q);
+                    // One query through the one-query kernel: the same bits as its lane of the packet.
+                    let mut l1 = layer;
+                    l1.segs[0].x = &x1[q * stride..];
+                    l1.segs[1].x = &x2[q * stride..];
+                    let mut single = [f32::NAN; 260];
+                    k.one(&l1, &mut single);
+                    for o in 0..n_out {
+                        let got = packed[q * os + o];
+                        assert_eq!(got.to_bits(), single[o].to_bits(), "{level:?} n_out {n_out} q {q} o {o}");
+                        assert!((got as f64 - want[o]).abs() < 1e-5, "{level:?}: {got} vs {}", want[o]);
+                        assert!((got - portable[q * os + o]).abs() < 1e-5, "{level:?} vs portable");
+                    }
+                    // Nothing written past the outputs.
+                    assert!(single[n_out].is_nan() && packed[q * os + n_out].is_nan());
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn every_level_matches_the_reference_and_packets_match_single_queries_bitwise() {
+        let w = values(N, 17, 0);
+        check_shapes::<f32>(&w[..]);
+        let h: [half::f16; N] = core::array::from_fn(|i| half::f16::from_f32(w[i]));
+        check_shapes::<half::f16>(&h[..]);
+    }
+
+    #[test]
+    fn set_level_is_clamped_to_the_detected_level() {
+        assert!(level() <= detected());
+        assert_eq!(Level::Portable.min(detected()), Level::Portable);
+    }
+}

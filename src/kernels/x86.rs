@@ -1,0 +1,642 @@
+//! AVX2 and AVX-512 kernels (x86-64), instantiated for `f32` and `half::f16` weights by macros: the
+//! weight type only changes how a vector of weights is loaded (`vcvtph2ps` widens half weights).
+//!
+//! Register tiles (acc = accumulators, lanes = outputs):
+//! - one query: 8 vectors of outputs (128 with AVX-512, 64 with AVX2) per pass over the gathered
+//!   nonzero inputs (layers of at most `DENSE_BELOW` inputs: every input);
+//! - a packet: `QT` queries × `K` vectors of outputs; per input row, `K` weight loads are shared by
+//!   `QT` broadcast inputs. AVX-512: all 16 queries × 1 vector = 16 accumulators of 32 registers, so
+//!   one weight load (and, for f16, one `vcvtph2ps`) serves 16 FMAs; AVX2: 4 queries × 2 vectors =
+//!   8 of 16 registers, the packet run as four quarters.
+//!
+//! Partial vectors at the end of a row (odd widths, the 3 or 6 outputs of the last layer) use masked
+//! loads and stores, which never touch memory outside the mask.
+//!
+//! Every function here is `unsafe` and `#[target_feature]`: callers guarantee that the CPU has the
+//! features (the dispatch in `kernels` only calls levels ≤ `detected()`) and that the `Dense` passed
+//! `Dense::check` for the extents used.
+
+use core::arch::x86_64::*;
+
+use super::{Dense, PACKET};
+
+/// Loads 16 weights widened to f32, lanes outside `m` zero (AVX-512).
+macro_rules! load16 {
+    (f32, $p:expr, $m:expr, $masked:expr) => {
+        if $masked {
+            _mm512_maskz_loadu_ps($m, $p)
+        } else {
+            _mm512_loadu_ps($p)
+        }
+    };
+    (f16, $p:expr, $m:expr, $masked:expr) => {
+        if $masked {
+            _mm512_cvtph_ps(_mm256_maskz_loadu_epi16($m, $p.cast::<i16>()))
+        } else {
+            _mm512_cvtph_ps(_mm256_loadu_si256($p.cast::<__m256i>()))
+        }
+    };
+}
+
+/// Loads 8 weights widened to f32, lanes at or after `m` zero (AVX2).
+macro_rules! load8 {
+    (f32, $p:expr, $m:expr, $masked:expr) => {
+        if $masked {
+            _mm256_maskload_ps($p, lane_mask($m))
+        } else {
+            _mm256_loadu_ps($p)
+        }
+    };
+    (f16, $p:expr, $m:expr, $masked:expr) => {
+        if $masked {
+            // No masked 16-bit load before AVX-512: copy the `m` valid halves to a zeroed buffer.
+            let mut t = [0u16; 8];
+            core::ptr::copy_nonoverlapping($p.cast::<u16>(), t.as_mut_ptr(), $m.min(8));
+            _mm256_cvtph_ps(_mm_loadu_si128(t.as_ptr().cast::<__m128i>()))
+        } else {
+            _mm256_cvtph_ps(_mm_loadu_si128($p.cast::<__m128i>()))
+        }
+    };
+}
+
+/// Layers with at most this many inputs skip the gathering of nonzero inputs in the one-query kernels
+/// (the NBRDF-json networks, 6-21-21-3): there the gathering costs more than the FMAs it saves.
+const DENSE_BELOW: usize = 32;
+
+/// Inputs gathered per batch of the one-query kernels.
+const GATHER: usize = 256;
+
+/// The nonzero inputs of one query with pointers to their weight rows, in input order: the first
+/// `len` entries of `x` and `rows` (the rest uninitialised).
+struct Gathered<W> {
+    x: *const f32,
+    rows: *const *const W,
+    len: usize,
+}
+
+/// Gathers the nonzero inputs of the layer's segments into `xs`/`rs` and hands each full batch of
+/// [`GATHER`] (and the last one) to `flush(batch, first, last)`. Branch-free: every slot is written and
+/// kept only for a nonzero input (NaN is kept, as the packet kernels propagate it). `len` stays in a
+/// register (a struct field behind `&mut` made each step wait on a store-to-load round trip).
+#[inline(always)]
+fn gather<W>(l: &Dense<'_, W>, mut flush: impl FnMut(&Gathered<W>, bool, bool)) {
+    let mut xs = [core::mem::MaybeUninit::<f32>::uninit(); GATHER];
+    let mut rs = [core::mem::MaybeUninit::<*const W>::uninit(); GATHER];
+    let (xp, rp) = (xs.as_mut_ptr().cast::<f32>(), rs.as_mut_ptr().cast::<*const W>());
+    let mut len = 0usize;
+    let mut first = true;
+    for s in &l.segs[..l.n_segs] {
+        let (x, rows) = (s.x.as_ptr(), s.rows.as_ptr());
+        for i in 0..s.n {
+            if len == GATHER {
+                flush(&Gathered { x: xp, rows: rp, len }, first, false);
+                first = false;
+                len = 0;
+            }
+            // SAFETY: `len < GATHER` slots; `i < s.n` inputs and rows (`Dense::check`).
+            unsafe {
+                let v = *x.add(i);
+                xp.add(len).write(v);
+                rp.add(len).write(rows.add(i * l.n_out));
+                len += (v != 0.0) as usize;
+            }
+        }
+    }
+    flush(&Gathered { x: xp, rows: rp, len }, first, true);
+}
+
+/// The AVX2 mask selecting lanes `0..m`.
+#[inline]
+#[target_feature(enable = "avx2")]
+fn lane_mask(m: usize) -> __m256i {
+    let idx = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+    _mm256_cmpgt_epi32(_mm256_set1_epi32(m.min(8) as i32), idx)
+}
+
+/// The AVX-512 mask selecting lanes `0..m`.
+#[inline(always)]
+fn mask16(m: usize) -> __mmask16 {
+    if m >= 16 {
+        0xffff
+    } else {
+        ((1u32 << m) - 1) as __mmask16
+    }
+}
+
+/// The nonzero inputs of one query in (a chunk of) one segment, as `compress` writes them: the
+/// first `len` values of `x`, and the byte offsets `off` of their weight rows from `base`.
+struct Compressed {
+    x: *const f32,
+    off: *const u32,
+    base: *const u8,
+    len: usize,
+}
+
+/// Writes the nonzero values of `x[..n]` to `xs` and the byte offsets `i * row_bytes` of their weight
+/// rows to `offs`, in order, and returns their number: 16 inputs per step with `vcompressps` (the
+/// scalar, branch-free gathering cost about a quarter of the one-query time). NaN counts as nonzero
+/// (unordered not-equal), as in the other kernels.
+///
+/// # Safety
+/// `x` holds `n` values; `xs` and `offs` have room for `n` rounded up to 16 entries (whole vectors are
+/// stored); `n * row_bytes < 2^31`.
+#[inline]
+#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
+unsafe fn compress(x: *const f32, n: usize, row_bytes: u32, xs: *mut f32, offs: *mut u32) -> usize {
+    let mut len = 0;
+    let mut off = _mm512_mullo_epi32(
+        _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15),
+        _mm512_set1_epi32(row_bytes as i32),
+    );
+    let step = _mm512_set1_epi32((16 * row_bytes) as i32);
+    let zero = _mm512_setzero_ps();
+    let mut i = 0;
+    while i < n {
+        let valid = mask16(n - i);
+        // SAFETY: lanes `i + j < n` only are read (mask); whole vectors are stored at `len <= i`, within
+        // the rounded-up room.
+        unsafe {
+            let v = _mm512_maskz_loadu_ps(valid, x.add(i));
+            let nz = _mm512_mask_cmp_ps_mask::<_CMP_NEQ_UQ>(valid, v, zero);
+            _mm512_storeu_ps(xs.add(len), _mm512_maskz_compress_ps(nz, v));
+            _mm512_storeu_si512(offs.add(len).cast(), _mm512_maskz_compress_epi32(nz, off));
+            len += nz.count_ones() as usize;
+        }
+        off = _mm512_add_epi32(off, step);
+        i += 16;
+    }
+    len
+}
+
+macro_rules! avx512 {
+    ($name:ident, $w:ty, $tag:tt) => {
+        pub(super) mod $name {
+            use super::*;
+
+            /// Outputs `o .. o + 16 K` of one query: starting from `src`, one FMA per compressed input.
+            ///
+            /// # Safety
+            /// See the module docs; `m[k]` masks the valid outputs of vector `k`; `src` and `out` hold
+            /// `n_out` values, `g` lists rows of `n_out` weights.
+            #[inline]
+            #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
+            unsafe fn one_tile<const K: usize, const MASKED: bool>(
+                src: *const f32,
+                out: *mut f32,
+                o: usize,
+                m: [__mmask16; K],
+                g: &Compressed,
+            ) {
+                // SAFETY (whole body): every access is at `o + 16 k + lane < n_out` (masked) of `src`,
+                // `out` or a listed row (see the caller).
+                unsafe {
+                    let src = src.add(o);
+                    let mut acc: [__m512; K] =
+                        core::array::from_fn(|k| load16!(f32, src.add(16 * k), m[k], MASKED));
+                    let base = g.base.cast::<$w>().add(o).cast::<u8>();
+                    for j in 0..g.len {
+                        let xb = _mm512_set1_ps(*g.x.add(j));
+                        let r = base.add(*g.off.add(j) as usize).cast::<$w>();
+                        for k in 0..K {
+                            acc[k] = _mm512_fmadd_ps(xb, load16!($tag, r.add(16 * k), m[k], MASKED), acc[k]);
+                        }
+                    }
+                    for k in 0..K {
+                        _mm512_mask_storeu_ps(out.add(o + 16 * k), m[k], acc[k]);
+                    }
+                }
+            }
+
+            /// All output tiles of one query over one list of compressed inputs.
+            ///
+            /// # Safety
+            /// As `one_tile`, for outputs `0..n`.
+            #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
+            unsafe fn one_tiles(src: *const f32, out: *mut f32, n: usize, g: &Compressed) {
+                let mut o = 0;
+                // SAFETY: each tile stays below `n` (full tiles by the loop bounds, the rest masked).
+                unsafe {
+                    while o + 128 <= n {
+                        one_tile::<8, false>(src, out, o, [0xffff; 8], g);
+                        o += 128;
+                    }
+                    while o + 32 <= n {
+                        one_tile::<2, false>(src, out, o, [0xffff; 2], g);
+                        o += 32;
+                    }
+                    while o < n {
+                        one_tile::<1, true>(src, out, o, [mask16(n - o)], g);
+                        o += 16;
+                    }
+                }
+            }
+
+            /// Outputs `o .. o + 16 K` of one query, every input row (small layers: see `DENSE_BELOW`).
+            ///
+            /// # Safety
+            /// As `one_tile`, over the checked segments.
+            #[inline]
+            #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
+            unsafe fn one_dense_tile<const K: usize, const MASKED: bool>(
+                l: &Dense<'_, $w>,
+                out: *mut f32,
+                o: usize,
+                m: [__mmask16; K],
+            ) {
+                let n = l.n_out;
+                // SAFETY (whole body): as in `packet_tile`, for one query.
+                unsafe {
+                    let init = l.init.as_ptr().add(o);
+                    let mut acc: [__m512; K] = core::array::from_fn(|k| load16!(f32, init.add(16 * k), m[k], MASKED));
+                    for s in &l.segs[..l.n_segs] {
+                        let (x, rows) = (s.x.as_ptr(), s.rows.as_ptr().add(o));
+                        for i in 0..s.n {
+                            let xb = _mm512_set1_ps(*x.add(i));
+                            let r = rows.add(i * n);
+                            for k in 0..K {
+                                acc[k] = _mm512_fmadd_ps(xb, load16!($tag, r.add(16 * k), m[k], MASKED), acc[k]);
+                            }
+                        }
+                    }
+                    let zero = _mm512_setzero_ps();
+                    for k in 0..K {
+                        let v = if l.relu { _mm512_max_ps(acc[k], zero) } else { acc[k] };
+                        _mm512_mask_storeu_ps(out.add(o + 16 * k), m[k], v);
+                    }
+                }
+            }
+
+            /// One query through a small layer, every input row.
+            ///
+            /// # Safety
+            /// See the module docs (`check(1, ..)`).
+            #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
+            unsafe fn one_dense(l: &Dense<'_, $w>, out: *mut f32) {
+                let n = l.n_out;
+                let mut o = 0;
+                // SAFETY: each tile stays below `n_out` (full tiles by the loop bounds, the rest masked).
+                unsafe {
+                    while o + 64 <= n {
+                        one_dense_tile::<4, false>(l, out, o, [0xffff; 4]);
+                        o += 64;
+                    }
+                    while o + 32 <= n {
+                        one_dense_tile::<2, false>(l, out, o, [0xffff; 2]);
+                        o += 32;
+                    }
+                    while o < n {
+                        one_dense_tile::<1, true>(l, out, o, [mask16(n - o)]);
+                        o += 16;
+                    }
+                }
+            }
+
+            /// One query through the layer: its nonzero inputs (about half after a ReLU, in no
+            /// predictable pattern) are compressed into a list first, then each output tile runs one
+            /// FMA per listed input; segments longer than `GATHER` go in chunks, the partial sums
+            /// through `out` (exact), and the ReLU is a last pass.
+            ///
+            /// # Safety
+            /// See the module docs (`check(1, ..)`).
+            #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
+            pub(in crate::kernels) unsafe fn one(l: &Dense<'_, $w>, out: *mut f32) {
+                let n = l.n_out;
+                if l.segs[..l.n_segs].iter().map(|s| s.n).sum::<usize>() <= DENSE_BELOW {
+                    // SAFETY: same contract.
+                    return unsafe { one_dense(l, out) };
+                }
+                let mut xs = [core::mem::MaybeUninit::<f32>::uninit(); GATHER + 16];
+                let mut offs = [core::mem::MaybeUninit::<u32>::uninit(); GATHER + 16];
+                let (xp, op) = (xs.as_mut_ptr().cast::<f32>(), offs.as_mut_ptr().cast::<u32>());
+                let row_bytes = (n * core::mem::size_of::<$w>()) as u32;
+                let mut src = l.init.as_ptr();
+                for s in &l.segs[..l.n_segs] {
+                    let mut i0 = 0;
+                    while i0 < s.n {
+                        let chunk = (s.n - i0).min(GATHER);
+                        // SAFETY: `chunk` inputs and rows from `i0` lie in the checked segment; the
+                        // lists have room for `GATHER` rounded up to 16; `src` and `out` hold `n`.
+                        unsafe {
+                            let len = compress(s.x.as_ptr().add(i0), chunk, row_bytes, xp, op);
+                            let base = s.rows.as_ptr().add(i0 * n).cast::<u8>();
+                            one_tiles(src, out, n, &Compressed { x: xp, off: op, base, len });
+                        }
+                        src = out;
+                        i0 += chunk;
+                    }
+                }
+                // SAFETY: `out` and `init` hold `n` values (`check`).
+                unsafe {
+                    let o = core::slice::from_raw_parts_mut(out, n);
+                    if src != out.cast_const() {
+                        o.copy_from_slice(&l.init[..n]);
+                    }
+                    if l.relu {
+                        for v in o {
+                            // As `_mm512_max_ps(v, 0)`: +0 for either zero, 0 for NaN.
+                            *v = if *v > 0.0 { *v } else { 0.0 };
+                        }
+                    }
+                }
+            }
+
+            /// Outputs `o .. o + 16 K` of the `PACKET` queries.
+            ///
+            /// # Safety
+            /// See the module docs; `m[k]` masks the valid outputs of vector `k`.
+            #[inline]
+            #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
+            unsafe fn packet_tile<const K: usize, const MASKED: bool>(
+                l: &Dense<'_, $w>,
+                out: *mut f32,
+                os: usize,
+                o: usize,
+                m: [__mmask16; K],
+            ) {
+                let n = l.n_out;
+                // SAFETY (whole body): as in `one_tile`, with query `q < PACKET` at `q * stride` of the
+                // inputs and `q * os` of the outputs, both within the checked extents.
+                unsafe {
+                    let init = l.init.as_ptr().add(o);
+                    let init: [__m512; K] = core::array::from_fn(|k| load16!(f32, init.add(16 * k), m[k], MASKED));
+                    let mut acc: [[__m512; K]; PACKET] = [init; PACKET];
+                    for s in &l.segs[..l.n_segs] {
+                        let (x, rows) = (s.x.as_ptr(), s.rows.as_ptr().add(o));
+                        for i in 0..s.n {
+                            let r = rows.add(i * n);
+                            let w: [__m512; K] = core::array::from_fn(|k| load16!($tag, r.add(16 * k), m[k], MASKED));
+                            for q in 0..PACKET {
+                                let xb = _mm512_set1_ps(*x.add(q * s.stride + i));
+                                for k in 0..K {
+                                    acc[q][k] = _mm512_fmadd_ps(xb, w[k], acc[q][k]);
+                                }
+                            }
+                        }
+                    }
+                    let zero = _mm512_setzero_ps();
+                    for q in 0..PACKET {
+                        for k in 0..K {
+                            let v = if l.relu { _mm512_max_ps(acc[q][k], zero) } else { acc[q][k] };
+                            _mm512_mask_storeu_ps(out.add(q * os + o + 16 * k), m[k], v);
+                        }
+                    }
+                }
+            }
+
+            /// `PACKET` queries through the layer, every input row: skipping each query's zero inputs
+            /// (about half) was tried and is slower on Zen 4, whose single 512-bit load per cycle then
+            /// limits the FMAs (one weight load, one broadcast and one offset load per FMA pair).
+            ///
+            /// # Safety
+            /// See the module docs (`check(PACKET, ..)`).
+            #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
+            pub(in crate::kernels) unsafe fn packet(l: &Dense<'_, $w>, out: *mut f32, os: usize) {
+                let n = l.n_out;
+                let mut o = 0;
+                // SAFETY: each tile stays below `n_out` (full tiles by the loop bounds, the rest masked).
+                unsafe {
+                    while o + 16 <= n {
+                        packet_tile::<1, false>(l, out, os, o, [0xffff]);
+                        o += 16;
+                    }
+                    if o < n {
+                        packet_tile::<1, true>(l, out, os, o, [mask16(n - o)]);
+                    }
+                }
+            }
+        }
+    };
+}
+
+avx512!(avx512_f32, f32, f32);
+avx512!(avx512_f16, half::f16, f16);
+
+/// Queries per AVX2 packet tile: 4 queries × 2 vectors = 8 of the 16 registers hold accumulators.
+const QT2: usize = 4;
+
+macro_rules! avx2 {
+    ($name:ident, $w:ty, $tag:tt) => {
+        pub(super) mod $name {
+            use super::*;
+
+            /// Outputs `o .. o + 8 K` of one query: starting from `src`, one FMA per gathered input;
+            /// `m[k]` valid lanes in vector `k`.
+            ///
+            /// # Safety
+            /// As the AVX-512 `one_tile`.
+            #[inline]
+            #[target_feature(enable = "avx2,fma,f16c")]
+            unsafe fn one_tile<const K: usize, const MASKED: bool>(
+                src: *const f32,
+                out: *mut f32,
+                o: usize,
+                m: [usize; K],
+                g: &Gathered<$w>,
+                relu: bool,
+            ) {
+                // SAFETY (whole body): as in the AVX-512 `one_tile`; masked lanes are never read or
+                // written (maskload/maskstore, or the bounded copy of `load8!`).
+                unsafe {
+                    let src = src.add(o);
+                    let mut acc: [__m256; K] =
+                        core::array::from_fn(|k| load8!(f32, src.add(8 * k), m[k], MASKED));
+                    for j in 0..g.len {
+                        let xb = _mm256_set1_ps(*g.x.add(j));
+                        let r = (*g.rows.add(j)).add(o);
+                        for k in 0..K {
+                            acc[k] = _mm256_fmadd_ps(xb, load8!($tag, r.add(8 * k), m[k], MASKED), acc[k]);
+                        }
+                    }
+                    let zero = _mm256_setzero_ps();
+                    for k in 0..K {
+                        let v = if relu { _mm256_max_ps(acc[k], zero) } else { acc[k] };
+                        if MASKED {
+                            _mm256_maskstore_ps(out.add(o + 8 * k), lane_mask(m[k]), v);
+                        } else {
+                            _mm256_storeu_ps(out.add(o + 8 * k), v);
+                        }
+                    }
+                }
+            }
+
+            /// All output tiles of one query over one batch of gathered inputs.
+            ///
+            /// # Safety
+            /// As `one_tile`, for outputs `0..n`.
+            #[target_feature(enable = "avx2,fma,f16c")]
+            unsafe fn one_tiles(src: *const f32, out: *mut f32, n: usize, g: &Gathered<$w>, relu: bool) {
+                let mut o = 0;
+                // SAFETY: each tile stays below `n` (full tiles by the loop bounds, the rest masked).
+                unsafe {
+                    while o + 64 <= n {
+                        one_tile::<8, false>(src, out, o, [8; 8], g, relu);
+                        o += 64;
+                    }
+                    while o + 16 <= n {
+                        one_tile::<2, false>(src, out, o, [8; 2], g, relu);
+                        o += 16;
+                    }
+                    while o < n {
+                        one_tile::<1, true>(src, out, o, [n - o], g, relu);
+                        o += 8;
+                    }
+                }
+            }
+
+            /// Outputs `o .. o + 8 K` of one query, every input row (small layers: see `DENSE_BELOW`).
+            ///
+            /// # Safety
+            /// As `one_tile`, over the checked segments.
+            #[inline]
+            #[target_feature(enable = "avx2,fma,f16c")]
+            unsafe fn one_dense_tile<const K: usize, const MASKED: bool>(
+                l: &Dense<'_, $w>,
+                out: *mut f32,
+                o: usize,
+                m: [usize; K],
+            ) {
+                let n = l.n_out;
+                // SAFETY (whole body): as in `packet_tile`, for one query.
+                unsafe {
+                    let init = l.init.as_ptr().add(o);
+                    let mut acc: [__m256; K] = core::array::from_fn(|k| load8!(f32, init.add(8 * k), m[k], MASKED));
+                    for s in &l.segs[..l.n_segs] {
+                        let (x, rows) = (s.x.as_ptr(), s.rows.as_ptr().add(o));
+                        for i in 0..s.n {
+                            let xb = _mm256_set1_ps(*x.add(i));
+                            let r = rows.add(i * n);
+                            for k in 0..K {
+                                acc[k] = _mm256_fmadd_ps(xb, load8!($tag, r.add(8 * k), m[k], MASKED), acc[k]);
+                            }
+                        }
+                    }
+                    let zero = _mm256_setzero_ps();
+                    for k in 0..K {
+                        let v = if l.relu { _mm256_max_ps(acc[k], zero) } else { acc[k] };
+                        if MASKED {
+                            _mm256_maskstore_ps(out.add(o + 8 * k), lane_mask(m[k]), v);
+                        } else {
+                            _mm256_storeu_ps(out.add(o + 8 * k), v);
+                        }
+                    }
+                }
+            }
+
+            /// One query through a small layer, every input row.
+            ///
+            /// # Safety
+            /// See the module docs (`check(1, ..)`).
+            #[target_feature(enable = "avx2,fma,f16c")]
+            unsafe fn one_dense(l: &Dense<'_, $w>, out: *mut f32) {
+                let n = l.n_out;
+                let mut o = 0;
+                // SAFETY: each tile stays below `n_out` (full tiles by the loop bounds, the rest masked).
+                unsafe {
+                    while o + 32 <= n {
+                        one_dense_tile::<4, false>(l, out, o, [8; 4]);
+                        o += 32;
+                    }
+                    while o + 8 <= n {
+                        one_dense_tile::<1, false>(l, out, o, [8]);
+                        o += 8;
+                    }
+                    if o < n {
+                        one_dense_tile::<1, true>(l, out, o, [n - o]);
+                    }
+                }
+            }
+
+            /// One query through the layer (nonzero inputs gathered first, as with AVX-512).
+            ///
+            /// # Safety
+            /// See the module docs (`check(1, ..)`).
+            #[target_feature(enable = "avx2,fma,f16c")]
+            pub(in crate::kernels) unsafe fn one(l: &Dense<'_, $w>, out: *mut f32) {
+                if l.segs[..l.n_segs].iter().map(|s| s.n).sum::<usize>() <= DENSE_BELOW {
+                    // SAFETY: same contract.
+                    return unsafe { one_dense(l, out) };
+                }
+                let init = l.init.as_ptr();
+                gather(l, |g, first, last| {
+                    // SAFETY: `init` and `out` hold `n_out` values (`check`), the gathered rows come from
+                    // checked segments; partial sums of a long input go through `out` unrounded.
+                    unsafe { one_tiles(if first { init } else { out }, out, l.n_out, g, last && l.relu) }
+                });
+            }
+
+            /// Outputs `o .. o + 8 K` of queries `q0 .. q0 + QT2`.
+            ///
+            /// # Safety
+            /// See the module docs.
+            #[inline]
+            #[target_feature(enable = "avx2,fma,f16c")]
+            unsafe fn packet_tile<const K: usize, const MASKED: bool>(
+                l: &Dense<'_, $w>,
+                out: *mut f32,
+                os: usize,
+                q0: usize,
+                o: usize,
+                m: [usize; K],
+            ) {
+                let n = l.n_out;
+                // SAFETY (whole body): as in the AVX-512 `packet_tile`, for queries `q0 + q < PACKET`.
+                unsafe {
+                    let init = l.init.as_ptr().add(o);
+                    let init: [__m256; K] = core::array::from_fn(|k| load8!(f32, init.add(8 * k), m[k], MASKED));
+                    let mut acc: [[__m256; K]; QT2] = [init; QT2];
+                    for s in &l.segs[..l.n_segs] {
+                        let (x, rows) = (s.x.as_ptr().add(q0 * s.stride), s.rows.as_ptr().add(o));
+                        for i in 0..s.n {
+                            let r = rows.add(i * n);
+                            let w: [__m256; K] = core::array::from_fn(|k| load8!($tag, r.add(8 * k), m[k], MASKED));
+                            for q in 0..QT2 {
+                                let xb = _mm256_set1_ps(*x.add(q * s.stride + i));
+                                for k in 0..K {
+                                    acc[q][k] = _mm256_fmadd_ps(xb, w[k], acc[q][k]);
+                                }
+                            }
+                        }
+                    }
+                    let zero = _mm256_setzero_ps();
+                    for q in 0..QT2 {
+                        for k in 0..K {
+                            let v = if l.relu { _mm256_max_ps(acc[q][k], zero) } else { acc[q][k] };
+                            let p = out.add((q0 + q) * os + o + 8 * k);
+                            if MASKED {
+                                _mm256_maskstore_ps(p, lane_mask(m[k]), v);
+                            } else {
+                                _mm256_storeu_ps(p, v);
+                            }
+                        }
+                    }
+                }
+            }
+
+            /// `PACKET` queries through the layer.
+            ///
+            /// # Safety
+            /// See the module docs (`check(PACKET, ..)`).
+            #[target_feature(enable = "avx2,fma,f16c")]
+            pub(in crate::kernels) unsafe fn packet(l: &Dense<'_, $w>, out: *mut f32, os: usize) {
+                let n = l.n_out;
+                // SAFETY: each tile stays below `n_out` and `PACKET` queries.
+                unsafe {
+                    for q0 in (0..PACKET).step_by(QT2) {
+                        let mut o = 0;
+                        while o + 16 <= n {
+                            packet_tile::<2, false>(l, out, os, q0, o, [8; 2]);
+                            o += 16;
+                        }
+                        while o < n {
+                            packet_tile::<1, true>(l, out, os, q0, o, [n - o]);
+                            o += 8;
+                        }
+                    }
+                }
+            }
+        }
+    };
+}
+
+avx2!(avx2_f32, f32, f32);
+avx2!(avx2_f16, half::f16, f16);
