@@ -205,6 +205,33 @@ fn raw_configs(kind: ParametricKind, rng: &mut Lcg) -> Vec<([f32; MAX_RAW], f32)
 }
 
 // -------------------------------------------------------------------------------------------------
+// The angle maps every model is built on
+
+#[test]
+fn angle_maps_on_the_dense_grid_are_in_range_and_theta_is_bitwise_symmetric() {
+    use nbrdf::angles::{rusinkiewicz_angles, theta_map};
+    for (wi, wo) in dense_pairs() {
+        let t = theta_map(wi, wo);
+        // Θ is symmetric bit for bit, and defined for exactly the same pairs in both orders.
+        assert_eq!(t.map(|t| t.map(f32::to_bits)), theta_map(wo, wi).map(|t| t.map(f32::to_bits)), "Θ({wi}, {wo})");
+        if let Some([th, td, p, p_pi]) = t {
+            assert!((0.0..=PI).contains(&th) && (0.0..=FRAC_PI_2).contains(&td), "Θ({wi}, {wo}) = {t:?}");
+            assert!((0.0..PI).contains(&p) && p_pi == p + PI, "Θ({wi}, {wo}) = {t:?}");
+        }
+        if let Some([th, td, pd]) = rusinkiewicz_angles(wi, wo) {
+            assert!((0.0..=PI).contains(&th) && (0.0..=FRAC_PI_2).contains(&td), "({wi}, {wo})");
+            assert!((0.0..2.0 * PI).contains(&pd), "φd({wi}, {wo}) = {pd}");
+        }
+        // Only degenerate pairs lack angles: a zero or non-finite vector, or exactly opposite directions.
+        if t.is_none() {
+            if let (Some(a), Some(b)) = (unit(wi), unit(wo)) {
+                assert!((a + b).length() < 1e-6, "no Θ for ({wi}, {wo})");
+            }
+        }
+    }
+}
+
+// -------------------------------------------------------------------------------------------------
 // Parametric models and built-in materials
 
 #[test]
