@@ -197,6 +197,15 @@ fn obj_malformed_variants() {
     // tobj checks face indices itself ("face vertex index out of bounds").
     assert_err!("index past the vertices", obj(&format!("{TRI}f 1 2 4\n")), Error::Parse { what, .. } if what == "OBJ");
     assert_err!("index 0", obj(&format!("{TRI}f 0 1 2\n")), Error::Parse { what, .. } if what == "OBJ");
+    // Regression (issue 7, found by fuzz target mesh_parse): normal and texture indices whose bounds
+    // arithmetic overflows inside tobj. 6148914691236517206 - 1 = 0x5555555555555555, times 3 wraps to
+    // u64::MAX, plus 2 wraps to 1: past tobj's check and out of bounds, a panic even in release builds.
+    assert_err!("wrapping normal index", obj(&format!("{TRI}vn 0 0 1\nf 1//6148914691236517206 2//1 3//1\n")),
+        Error::Parse { what, .. } if what == "OBJ");
+    assert_err!("overflowing normal index", obj(&format!("{TRI}vn 0 0 1\nf 1//1 2//-1537228672809129305 3//1\n")),
+        Error::Parse { what, .. } if what == "OBJ");
+    assert_err!("overflowing texture index", obj(&format!("{TRI}vt 0 0\nf 1/1 2/-4611686018427387904 3/1\n")),
+        Error::Parse { what, .. } if what == "OBJ");
     assert_err!("not a number", obj("v 0 0 zero\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"), Error::Parse { .. });
     assert_err!("NaN position", obj("v nan 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"), Error::NonFinite { what: "mesh vertex positions", index: 0 });
     assert_err!("inf position", obj("v 0 0 0\nv inf 0 0\nv 0 1 0\nf 1 2 3\n"), Error::NonFinite { what: "mesh vertex positions", index: 1 });

@@ -133,10 +133,17 @@ impl Mesh {
             ignore_lines: true,
             ..Default::default()
         };
-        let (models, _) = tobj::load_obj_buf(reader, &options, |_| {
-            Err(tobj::LoadError::OpenFileFailed) // materials are not needed
-        })
-        .map_err(|e| parse_err("OBJ", e))?;
+        // tobj 4.0.5 panics on some hostile face indices: its texture-coordinate and normal bounds checks
+        // (`vt * 2 + 1`, `vn * 3 + 2`) are unchecked arithmetic, which overflows (a panic with overflow
+        // checks) or, for `vn`, wraps past the check into an out-of-bounds index (a panic in release too;
+        // found by the `mesh_parse` fuzz target, issue 7). A malformed file must be an error value.
+        let loaded = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            tobj::load_obj_buf(reader, &options, |_| {
+                Err(tobj::LoadError::OpenFileFailed) // materials are not needed
+            })
+        }))
+        .map_err(|_| parse_err("OBJ", "face index out of range (the OBJ parser failed on it)"))?;
+        let (models, _) = loaded.map_err(|e| parse_err("OBJ", e))?;
         let mut positions = Vec::new();
         let mut normals = Vec::new();
         let mut triangles = Vec::new();
