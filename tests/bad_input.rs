@@ -206,6 +206,10 @@ fn obj_malformed_variants() {
         Error::Parse { what, .. } if what == "OBJ");
     assert_err!("overflowing texture index", obj(&format!("{TRI}vt 0 0\nf 1/1 2/-4611686018427387904 3/1\n")),
         Error::Parse { what, .. } if what == "OBJ");
+    assert_err!("relative index before the first normal", obj(&format!("{TRI}vn 0 0 1\nf 1//-2 2//1 3//1\n")),
+        Error::Parse { what, .. } if what == "OBJ");
+    // Relative indices that land on an element are fine.
+    assert!(obj(&format!("{TRI}vn 0 0 1\nf -3//-1 -2//1 -1//1\n")).is_ok());
     assert_err!("not a number", obj("v 0 0 zero\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"), Error::Parse { .. });
     assert_err!("NaN position", obj("v nan 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"), Error::NonFinite { what: "mesh vertex positions", index: 0 });
     assert_err!("inf position", obj("v 0 0 0\nv inf 0 0\nv 0 1 0\nf 1 2 3\n"), Error::NonFinite { what: "mesh vertex positions", index: 1 });
