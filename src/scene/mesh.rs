@@ -6,7 +6,7 @@
 //! ids match the file) but never hit by a ray and carry no weight in the vertex normals.
 
 use std::collections::HashMap;
-use std::io::{BufRead, Read};
+use std::io::BufRead;
 use std::path::Path;
 use std::string::{String, ToString};
 use std::vec::Vec;
