@@ -34,6 +34,16 @@ impl RgbImage {
         Ok(RgbImage { width, height, data })
     }
 
+    /// Errors unless `data` holds `width × height` pixels. The fields are public, so the writers check
+    /// this before indexing rather than panicking inside the encoder.
+    fn check(&self) -> Result<(), Error> {
+        let expected = self.width as usize * self.height as usize;
+        if self.data.len() != expected {
+            return Err(Error::SizeMismatch { what: "image pixel count", expected, found: self.data.len() });
+        }
+        Ok(())
+    }
+
     /// The pixel at `(col, row)`.
     #[inline]
     pub fn get(&self, col: u32, row: u32) -> Rgb {
@@ -78,6 +88,7 @@ fn exr_err(path: &Path, e: impl ToString) -> crate::Error {
 /// Writes a linear RGB image as a 32-bit float OpenEXR file (lossless, atomic).
 pub fn write_exr(path: impl AsRef<Path>, img: &RgbImage) -> Result<(), crate::Error> {
     use exr::prelude::*;
+    img.check()?;
     let path = path.as_ref();
     let w = img.width as usize;
     let channels = SpecificChannels::rgb(|Vec2(x, y): Vec2<usize>| {
@@ -115,6 +126,7 @@ pub fn read_exr(path: impl AsRef<Path>) -> Result<RgbImage, crate::Error> {
 
 /// Writes an 8-bit sRGB PNG of a linear image scaled by `exposure` (values clamped to `[0, 1]`).
 pub fn write_png_srgb(path: impl AsRef<Path>, img: &RgbImage, exposure: f32) -> Result<(), Error> {
+    img.check()?;
     let bytes: Vec<u8> = img
         .data
         .iter()

@@ -1,6 +1,6 @@
 //! The additive diffuse/specular split of Sec. 4.1.2 and its enhancement (Sec. 4.4, Eq. 8).
 
-use crate::math::{sigmoid, softplus, INV_PI};
+use crate::math::{sanitize, sigmoid, softplus, INV_PI};
 use crate::Rgb;
 
 /// Lambertian diffuse term from the diffuse network's raw outputs: `σ(d) / π` (Sec. 4.1.2), so the
@@ -12,7 +12,10 @@ use crate::Rgb;
 /// ```
 #[inline]
 pub fn diffuse(raw: &[f32]) -> Rgb {
-    [sigmoid(raw[0]) * INV_PI, sigmoid(raw[1]) * INV_PI, sigmoid(raw[2]) * INV_PI]
+    // A network whose activations overflowed (inf - inf inside it, e.g. f16 weights near ±65504) emits
+    // NaN, and sigmoid(NaN) is NaN: like every degenerate value of the crate it reads as 0, so that
+    // `Prepared::diffuse` never hands a renderer NaN (issue 7; tests/hard_cases.rs).
+    sanitize([sigmoid(raw[0]) * INV_PI, sigmoid(raw[1]) * INV_PI, sigmoid(raw[2]) * INV_PI])
 }
 
 /// Combines the diffuse term with the specular network's raw outputs `s`.

@@ -8,7 +8,7 @@
 use std::collections::HashMap;
 use std::io::BufRead;
 use std::path::Path;
-use std::string::ToString;
+use std::string::{String, ToString};
 use std::vec::Vec;
 use std::{format, vec};
 
@@ -136,10 +136,17 @@ impl Mesh {
             ignore_lines: true,
             ..Default::default()
         };
-        let (models, _) = tobj::load_obj_buf(reader, &options, |_| {
-            Err(tobj::LoadError::OpenFileFailed) // materials are not needed
-        })
-        .map_err(|e| parse_err("OBJ", e))?;
+        let mut text = String::new();
+        reader.read_to_string(&mut text).map_err(|e| parse_err("OBJ", e))?;
+        check_obj_face_indices(&text)?;
+        // Second line of defence: should tobj still panic on some input, it is a parse error here.
+        let loaded = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            tobj::load_obj_buf(&mut text.as_bytes(), &options, |_| {
+                Err(tobj::LoadError::OpenFileFailed) // materials are not needed
+            })
+        }))
+        .map_err(|_| parse_err("OBJ", "face index out of range (the OBJ parser failed on it)"))?;
+        let (models, _) = loaded.map_err(|e| parse_err("OBJ", e))?;
         let mut positions = Vec::new();
         let mut normals = Vec::new();
         let mut triangles = Vec::new();
@@ -340,6 +347,38 @@ impl Mesh {
         let [a, b, c] = self.corners(t);
         a * (1.0 - b1 - b2) + b * b1 + c * b2
     }
+}
+
+/// tobj 4.0.5 bounds-checks texture and normal indices with unchecked arithmetic (`vt * 2 + 1`,
+/// `vn * 3 + 2`): a huge index, or a relative one reaching before the first element, overflows it — a
+/// panic with overflow checks, and for normals an index that wraps past the check out of bounds, a panic
+/// in release too (found by the `mesh_parse` fuzz target, issue 7). So faces are checked here first, the
+/// way tobj reads them (line by line, whitespace-separated `v/vt/vn` triples, relative indices counted
+/// from the elements declared so far): an absolute index must fit `u32`, a relative one must not reach
+/// before the first element. Tokens that are not integers are left to tobj, which rejects them.
+fn check_obj_face_indices(text: &str) -> Result<(), Error> {
+    let mut declared = [0u64; 3]; // v, vt, vn lines so far
+    for (n, line) in text.lines().enumerate() {
+        let mut words = line.split_whitespace();
+        match words.next() {
+            Some("v") => declared[0] += 1,
+            Some("vt") => declared[1] += 1,
+            Some("vn") => declared[2] += 1,
+            Some("f") | Some("l") => {
+                for word in words {
+                    for (k, part) in word.split('/').enumerate().take(3) {
+                        let Ok(x) = part.parse::<i64>() else { continue };
+                        let ok = if x < 0 { x.unsigned_abs() <= declared[k] } else { x <= i64::from(u32::MAX) };
+                        if !ok {
+                            return Err(parse_err("OBJ", format!("line {}: face index {x} is out of range", n + 1)));
+                        }
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    Ok(())
 }
 
 fn with_path(e: Error, path: &Path) -> Error {

@@ -1,0 +1,46 @@
+//! Neural models of every kind with fuzzer-chosen weights, point inputs and directions.
+//!
+//! A small valid model (`common::small_header`: every kind, f32 and f16, every reciprocity and position
+//! encoding) gets seeded weights at a fuzzer-chosen scale (up to the format's limit: ±65504 for f16,
+//! ±3.4e38 for f32, where activations overflow to inf) and fuzzer-chosen weight overrides. Invariants:
+//! the diffuse term and every evaluation are finite and non-negative; exactly 0 off the upper
+//! hemisphere; bitwise reciprocal for Θ networks and parametric models.
+#![no_main]
+
+mod common;
+
+use libfuzzer_sys::fuzz_target;
+use nbrdf::file::{encode, ModelBuf, ModelKind, Precision, Reciprocity};
+
+fuzz_target!(|input: (u8, u8, u64, u8, [f32; 3], [f32; 6], Vec<(u16, f32)>)| {
+    let (shape, variant, seed, scale, point, dirs, patches) = input;
+    let h = common::small_header(shape as usize, variant);
+    let limit = if h.precision == Precision::F16 { 65504.0 } else { f32::MAX };
+    let scale = [0.1, 1.0, 10.0, 1e3, limit][scale as usize % 5];
+    let mut w = common::weights(&h, seed, scale);
+    for (i, v) in patches {
+        if !w.is_empty() {
+            let n = w.len();
+            w[i as usize % n] = v;
+        }
+    }
+    // Non-finite weights, and f16 weights beyond ±65504, are export errors (tests/bad_input.rs).
+    let Ok(bytes) = encode(&h, &w, None) else { return };
+    let buf = ModelBuf::from_bytes(&bytes).expect("encode's output loads");
+    let model = buf.model();
+    let len = model.position_len().min(3);
+    let prepared = model.prepare(&point[..len]);
+    if len != model.position_len() {
+        return;
+    }
+    common::assert_valid_brdf(prepared.diffuse(), "diffuse term");
+    let (wi, wo) = common::pair(dirs);
+    let f = model.eval(&prepared, wi, wo);
+    common::assert_valid_brdf(f, "model eval");
+    if !(common::above(wi) && common::above(wo)) {
+        assert_eq!(f, [0.0; 3], "nonzero off the upper hemisphere");
+    }
+    if h.reciprocity == Reciprocity::Exact || matches!(h.kind, ModelKind::Parametric(_)) {
+        assert!(common::same_bits(f, model.eval(&prepared, wo, wi)), "not reciprocal: {wi} {wo}");
+    }
+});
