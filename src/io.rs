@@ -23,30 +23,7 @@ pub fn read(path: &Path) -> Result<Vec<u8>, Error> {
 /// assert_eq!(std::fs::read(&path).unwrap(), b"abc");
 /// ```
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), Error> {
-    use std::io::Write;
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let name = path.file_name().ok_or_else(|| Error::Io {
-        path: path.to_path_buf(),
-        kind: std::io::ErrorKind::InvalidInput,
-        message: "not a file path".into(),
-    })?;
-    let mut tmp_name = std::ffi::OsString::from(".");
-    tmp_name.push(name);
-    tmp_name.push(std::format!(".{}.tmp", std::process::id()));
-    let tmp = dir.join(tmp_name);
-    let result = (|| {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()?;
-        std::fs::rename(&tmp, path)
-    })();
-    result.map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        Error::io(path, &e)
-    })
+    write_atomic_with(path, |w| std::io::Write::write_all(w, bytes))
 }
 
 /// Streams `path` through `fill`, for encoders that write into a `Write + Seek` (EXR, PNG): into a
@@ -70,10 +47,12 @@ where
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
     };
-    let mut tmp = tempfile::Builder::new()
-        .prefix(".nbrdf-tmp-")
-        .tempfile_in(dir)
-        .map_err(|e| Error::io(dir, &e))?;
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(".nbrdf-tmp-");
+    // tempfile's default mode is 0600; a data file gets the usual 0666 minus the umask instead.
+    #[cfg(unix)]
+    builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
+    let mut tmp = builder.tempfile_in(dir).map_err(|e| Error::io(dir, &e))?;
     {
         let mut w = std::io::BufWriter::new(tmp.as_file_mut());
         fill(&mut w).and_then(|_| std::io::Write::flush(&mut w)).map_err(|e| Error::io(path, &e))?;

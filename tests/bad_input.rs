@@ -67,13 +67,13 @@ fn small_weights(n: usize) -> Vec<f32> {
 
 /// A Single MLP on no position input with Θ angles: its postcard header starts with the fields in
 /// declaration order, one byte each: kind 1 (SingleMlp), enhanced 0, reciprocity 2 (Exact), angle
-/// frequencies, position 0 (Uniform), precision 0 (F32); it ends with n_nets 1 and n_vertices 0.
+/// frequencies, position 0 (Uniform), precision 0 (F32); it ends with n_nets 1, n_vertices 0 and no proxy (0).
 fn single_mlp_file() -> (Vec<u8>, usize) {
     let h = ModelHeader::paper(ModelKind::SingleMlp, false, Reciprocity::Exact, PositionEncoding::Uniform, 3);
     let bytes = encode(&h, &small_weights(h.n_weights()), None).unwrap();
     let header_len = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
     assert_eq!(&bytes[16..22], &[1, 0, 2, 3, 0, 0], "the header layout this test edits");
-    assert_eq!(&bytes[16 + header_len - 2..16 + header_len], &[1, 0], "n_nets and n_vertices");
+    assert_eq!(&bytes[16 + header_len - 3..16 + header_len], &[1, 0, 0], "n_nets, n_vertices, proxy None");
     (bytes, header_len)
 }
 
@@ -94,9 +94,9 @@ fn model_file_header_fields_out_of_their_domain() {
     assert_err!("unknown model kind 9", ModelBuf::from_bytes(&edit(0, 9)), Error::InvalidValue { what: "model header", .. });
     assert_err!("unknown reciprocity 3", ModelBuf::from_bytes(&edit(2, 3)), Error::InvalidValue { what: "model header", .. });
     assert_err!("unknown precision 2", ModelBuf::from_bytes(&edit(5, 2)), Error::InvalidValue { what: "model header", .. });
-    assert_err!("4 networks", ModelBuf::from_bytes(&edit(hl - 2, 4)), Error::InvalidValue { what: "network count", .. });
-    assert_err!("0 networks", ModelBuf::from_bytes(&edit(hl - 2, 0)), Error::InvalidValue { what: "network count", .. });
-    assert_err!("a position table without an intrinsic encoding", ModelBuf::from_bytes(&edit(hl - 1, 1)),
+    assert_err!("4 networks", ModelBuf::from_bytes(&edit(hl - 3, 4)), Error::InvalidValue { what: "network count", .. });
+    assert_err!("0 networks", ModelBuf::from_bytes(&edit(hl - 3, 0)), Error::InvalidValue { what: "network count", .. });
+    assert_err!("a position table without an intrinsic encoding", ModelBuf::from_bytes(&edit(hl - 2, 1)),
         Error::InvalidValue { what: "position table", .. });
     // Extrinsic position with 17 octaves: position variant 2, then the octave count.
     let mut b = good.clone();
@@ -454,7 +454,7 @@ fn a_failed_write_leaves_the_existing_file_intact_for_every_writer() {
         ("write_png_mask", Box::new(|| nbrdf::image::write_png_mask(dir.join("mask.png"), 1, 1, &[true]))),
         ("write_png16", Box::new(|| nbrdf::image::write_png16(dir.join("i16.png"), 1, 1, &[[1, 2, 3]]))),
         ("io::write_atomic", Box::new(|| nbrdf::io::write_atomic(&dir.join("raw.bin"), b"new"))),
-        ("atomic::write_atomic", Box::new(|| nbrdf::atomic::write_atomic(&dir.join("fill.bin"), |w| w.write_all(b"new")))),
+        ("io::write_atomic_with", Box::new(|| nbrdf::io::write_atomic_with(&dir.join("fill.bin"), |w| w.write_all(b"new")))),
     ];
 
     match ReadOnly::new(&dir) {
@@ -473,7 +473,7 @@ fn a_failed_write_leaves_the_existing_file_intact_for_every_writer() {
 
     // Interrupted while writing: the writer's output fails half way. The old file stays, and no
     // temporary file is left.
-    let r = nbrdf::atomic::write_atomic(&dir.join("fill.bin"), |w| {
+    let r = nbrdf::io::write_atomic_with(&dir.join("fill.bin"), |w| {
         w.write_all(&[7u8; 100_000])?;
         Err(std::io::Error::other("interrupted"))
     });

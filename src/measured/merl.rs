@@ -400,7 +400,7 @@ impl MerlTable {
     /// flushed to disk, then renamed over `path`, so that no half-written file is ever visible.
     #[cfg(feature = "std")]
     pub fn write(&self, path: impl AsRef<std::path::Path>) -> Result<(), Error> {
-        crate::measured::write_atomic(path.as_ref(), &self.to_bytes())
+        crate::io::write_atomic(path.as_ref(), &self.to_bytes())
     }
 }
 

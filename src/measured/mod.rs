@@ -28,25 +28,3 @@ pub mod nbrdf_json;
 pub use merl::{Lookup, MerlTable};
 pub use nbrdf_json::{Activation, NbrdfNetwork};
 
-/// Writes `bytes` to `path` atomically: a temporary file in the same directory (so the rename cannot
-/// cross file systems), flushed to disk, then renamed over `path`. On any failure the temporary file is
-/// removed and `path` is left as it was.
-#[cfg(feature = "std")]
-pub(crate) fn write_atomic(path: &std::path::Path, bytes: &[u8]) -> Result<(), crate::Error> {
-    use std::io::Write;
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => std::path::Path::new("."),
-    };
-    let io = |e: std::io::Error| crate::Error::io(path, &e);
-    let mut builder = tempfile::Builder::new();
-    builder.prefix(".nbrdf-tmp-");
-    // tempfile's default mode is 0600; a data file gets the usual 0666 minus the umask instead.
-    #[cfg(unix)]
-    builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
-    let mut tmp = builder.tempfile_in(dir).map_err(io)?;
-    tmp.write_all(bytes).map_err(io)?;
-    tmp.as_file().sync_all().map_err(io)?;
-    tmp.persist(path).map_err(|e| io(e.error))?;
-    Ok(())
-}

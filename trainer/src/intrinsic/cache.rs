@@ -18,8 +18,7 @@
 //! sees either no file or a complete one, even when several trainers start on the same mesh at once.
 
 use std::hash::Hasher;
-use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use super::{Error, IntrinsicEncoding};
 
@@ -145,31 +144,12 @@ pub(crate) fn read(path: &Path) -> Result<IntrinsicEncoding, Error> {
     })
 }
 
-/// Writes `bytes` to `path` atomically: temporary file in the same directory, flushed, then renamed.
+/// Writes `bytes` to `path` atomically (`nbrdf::io::write_atomic`), creating the cache directory first.
 pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), Error> {
-    let io = |p: &Path| {
-        let p = p.to_owned();
-        move |source| Error::Io { path: p, source }
-    };
-    let dir = path
-        .parent()
-        .filter(|d| !d.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    std::fs::create_dir_all(dir).map_err(io(dir))?;
-    let nanos = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| d.subsec_nanos());
-    let mut tmp_name = path.file_name().unwrap_or_default().to_owned();
-    tmp_name.push(format!(".tmp-{}-{nanos}", std::process::id()));
-    let tmp: PathBuf = dir.join(tmp_name);
-    let result = (|| {
-        let mut file = std::fs::File::create(&tmp).map_err(io(&tmp))?;
-        file.write_all(bytes).map_err(io(&tmp))?;
-        file.sync_all().map_err(io(&tmp))?;
-        std::fs::rename(&tmp, path).map_err(io(path))
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result
+    let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    std::fs::create_dir_all(dir).map_err(|source| Error::Io { path: dir.to_owned(), source })?;
+    nbrdf::io::write_atomic(path, bytes).map_err(|e| match e {
+        nbrdf::Error::Io { path, kind, message } => Error::Io { path, source: std::io::Error::new(kind, message) },
+        other => Error::Io { path: path.to_owned(), source: std::io::Error::other(other.to_string()) },
+    })
 }
