@@ -1,8 +1,181 @@
-//! `trainer`: fits neural and parametric BRDFs from images and runs the comparison study.
-//!
-//! The commands land with their issues; until then the binary only lists what the core can evaluate.
+//! `trainer`: command-line entry. Argument parsing only; the work is in `trainer::commands`.
+
+use std::path::PathBuf;
+
+use clap::{Parser, Subcommand};
+use trainer::commands;
+use trainer::train::{TrainOptions, PAPER_BATCH_PIXELS};
+
+// Training allocates and frees batch-sized tensors every step; the system allocator returns them to the
+// OS and page-faults them back in, mimalloc keeps them (issue 4 "Speed").
+#[global_allocator]
+static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
+#[derive(Parser)]
+#[command(name = "trainer", about = "Fits neural and parametric BRDFs (On Neural BRDFs) and exports them")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(clap::Args, Clone)]
+struct ModelArgs {
+    /// rp, ts, fmbrdf, disney, lambert, single-mlp, additive-separate, additive-shared
+    #[arg(long)]
+    model: String,
+    /// Reciprocity strategy of the purely neural models (Sec. 4.3): none, swap or exact
+    #[arg(long, default_value = "exact")]
+    reciprocity: String,
+    /// The enhanced additive split of Eq. 8
+    #[arg(long)]
+    enhanced: bool,
+    /// Position input: uniform, intrinsic:K (K eigenfunctions) or extrinsic:F (PE of xyz, F octaves)
+    #[arg(long, default_value = "intrinsic:32")]
+    position: String,
+    /// Octaves of the angles' positional encoding
+    #[arg(long, default_value_t = trainer::models::arch::DEFAULT_ANGLE_FREQUENCIES)]
+    angle_frequencies: u8,
+    /// Layers the directions pass through (Tab. 2); the paper's default per model when absent
+    #[arg(long)]
+    direction_layers: Option<u8>,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Fit one model variant and write the model, checkpoint and training log
+    Fit {
+        /// Dataset directory (written by `trainer synth` or DiLiGenT-MV)
+        #[arg(long, conflicts_with = "toy")]
+        data: Option<PathBuf>,
+        /// Fit the built-in analytic toy set of this many pixels instead of a dataset
+        #[arg(long)]
+        toy: Option<usize>,
+        #[command(flatten)]
+        model: ModelArgs,
+        #[arg(long, default_value = "out")]
+        out: PathBuf,
+        #[arg(long, default_value_t = 20_000)]
+        steps: usize,
+        /// Pixels per batch (default: the paper's 2^15 colour values)
+        #[arg(long, default_value_t = PAPER_BATCH_PIXELS)]
+        batch: usize,
+        #[arg(long, default_value_t = 1e-3)]
+        lr: f32,
+        #[arg(long, default_value_t = 1e-4)]
+        lr_final: f32,
+        #[arg(long, default_value_t = 0)]
+        seed: u64,
+        /// Weight of the diffuse-vs-image L1 regulariser (enhanced, Sec. 4.4)
+        #[arg(long, default_value_t = 1e-2)]
+        lambda_diffuse: f32,
+        /// Weight of the specular sparsity L1 regulariser (enhanced, Sec. 4.4)
+        #[arg(long, default_value_t = 1e-3)]
+        lambda_specular: f32,
+        #[arg(long, default_value_t = 1000)]
+        checkpoint_every: usize,
+        /// Continue from the checkpoint in --out
+        #[arg(long)]
+        resume: bool,
+    },
+    /// List every model variant with its parameter count
+    Models {
+        #[arg(long, default_value = "intrinsic:32")]
+        position: String,
+    },
+    /// Milliseconds per training step (forward + backward + Adam) of each architecture
+    BenchStep {
+        #[arg(long, default_value_t = 32_768)]
+        batch: usize,
+        #[arg(long, default_value_t = 5)]
+        steps: usize,
+        #[arg(long, default_value = "intrinsic:32")]
+        position: String,
+        /// Also write the timings as JSON here
+        #[arg(long)]
+        json: Option<PathBuf>,
+    },
+}
 
 fn main() {
-    println!("nbrdf trainer: the fitting commands are not built yet; see README.md");
-    std::process::exit(2);
+    if let Err(e) = run(Cli::parse()) {
+        eprintln!("error: {e}");
+        std::process::exit(1);
+    }
+}
+
+fn run(cli: Cli) -> trainer::Result<()> {
+    match cli.command {
+        Command::Fit {
+            data,
+            toy,
+            model: m,
+            out,
+            steps,
+            batch,
+            lr,
+            lr_final,
+            seed,
+            lambda_diffuse,
+            lambda_specular,
+            checkpoint_every,
+            resume,
+        } => {
+            let config = commands::parse_config(
+                &m.model,
+                &m.reciprocity,
+                m.enhanced,
+                &m.position,
+                m.angle_frequencies,
+                m.direction_layers,
+            )?;
+            let obs = match (data, toy) {
+                (_, Some(n)) => trainer::toy::observations(n, config.position, seed),
+                (Some(dir), None) => {
+                    return Err(trainer::Error::Invalid(format!(
+                        "reading {} needs the dataset loader, which is not merged into the trainer yet; \
+                         use --toy N meanwhile",
+                        dir.display()
+                    )))
+                }
+                (None, None) => return Err(trainer::Error::Invalid("give --data DIR or --toy N".into())),
+            };
+            let opts = TrainOptions {
+                steps,
+                batch,
+                lr,
+                lr_final,
+                seed,
+                lambda_diffuse,
+                lambda_specular,
+                checkpoint_every,
+                ..TrainOptions::default()
+            };
+            let log = commands::fit::run(config, obs, &opts, &out, resume, true)?;
+            let last = log.loss.last().map(|l| l.1).unwrap_or(f32::NAN);
+            println!(
+                "{}: {} steps, final loss {last:.4e}, {:.1} s, {:.0} pixels/s; files in {}",
+                log.model,
+                log.steps_done,
+                log.wall_s,
+                log.samples_per_s,
+                out.display()
+            );
+        }
+        Command::Models { position } => {
+            print!("{}", commands::models::table(commands::parse_position(&position)?));
+        }
+        Command::BenchStep { batch, steps, position, json } => {
+            let position = commands::parse_position(&position)?;
+            let t = commands::bench_step::run(&commands::bench_step::default_configs(position), batch, steps)?;
+            println!("{:<34} {:>10} {:>8} {:>12} {:>10}", "model", "parameters", "batch", "ms/step", "ms inputs");
+            for r in &t {
+                println!("{:<34} {:>10} {:>8} {:>12.1} {:>10.1}", r.model, r.n_weights, r.batch, r.ms_per_step, r.ms_inputs);
+            }
+            if let Some(p) = json {
+                let s = serde_json::to_vec_pretty(&t).map_err(|e| trainer::Error::io(&p, e))?;
+                std::fs::write(&p, s).map_err(|e| trainer::Error::io(&p, e))?;
+            }
+        }
+    }
+    Ok(())
 }
