@@ -26,10 +26,18 @@ extern crate alloc;
 extern crate std;
 
 pub mod angles;
+pub mod builtin;
 pub mod encoding;
-pub mod mlp;
 pub mod error;
+pub mod file;
+#[cfg(feature = "std")]
+pub mod io;
 pub mod math;
+pub mod mlp;
+pub mod model;
+pub mod neural;
+pub mod parametric;
+pub mod sampling;
 
 pub use error::Error;
 pub use glam::Vec3;

@@ -1,0 +1,366 @@
+//! A loaded model, ready to evaluate: the header of a `.nbrdf` file with typed views of its weights.
+//!
+//! Evaluation is split the way a renderer uses a BRDF (DESIGN.md, "Core API shape"):
+//! [`Model::prepare`] does everything that depends on the surface point only (the parameter network of a
+//! parametric model, the diffuse network, the trunk, and the position part of the first and skip layers of
+//! the direction network), and [`Model::eval`] adds the direction pair. Both run on stack arrays with no
+//! allocation.
+//!
+//! ```
+//! use nbrdf::file::{encode, ModelBuf, ModelHeader, ModelKind, PositionEncoding, Reciprocity};
+//! use nbrdf::Vec3;
+//! let h = ModelHeader::paper(ModelKind::AdditiveShared, true, Reciprocity::Exact,
+//!                            PositionEncoding::Extrinsic { frequencies: 2 }, 3);
+//! let weights: Vec<f32> = (0..h.n_weights()).map(|i| ((i * 7919) % 200) as f32 * 1e-3 - 0.1).collect();
+//! let buf = ModelBuf::from_bytes(&encode(&h, &weights, None).unwrap()).unwrap();
+//! let model = buf.model();
+//! let point = model.prepare(&[0.1, -0.3, 0.5]);
+//! let (wi, wo) = (Vec3::new(0.3, 0.1, 0.9).normalize(), Vec3::new(-0.5, 0.2, 0.7).normalize());
+//! let f = model.eval(&point, wi, wo);
+//! assert!(f.iter().all(|c| c.is_finite() && *c >= 0.0));
+//! assert_eq!(f, model.eval(&point, wo, wi)); // exact reciprocity, bit for bit
+//! ```
+
+use crate::angles::{rusinkiewicz_angles, theta_map, upper_hemisphere_pair};
+use crate::encoding::{encoded_len, positional_encoding};
+use crate::file::{ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity, Sections, MAX_NETS};
+use crate::math::sanitize;
+use crate::mlp::{Net, NetDesc, Partial, Weight};
+use crate::neural::{additive_separate, additive_shared, parametric_net, single_mlp};
+use crate::parametric::Parametric;
+use crate::{Error, Rgb, Vec3, BLACK};
+
+/// Largest encoded angle input: Θ (4 values) with 16 octaves.
+pub const MAX_ANGLE_INPUT: usize = encoded_len(4, crate::file::MAX_FREQUENCIES as usize);
+/// Largest extrinsic position encoding: xyz with 16 octaves.
+pub const MAX_POSITION_INPUT: usize = encoded_len(3, crate::file::MAX_FREQUENCIES as usize);
+/// Largest number of per-object parameters.
+pub const MAX_OBJECT: usize = 4;
+
+/// Borrowed network weights in their stored precision.
+#[derive(Clone, Copy, Debug)]
+pub enum Weights<'a> {
+    /// Single precision.
+    F32(&'a [f32]),
+    /// Half precision, widened to f32 as it is read.
+    F16(&'a [half::f16]),
+}
+
+/// What [`Model::prepare`] computes once per shading point.
+#[derive(Clone, Copy, Debug)]
+pub struct Prepared {
+    /// Position part of the direction network's layer 0 and skip layer.
+    pub(crate) partial: Partial,
+    /// Diffuse term `f_d(x)` of the additive models.
+    pub(crate) diffuse: Rgb,
+    /// Parameters of a parametric model at the point.
+    pub(crate) params: Option<Parametric>,
+    /// False when the point input had the wrong length: every evaluation then gives 0.
+    pub(crate) valid: bool,
+}
+
+impl Prepared {
+    /// The parametric model's parameters at the point (parametric models only): what the network
+    /// predicted, for inspection and for importance sampling.
+    #[inline]
+    pub fn parameters(&self) -> Option<&Parametric> {
+        self.params.as_ref()
+    }
+
+    /// The diffuse term `f_d(x)` (additive models; 0 otherwise).
+    #[inline]
+    pub fn diffuse(&self) -> Rgb {
+        self.diffuse
+    }
+}
+
+/// A validated model over borrowed bytes. Cheap to copy.
+#[derive(Clone, Copy, Debug)]
+pub struct Model<'a> {
+    header: ModelHeader,
+    weights: Weights<'a>,
+    object: [f32; MAX_OBJECT],
+    table: &'a [f32],
+}
+
+/// Reinterprets validated, aligned little-endian bytes as `T` values.
+///
+/// # Safety
+/// `bytes` must be aligned for `T`, its length a multiple of `size_of::<T>()`, and every bit pattern a
+/// valid `T` (true for f32 and f16).
+#[cfg(target_endian = "little")]
+unsafe fn cast_slice<T>(bytes: &[u8]) -> &[T] {
+    debug_assert_eq!(bytes.as_ptr() as usize % core::mem::align_of::<T>(), 0);
+    // SAFETY: guaranteed by the caller as documented above.
+    unsafe { core::slice::from_raw_parts(bytes.as_ptr().cast::<T>(), bytes.len() / core::mem::size_of::<T>()) }
+}
+
+impl<'a> Model<'a> {
+    /// Validates a model file in place and borrows its weights without copying.
+    ///
+    /// The buffer must be 4-byte aligned ([`Error::Misaligned`] otherwise: load through
+    /// [`ModelBuf`] instead, which copies into aligned storage). Every malformed file gives an error
+    /// that names the problem (see [`crate::file`]).
+    pub fn from_bytes(bytes: &'a [u8]) -> Result<Self, Error> {
+        let (header, sections) = crate::file::parse(bytes)?;
+        if bytes.as_ptr() as usize % 4 != 0 {
+            return Err(Error::Misaligned);
+        }
+        Self::from_parsed(bytes, header, &sections)
+    }
+
+    #[cfg(target_endian = "little")]
+    pub(crate) fn from_parsed(bytes: &'a [u8], header: ModelHeader, s: &Sections) -> Result<Self, Error> {
+        let w = &bytes[s.weights.0..s.weights.1];
+        // SAFETY: `parse` checked the section bounds; sections start at multiples of 4 of a 4-aligned
+        // buffer and hold whole elements; f32 and f16 accept every bit pattern.
+        let weights = unsafe {
+            match header.precision {
+                Precision::F32 => Weights::F32(cast_slice::<f32>(w)),
+                Precision::F16 => Weights::F16(cast_slice::<half::f16>(w)),
+            }
+        };
+        let mut object = [0.0f32; MAX_OBJECT];
+        let obj = &bytes[s.object.0..s.object.1];
+        if obj.len() / 4 > MAX_OBJECT {
+            return Err(Error::TooLarge { what: "object parameters", found: obj.len() / 4, max: MAX_OBJECT });
+        }
+        for (o, c) in object.iter_mut().zip(obj.chunks_exact(4)) {
+            *o = f32::from_le_bytes([c[0], c[1], c[2], c[3]]);
+        }
+        // SAFETY: as above.
+        let table = unsafe { cast_slice::<f32>(&bytes[s.table.0..s.table.1]) };
+        Ok(Model { header, weights, object, table })
+    }
+
+    #[cfg(not(target_endian = "little"))]
+    pub(crate) fn from_parsed(_: &'a [u8], _: ModelHeader, _: &Sections) -> Result<Self, Error> {
+        Err(Error::InvalidValue { what: "host byte order", reason: "model files are read on little-endian hosts only" })
+    }
+
+    /// The model's header.
+    #[inline]
+    pub fn header(&self) -> &ModelHeader {
+        &self.header
+    }
+
+    /// The weights in their stored precision.
+    #[inline]
+    pub fn weights(&self) -> Weights<'a> {
+        self.weights
+    }
+
+    /// Number of point values [`Model::prepare`] expects (0, the intrinsic `k`, or 3 for xyz).
+    #[inline]
+    pub fn position_len(&self) -> usize {
+        self.header.position.input_len()
+    }
+
+    /// Interpolates the stored per-vertex intrinsic encoding at barycentric coordinates `bary` of the
+    /// triangle `tri` into `out` (`k` values), for renderers that have the mesh but not the eigenfunctions.
+    ///
+    /// Errors when the file carries no table, a vertex index is out of range, or `out` is too short.
+    pub fn position_features(&self, tri: [u32; 3], bary: [f32; 3], out: &mut [f32]) -> Result<(), Error> {
+        let k = self.position_len();
+        let n = self.header.n_vertices as usize;
+        if n == 0 {
+            return Err(Error::InvalidValue { what: "position table", reason: "the model file carries none" });
+        }
+        if out.len() < k {
+            return Err(Error::SizeMismatch { what: "position feature buffer", expected: k, found: out.len() });
+        }
+        if let Some(&v) = tri.iter().find(|&&v| v as usize >= n) {
+            return Err(Error::SizeMismatch { what: "vertex index (table rows)", expected: n, found: v as usize });
+        }
+        let rows = tri.map(|v| &self.table[v as usize * k..(v as usize + 1) * k]);
+        for (j, o) in out[..k].iter_mut().enumerate() {
+            *o = bary[0] * rows[0][j] + bary[1] * rows[1][j] + bary[2] * rows[2][j];
+        }
+        Ok(())
+    }
+
+    /// Like [`Model::prepare`], but a point input of the wrong length is an error.
+    pub fn try_prepare(&self, p: &[f32]) -> Result<Prepared, Error> {
+        if p.len() != self.position_len() {
+            return Err(Error::SizeMismatch { what: "point input", expected: self.position_len(), found: p.len() });
+        }
+        Ok(self.prepare(p))
+    }
+
+    /// Precomputes everything that depends on the surface point: `p` is the intrinsic encoding at the
+    /// point (`k` values), the point itself (`Extrinsic`, 3 values) or empty (`Uniform`).
+    ///
+    /// Input of the wrong length gives a state that evaluates to 0 everywhere (see [`Model::try_prepare`]).
+    pub fn prepare(&self, p: &[f32]) -> Prepared {
+        let mut prepared = Prepared { partial: Partial::default(), diffuse: BLACK, params: None, valid: false };
+        if p.len() != self.position_len() {
+            return prepared;
+        }
+        let mut enc = [0.0f32; MAX_POSITION_INPUT];
+        let pos: &[f32] = match self.header.position {
+            PositionEncoding::Extrinsic { frequencies } => {
+                let n = positional_encoding(p, frequencies as usize, &mut enc);
+                &enc[..n]
+            }
+            _ => p,
+        };
+        match self.weights {
+            Weights::F32(w) => self.prepare_with(&self.nets(w), pos, &mut prepared),
+            Weights::F16(w) => self.prepare_with(&self.nets(w), pos, &mut prepared),
+        }
+        prepared.valid = true;
+        prepared
+    }
+
+    /// Evaluates the BRDF at a prepared point for the pair (`wi`, `wo`) in the local frame.
+    ///
+    /// Returns 0 below the horizon, for degenerate or non-finite directions, and for an invalid
+    /// prepared state; never NaN or infinity. With [`Reciprocity::Exact`] (and for every parametric
+    /// model) `eval(p, wi, wo) == eval(p, wo, wi)` bit for bit.
+    #[inline]
+    pub fn eval(&self, prepared: &Prepared, wi: Vec3, wo: Vec3) -> Rgb {
+        if !prepared.valid {
+            return BLACK;
+        }
+        let Some((wi, wo)) = upper_hemisphere_pair(wi, wo) else {
+            return BLACK;
+        };
+        if let Some(params) = &prepared.params {
+            return params.eval(wi, wo);
+        }
+        let mut angles = [0.0f32; 4];
+        let n_angles = match self.header.reciprocity {
+            Reciprocity::Exact => match theta_map(wi, wo) {
+                Some(t) => {
+                    angles = t;
+                    4
+                }
+                None => return BLACK,
+            },
+            Reciprocity::None | Reciprocity::Swap => match rusinkiewicz_angles(wi, wo) {
+                Some(r) => {
+                    angles[..3].copy_from_slice(&r);
+                    3
+                }
+                None => return BLACK,
+            },
+        };
+        let mut enc = [0.0f32; MAX_ANGLE_INPUT];
+        let n = positional_encoding(&angles[..n_angles], self.header.angle_frequencies as usize, &mut enc);
+        let f = match self.weights {
+            Weights::F32(w) => self.eval_with(&self.nets(w), prepared, &enc[..n]),
+            Weights::F16(w) => self.eval_with(&self.nets(w), prepared, &enc[..n]),
+        };
+        sanitize(f)
+    }
+
+    /// Evaluates many direction pairs at one prepared point: `out[i] = eval(prepared, wi[i], wo[i])`
+    /// for the common length of the three slices.
+    pub fn eval_many(&self, prepared: &Prepared, wi: &[Vec3], wo: &[Vec3], out: &mut [Rgb]) {
+        for ((o, a), b) in out.iter_mut().zip(wi).zip(wo) {
+            *o = self.eval(prepared, *a, *b);
+        }
+    }
+
+    /// Views of the networks over the weights, in file order.
+    #[inline]
+    fn nets<W: Weight>(&self, w: &'a [W]) -> [Net<'a, W>; MAX_NETS] {
+        let mut nets = [Net { desc: NetDesc::default(), weights: &w[..0] }; MAX_NETS];
+        let mut off = 0;
+        for (net, desc) in nets.iter_mut().zip(self.header.nets()) {
+            let n = desc.n_weights();
+            *net = Net { desc: *desc, weights: &w[off..off + n] };
+            off += n;
+        }
+        nets
+    }
+
+    #[inline]
+    fn prepare_with<W: Weight>(&self, nets: &[Net<'a, W>; MAX_NETS], pos: &[f32], out: &mut Prepared) {
+        let n_obj = self.header.n_object();
+        match self.header.kind {
+            ModelKind::Parametric(kind) => {
+                out.params = Some(parametric_net::prepare(&nets[0], kind, pos, &self.object[..n_obj]));
+            }
+            ModelKind::SingleMlp => {
+                out.partial = single_mlp::prepare(&nets[..self.header.n_nets as usize], pos);
+            }
+            ModelKind::AdditiveSeparate => {
+                (out.diffuse, out.partial) = additive_separate::prepare(&nets[0], &nets[1], pos);
+            }
+            ModelKind::AdditiveShared => {
+                (out.diffuse, out.partial) = additive_shared::prepare(&nets[0], &nets[1], &nets[2], pos);
+            }
+        }
+    }
+
+    #[inline]
+    fn eval_with<W: Weight>(&self, nets: &[Net<'a, W>; MAX_NETS], p: &Prepared, angles: &[f32]) -> Rgb {
+        let enhanced = self.header.enhanced;
+        match self.header.kind {
+            ModelKind::Parametric(_) => BLACK,
+            ModelKind::SingleMlp => single_mlp::eval(&nets[self.header.n_nets as usize - 1], &p.partial, angles),
+            ModelKind::AdditiveSeparate => additive_separate::eval(&nets[1], p.diffuse, &p.partial, angles, enhanced),
+            ModelKind::AdditiveShared => additive_shared::eval(&nets[2], p.diffuse, &p.partial, angles, enhanced),
+        }
+    }
+}
+
+/// A model that owns its bytes in 4-byte aligned storage (feature `alloc`): the loader for files read
+/// from disk or buffers of unknown alignment.
+#[cfg(feature = "alloc")]
+#[derive(Clone, Debug)]
+pub struct ModelBuf {
+    words: alloc::vec::Vec<u32>,
+    len: usize,
+    header: ModelHeader,
+    sections: Sections,
+}
+
+#[cfg(feature = "alloc")]
+impl ModelBuf {
+    /// Copies `bytes` into aligned storage and validates them as a model file.
+    pub fn from_bytes(bytes: &[u8]) -> Result<Self, Error> {
+        let (header, sections) = crate::file::parse(bytes)?;
+        let mut words = alloc::vec![0u32; bytes.len().div_ceil(4)];
+        for (w, c) in words.iter_mut().zip(bytes.chunks(4)) {
+            let mut b = [0u8; 4];
+            b[..c.len()].copy_from_slice(c);
+            *w = u32::from_ne_bytes(b);
+        }
+        let buf = ModelBuf { words, len: bytes.len(), header, sections };
+        // Surface host-dependent failures (byte order) here rather than at every `model()` call.
+        Model::from_parsed(buf.bytes(), header, &sections)?;
+        Ok(buf)
+    }
+
+    /// Reads and validates a model file; errors name the path or the problem.
+    #[cfg(feature = "std")]
+    pub fn load(path: impl AsRef<std::path::Path>) -> Result<Self, Error> {
+        Self::from_bytes(&crate::io::read(path.as_ref())?)
+    }
+
+    fn bytes(&self) -> &[u8] {
+        // SAFETY: `words` holds at least `len` initialised bytes; u8 has no alignment requirement.
+        unsafe { core::slice::from_raw_parts(self.words.as_ptr().cast::<u8>(), self.len) }
+    }
+
+    /// The file bytes, e.g. to write them elsewhere.
+    pub fn as_bytes(&self) -> &[u8] {
+        self.bytes()
+    }
+
+    /// The header.
+    pub fn header(&self) -> &ModelHeader {
+        &self.header
+    }
+
+    /// The evaluator over this buffer (no re-validation; cheap).
+    pub fn model(&self) -> Model<'_> {
+        match Model::from_parsed(self.bytes(), self.header, &self.sections) {
+            Ok(m) => m,
+            // `from_bytes` ran the same conversion on the same bytes and header successfully.
+            Err(_) => unreachable!("ModelBuf was validated at construction"),
+        }
+    }
+}

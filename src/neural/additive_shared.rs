@@ -1,0 +1,31 @@
+//! Additive Shared (Sec. 4.1.2, after LitNeRF): a shared spatial trunk (5 layers of width 128, skip to
+//! the third) feeding a diffuse head (one layer, sigmoid / π) and a specular head on
+//! `[trunk, PE(a)]` (two layers, softplus; 6 outputs when enhanced, Eq. 8).
+
+use super::split;
+use crate::mlp::{self, forward, partial, Net, Partial, Weight, MAX_WIDTH};
+use crate::Rgb;
+
+/// Trunk, diffuse head and the trunk part of the specular head: everything but the angles.
+#[inline]
+pub fn prepare<W: Weight>(
+    trunk: &Net<'_, W>,
+    diffuse: &Net<'_, W>,
+    specular: &Net<'_, W>,
+    pos: &[f32],
+) -> (Rgb, Partial) {
+    let mut t = [0.0f32; MAX_WIDTH];
+    mlp::eval(trunk, pos, &mut t);
+    let features = &t[..trunk.desc.output_len()];
+    let mut d = [0.0f32; MAX_WIDTH];
+    mlp::eval(diffuse, features, &mut d);
+    (split::diffuse(&d[..3]), partial(specular, features))
+}
+
+/// `f_d + f_s`, or Eq. 8 when `enhanced`.
+#[inline]
+pub fn eval<W: Weight>(specular: &Net<'_, W>, f_d: Rgb, prepared: &Partial, angles: &[f32], enhanced: bool) -> Rgb {
+    let mut s = [0.0f32; MAX_WIDTH];
+    forward(specular, prepared, angles, &mut s);
+    split::combine(f_d, &s, enhanced)
+}

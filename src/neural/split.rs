@@ -1,0 +1,41 @@
+//! The additive diffuse/specular split of Sec. 4.1.2 and its enhancement (Sec. 4.4, Eq. 8).
+
+use crate::math::{sigmoid, softplus, INV_PI};
+use crate::Rgb;
+
+/// Lambertian diffuse term from the diffuse network's raw outputs: `σ(d) / π` (Sec. 4.1.2), so the
+/// albedo lies in (0, 1).
+///
+/// ```
+/// let f_d = nbrdf::neural::split::diffuse(&[0.0, 0.0, 0.0]);
+/// assert!((f_d[0] - 0.5 / core::f32::consts::PI).abs() < 1e-7);
+/// ```
+#[inline]
+pub fn diffuse(raw: &[f32]) -> Rgb {
+    [sigmoid(raw[0]) * INV_PI, sigmoid(raw[1]) * INV_PI, sigmoid(raw[2]) * INV_PI]
+}
+
+/// Combines the diffuse term with the specular network's raw outputs `s`.
+///
+/// Plain split: `f = f_d + softplus(s[0..3])`. Enhanced (Eq. 8): `ξ = σ(s[3..6])` and
+/// `f = (1 - ξ) ∘ f_d + softplus(s[0..3])`, light reflected at the surface no longer available to the
+/// diffuse (subsurface) part.
+///
+/// ```
+/// use nbrdf::neural::split::combine;
+/// let f_d = [0.2, 0.2, 0.2];
+/// let plain = combine(f_d, &[-30.0, -30.0, -30.0], false);
+/// assert!((plain[0] - 0.2).abs() < 1e-6);
+/// // ξ → 1 removes the diffuse part entirely.
+/// let enhanced = combine(f_d, &[-30.0, -30.0, -30.0, 30.0, 30.0, 30.0], true);
+/// assert!(enhanced[0] < 1e-6);
+/// ```
+#[inline]
+pub fn combine(f_d: Rgb, s: &[f32], enhanced: bool) -> Rgb {
+    let mut f = [0.0; 3];
+    for c in 0..3 {
+        let keep = if enhanced { 1.0 - sigmoid(s[3 + c]) } else { 1.0 };
+        f[c] = keep * f_d[c] + softplus(s[c]);
+    }
+    f
+}

@@ -1,0 +1,88 @@
+//! The energy-preserving modified Phong BRDF "RP" (Lafortune & Willems 1994, "Using the modified Phong
+//! reflectance model for physically based rendering"; the paper's "Realistic Phong", Sec. 4.1.1):
+//!
+//! `f(wi, wo) = kd / π + ks (n + 2) / (2π) · cos^n α`, with `cos α = max(0, wo · reflect(wi, n))`,
+//!
+//! `α` the angle between `wo` and the mirror direction of `wi`. The `(n + 2)/(2π)` factor makes the
+//! specular lobe's albedo exactly `ks` at normal incidence and less elsewhere, so `kd + ks ≤ 1` per
+//! channel makes the whole BRDF energy preserving (Lafortune & Willems 1994, their energy-conservation condition).
+//!
+//! The raw parametrisation enforces that constraint instead of hoping the network learns it: `kd` takes a
+//! sigmoid, and `ks` is a sigmoid *fraction of what is left*, `ks = (1 - kd) σ(raw)`.
+//!
+//! | raw index | parameter | range | activation |
+//! |---|---|---|---|
+//! | 0, 1, 2 | `kd` (R, G, B) | [0, 1] | `kd_c = sigmoid(raw[c])` |
+//! | 3, 4, 5 | `ks` (R, G, B) | [0, 1 - kd_c] | `ks_c = (1 - kd_c) · sigmoid(raw[3 + c])` |
+//! | 6 | `n` (exponent) | [0, ∞) | `softplus(raw[6])` |
+
+use super::raw_at;
+use crate::angles::upper_hemisphere_pair;
+use crate::math::{logit, sanitize, sigmoid, softplus, softplus_inv, INV_PI};
+use crate::{Rgb, Vec3, BLACK};
+
+/// Energy-preserving modified Phong ("RP").
+///
+/// ```
+/// use nbrdf::{parametric::Phong, Vec3};
+/// let rp = Phong { kd: [0.0; 3], ks: [1.0; 3], n: 10.0 };
+/// // In the mirror direction cos α = 1: f = ks (n + 2) / 2π.
+/// let (wi, wo) = (Vec3::new(0.6, 0.0, 0.8), Vec3::new(-0.6, 0.0, 0.8));
+/// assert!((rp.eval(wi, wo)[0] - 12.0 / (2.0 * core::f32::consts::PI)).abs() < 1e-5);
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Phong {
+    /// Diffuse albedo per channel.
+    pub kd: Rgb,
+    /// Specular albedo (at normal incidence) per channel; `kd + ks ≤ 1` preserves energy.
+    pub ks: Rgb,
+    /// Phong exponent `n ≥ 0`; larger is shinier.
+    pub n: f32,
+}
+
+impl Phong {
+    /// Raw network outputs this model reads.
+    pub const N_RAW: usize = 7;
+
+    /// Parameters from raw network outputs (table at the top of the file); missing or non-finite raw
+    /// values count as 0. The result always satisfies `kd + ks ≤ 1` per channel.
+    #[inline]
+    pub fn from_raw(raw: &[f32]) -> Self {
+        let kd = [0, 1, 2].map(|c| sigmoid(raw_at(raw, c)));
+        let ks = [0, 1, 2].map(|c| (1.0 - kd[c]) * sigmoid(raw_at(raw, 3 + c)));
+        Self { kd, ks, n: softplus(raw_at(raw, 6)) }
+    }
+
+    /// Raw outputs that [`Phong::from_raw`] maps back to these parameters (the inverse of the table).
+    #[inline]
+    pub fn to_raw(&self) -> [f32; Self::N_RAW] {
+        let mut r = [0.0; Self::N_RAW];
+        for c in 0..3 {
+            r[c] = logit(self.kd[c]);
+            let rest = 1.0 - self.kd[c];
+            r[3 + c] = logit(if rest > 0.0 { self.ks[c] / rest } else { 0.0 });
+        }
+        r[6] = softplus_inv(self.n);
+        r
+    }
+
+    /// `cos α = wo · reflect(wi, z) = wi.z wo.z - (wi.x wo.x + wi.y wo.y)`, written so that swapping `wi`
+    /// and `wo` gives the same bits (every product commutes, the sum order is fixed).
+    #[inline]
+    pub fn cos_alpha(wi: Vec3, wo: Vec3) -> f32 {
+        wi.z * wo.z - (wi.x * wo.x + wi.y * wo.y)
+    }
+
+    /// Lafortune & Willems 1994, the modified Phong BRDF: `kd/π + ks (n+2)/(2π) max(0, cos α)^n`.
+    #[inline]
+    pub fn eval(&self, wi: Vec3, wo: Vec3) -> Rgb {
+        let Some((wi, wo)) = upper_hemisphere_pair(wi, wo) else {
+            return BLACK;
+        };
+        let cos_a = Self::cos_alpha(wi, wo).min(1.0);
+        // The lobe lives where cos α > 0 only (also for n = 0, where powf(0, 0) would give 1).
+        let lobe =
+            if cos_a > 0.0 { (self.n + 2.0) * (0.5 * INV_PI) * libm::powf(cos_a, self.n) } else { 0.0 };
+        sanitize([0, 1, 2].map(|c| self.kd[c] * INV_PI + self.ks[c] * lobe))
+    }
+}

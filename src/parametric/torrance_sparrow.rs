@@ -1,0 +1,82 @@
+//! Torrance-Sparrow microfacet BRDF (Torrance & Sparrow 1967, "Theory for off-specular reflection from
+//! roughened surfaces"; in the form of Cook & Torrance 1982 and Walter et al. 2007, Eq. 20) plus a Lambertian diffuse term:
+//!
+//! `f(wi, wo) = kd / π + D(h) G(wi, wo) F(cos θd) / (4 cos θi cos θo)`
+//!
+//! - `D`: Beckmann distribution with RMS slope `α` ([`microfacet::beckmann_d`]),
+//! - `G`: the V-cavity shadowing-masking of Torrance & Sparrow ([`microfacet::v_cavity_g_over_4cos`]),
+//! - `F`: **Schlick's approximation with an RGB `F0 = ks`** ([`microfacet::fresnel_schlick`], `cos θd =
+//!   wi·h`). This variant is chosen over the dielectric Fresnel with a scalar η because a per-channel
+//!   normal-incidence reflectance in [0, 1] also covers coloured metals (MERL's copper, gold, chrome), which
+//!   a dielectric η ≤ 3 (F0 ≤ 0.25, colourless) cannot. The FMBRDF ([`super::FresnelMicrofacet`]) is the
+//!   model with the physical dielectric Fresnel.
+//!
+//! | raw index | parameter | range | activation |
+//! |---|---|---|---|
+//! | 0, 1, 2 | `kd` (R, G, B diffuse albedo) | [0, 1] | `sigmoid(raw)` |
+//! | 3, 4, 5 | `ks` (R, G, B Fresnel F0) | [0, 1] | `sigmoid(raw)` |
+//! | 6 | `alpha` (Beckmann RMS slope) | [1e-3, 1] | `max(sigmoid(0.5 · raw[6]), 1e-3)` |
+//!
+//! The ×0.5 on the roughness pre-activation is Sec. 4.1.1's stabilisation of training.
+
+use super::microfacet::{self, clamp_alpha, HalfGeometry};
+use super::raw_at;
+use crate::math::{logit, sanitize, sigmoid, INV_PI};
+use crate::{Rgb, Vec3, BLACK};
+
+/// Torrance-Sparrow (Beckmann, V-cavity, Schlick) with a Lambertian base.
+///
+/// ```
+/// use nbrdf::{parametric::TorranceSparrow, Vec3};
+/// let ts = TorranceSparrow { kd: [0.5; 3], ks: [0.04; 3], alpha: 0.2 };
+/// let f = ts.eval(Vec3::new(0.3, 0.1, 0.9), Vec3::new(-0.2, 0.0, 0.95));
+/// assert!(f[0] > 0.5 / core::f32::consts::PI); // diffuse plus a highlight
+/// assert_eq!(ts.eval(Vec3::new(0.3, 0.1, -0.9), Vec3::Z), [0.0; 3]);
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TorranceSparrow {
+    /// Lambertian diffuse albedo per channel.
+    pub kd: Rgb,
+    /// Specular reflectance at normal incidence (Schlick's F0) per channel.
+    pub ks: Rgb,
+    /// Beckmann RMS microfacet slope α, clamped to [1e-3, 1] when evaluated.
+    pub alpha: f32,
+}
+
+impl TorranceSparrow {
+    /// Raw network outputs this model reads.
+    pub const N_RAW: usize = 7;
+
+    /// Parameters from raw network outputs (table at the top of the file); missing or non-finite raw
+    /// values count as 0.
+    #[inline]
+    pub fn from_raw(raw: &[f32]) -> Self {
+        Self {
+            kd: [0, 1, 2].map(|c| sigmoid(raw_at(raw, c))),
+            ks: [3, 4, 5].map(|c| sigmoid(raw_at(raw, c))),
+            alpha: clamp_alpha(sigmoid(0.5 * raw_at(raw, 6))),
+        }
+    }
+
+    /// Raw outputs that [`TorranceSparrow::from_raw`] maps back to these parameters (the inverse of the
+    /// table; the roughness pre-activation is `2 logit(α)`).
+    #[inline]
+    pub fn to_raw(&self) -> [f32; Self::N_RAW] {
+        let kd = self.kd.map(logit);
+        let ks = self.ks.map(logit);
+        [kd[0], kd[1], kd[2], ks[0], ks[1], ks[2], 2.0 * logit(self.alpha)]
+    }
+
+    /// Walter et al. 2007, Eq. 20 with the terms above, plus the Lambertian term.
+    #[inline]
+    pub fn eval(&self, wi: Vec3, wo: Vec3) -> Rgb {
+        let Some(g) = HalfGeometry::new(wi, wo) else {
+            return BLACK;
+        };
+        let alpha = clamp_alpha(self.alpha);
+        let dg = microfacet::beckmann_d(g.cos_h, g.sin2_h, alpha) * microfacet::v_cavity_g_over_4cos(&g);
+        sanitize(
+            [0, 1, 2].map(|c| self.kd[c] * INV_PI + dg * microfacet::fresnel_schlick(self.ks[c], g.cos_d)),
+        )
+    }
+}
