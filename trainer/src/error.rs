@@ -30,7 +30,7 @@ impl fmt::Display for Error {
         match self {
             Error::Candle(e) => write!(f, "tensor operation failed: {e}"),
             Error::Io { path, message } => write!(f, "{}: {message}", path.display()),
-            Error::Core(e) => write!(f, "model file: {e:?}"),
+            Error::Core(e) => write!(f, "{e}"),
             Error::NonFinite { step, what, last_good } => {
                 write!(f, "the {what} became NaN or infinite at step {step}; training stopped")?;
                 match last_good {

@@ -33,7 +33,7 @@ pub fn reference_brdf(position: &[f32], wi: Vec3, wo: Vec3) -> [f32; 3] {
 /// uniformly in [-1, 1] (`n_raw` of `position` per pixel).
 pub fn observations(n: usize, position: PositionEncoding, seed: u64) -> Observations {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let np = position.n_raw();
+    let np = position.input_len();
     let mut obs = Observations { n_position: np, ..Default::default() };
     for _ in 0..n {
         let p: Vec<f32> = (0..np).map(|_| rng.random_range(-1.0..1.0)).collect();

@@ -226,12 +226,12 @@ pub fn fit(model: &Model, obs: &Observations, opts: &TrainOptions, setup: RunSet
     if obs.is_empty() {
         return Err(Error::Invalid("no training observations left to fit".into()));
     }
-    if obs.n_position != model.config.position.n_raw() {
+    if obs.n_position != model.config.position.input_len() {
         return Err(Error::Invalid(format!(
             "observations carry {} position values per pixel, {} expects {}",
             obs.n_position,
             model.config.name(),
-            model.config.position.n_raw()
+            model.config.position.input_len()
         )));
     }
     let device = Device::Cpu;

@@ -1,69 +1,9 @@
 //! What a model is made of: its kind, inputs and networks (docs/models.md, Sec. 4.1), independent of
-//! candle. [`Config`] names one variant of the study; [`Config::nets`] lists its networks in file order.
-//!
-//! The network table here mirrors `ModelHeader::paper` of the core's file format; once that is in the
-//! core, a test holds the two together.
+//! candle. [`Config`] names one variant of the study; its networks are those of the core's
+//! `ModelHeader`, so the trainer and the file format cannot disagree on an architecture.
 
-/// Reciprocity strategy of Sec. 4.3.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-pub enum Reciprocity {
-    /// Rusinkiewicz angles as they are.
-    None,
-    /// LitNeRF's random swap of `wi` and `wo` during training; evaluation as `None`.
-    Swap,
-    /// The exact map Θ of Eq. 6.
-    Exact,
-}
-
-/// How the surface position enters the networks (docs/models.md "Inputs").
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-pub enum PositionEncoding {
-    /// No position input: a uniform material.
-    Uniform,
-    /// `k` Laplace–Beltrami eigenfunctions (Koestler et al. 2022), passed in by the caller.
-    Intrinsic { k: u16 },
-    /// `PE(x, F)` of the point in the unit sphere.
-    Extrinsic { frequencies: u8 },
-}
-
-impl PositionEncoding {
-    /// Values the caller passes per sample (before the model's own encoding).
-    pub fn n_raw(self) -> usize {
-        match self {
-            PositionEncoding::Uniform => 0,
-            PositionEncoding::Intrinsic { k } => k as usize,
-            PositionEncoding::Extrinsic { .. } => 3,
-        }
-    }
-
-    /// `P`: values the networks see.
-    pub fn n_features(self) -> usize {
-        match self {
-            PositionEncoding::Uniform => 0,
-            PositionEncoding::Intrinsic { k } => k as usize,
-            PositionEncoding::Extrinsic { frequencies } => 3 * (1 + 2 * frequencies as usize),
-        }
-    }
-}
-
-/// Parametric models of Sec. 4.1.1 (mirrors the core's `ParametricKind`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-pub enum ParametricKind {
-    Lambert,
-    Phong,
-    TorranceSparrow,
-    FresnelMicrofacet,
-    Disney,
-}
-
-/// Model families of Sec. 4.1.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-pub enum Kind {
-    Parametric(ParametricKind),
-    SingleMlp,
-    AdditiveSeparate,
-    AdditiveShared,
-}
+pub use nbrdf::file::{ModelHeader, ModelKind as Kind, PositionEncoding, Reciprocity};
+pub use nbrdf::parametric::ParametricKind;
 
 /// One dense network `Mlp(n_in, width, hidden, n_out, skip)` of docs/models.md: the core's own type, so
 /// both sides agree on layer sizes and offsets by construction.
@@ -88,9 +28,6 @@ pub struct Config {
     pub direction_layers: Option<u8>,
 }
 
-/// Hidden width of every network (Sec. 4.1).
-pub const WIDTH: u16 = 128;
-
 /// Default `F_a`: NeRF's 4 octaves for directions (Mildenhall et al. 2020). The paper's appendix value
 /// is not in the text we have.
 pub const DEFAULT_ANGLE_FREQUENCIES: u8 = 4;
@@ -101,59 +38,43 @@ impl Config {
         Config { kind, enhanced, reciprocity, position, angle_frequencies: DEFAULT_ANGLE_FREQUENCIES, direction_layers: None }
     }
 
+    /// The core's file header of this variant: `ModelHeader::paper` with the Tab. 2 layer count.
+    pub fn header(&self) -> ModelHeader {
+        let h = ModelHeader::paper(self.kind, self.enhanced, self.reciprocity, self.position, self.angle_frequencies);
+        match self.direction_layers {
+            Some(n) => h.with_direction_layers(n),
+            None => h,
+        }
+    }
+
     /// Angle values before encoding: 3 Rusinkiewicz angles, or the 4 of Θ (Eq. 6).
     pub fn n_angles(&self) -> usize {
-        if self.reciprocity == Reciprocity::Exact {
-            4
-        } else {
-            3
-        }
+        self.reciprocity.n_angles()
     }
 
     /// `A = n_a (1 + 2 F_a)`.
     pub fn n_angle_features(&self) -> usize {
-        self.n_angles() * (1 + 2 * self.angle_frequencies as usize)
+        nbrdf::encoding::encoded_len(self.n_angles(), self.angle_frequencies as usize)
     }
 
     /// Whether the model has a specular network with a Eq. 8 weight ξ.
     pub fn has_xi(&self) -> bool {
-        self.enhanced && matches!(self.kind, Kind::AdditiveSeparate | Kind::AdditiveShared)
+        self.enhanced && self.kind.is_additive()
     }
 
-    /// The networks in file order (docs/models.md table).
+    /// The networks in file order (docs/models.md table), as the core's header lists them.
     pub fn nets(&self) -> Vec<NetDesc> {
-        let p = self.position.n_features() as u16;
-        let a = self.n_angle_features() as u16;
-        let spec_out = if self.has_xi() { 6 } else { 3 };
-        let net = |n_in, hidden, n_out, skip| NetDesc { n_in, width: WIDTH, hidden, n_out, skip };
-        match self.kind {
-            Kind::Parametric(k) => vec![net(p, 6, parametric_n_raw(k) as u16, 2)],
-            Kind::SingleMlp => match self.direction_layers {
-                None | Some(6) => vec![net(p + a, 6, 3, 2)],
-                Some(n) => vec![net(p, 6 - n.min(6), 0, 0), net(WIDTH + a, n, 3, 0)],
-            },
-            Kind::AdditiveSeparate => {
-                let n = self.direction_layers.unwrap_or(4);
-                vec![net(p, 4, 3, 1), net(p + a, n, spec_out, if n >= 2 { 1 } else { 0 })]
-            }
-            Kind::AdditiveShared => {
-                let n = self.direction_layers.unwrap_or(2);
-                vec![net(p, 5, 0, 2), net(WIDTH, 1, 3, 0), net(WIDTH + a, n, spec_out, 0)]
-            }
-        }
+        self.header().nets().to_vec()
     }
 
     /// Per-object parameters after the networks (FMBRDF's NDF normalisation, Sec. 4.1.1).
     pub fn n_object(&self) -> usize {
-        match self.kind {
-            Kind::Parametric(k) => parametric_n_object(k),
-            _ => 0,
-        }
+        self.header().n_object()
     }
 
     /// All trainable values, in file order.
     pub fn n_weights(&self) -> usize {
-        self.nets().iter().map(NetDesc::n_weights).sum::<usize>() + self.n_object()
+        self.header().n_weights()
     }
 
     /// Short name for the command line, logs and the study tables.
@@ -221,17 +142,6 @@ pub fn study_variants(position: PositionEncoding, reciprocity: Reciprocity) -> V
         v.push(Config::paper(kind, enhanced, reciprocity, position));
     }
     v
-}
-
-/// Raw network outputs of a parametric model; provisional until the core's tables land (they replace
-/// this function).
-pub fn parametric_n_raw(kind: ParametricKind) -> usize {
-    super::parametric::n_raw(kind)
-}
-
-/// Per-object raw parameters of a parametric model.
-pub fn parametric_n_object(kind: ParametricKind) -> usize {
-    super::parametric::n_object(kind)
 }
 
 #[cfg(test)]

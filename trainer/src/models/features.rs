@@ -47,7 +47,7 @@ pub struct Inputs {
 
 /// Raw per-sample inputs: position values as the caller passes them (`n_raw` per row) and the pair.
 pub struct RawBatch<'a> {
-    /// Row-major `[N, config.position.n_raw()]`.
+    /// Row-major `[N, config.position.input_len()]`.
     pub position: &'a [f32],
     pub wi: &'a [Vec3],
     pub wo: &'a [Vec3],
@@ -59,7 +59,7 @@ impl Inputs {
     /// Encodes a batch for `config`.
     pub fn build(config: &Config, raw: &RawBatch, device: &Device) -> Result<Inputs> {
         let n = raw.wi.len();
-        let n_raw = config.position.n_raw();
+        let n_raw = config.position.input_len();
         if raw.wo.len() != n || raw.position.len() != n * n_raw {
             candle_core::bail!(
                 "batch sizes disagree: {} wi, {} wo, {} position values for {} per sample",
@@ -69,7 +69,7 @@ impl Inputs {
                 n_raw
             );
         }
-        let p = config.position.n_features();
+        let p = config.position.encoded_len();
         let a = config.n_angle_features();
         let (mut pos, mut ang, mut joint) =
             (Vec::with_capacity(n * p), Vec::with_capacity(n * a), Vec::with_capacity(n * (p + a)));

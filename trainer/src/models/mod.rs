@@ -5,6 +5,7 @@ pub mod activation;
 pub mod arch;
 pub mod features;
 pub mod mlp;
+pub mod export;
 pub mod parametric;
 
 use candle_core::{Device, Result, Tensor, Var};

@@ -9,25 +9,6 @@ use candle_core::{Result, Tensor};
 use super::arch::{Config, Kind, ParametricKind};
 use super::features::Inputs;
 
-/// Raw network outputs per model (one per scalar parameter, RGB colours count 3).
-pub fn n_raw(kind: ParametricKind) -> usize {
-    match kind {
-        ParametricKind::Lambert => 3,
-        ParametricKind::Phong => 7,
-        ParametricKind::TorranceSparrow => 7,
-        ParametricKind::FresnelMicrofacet => 8,
-        ParametricKind::Disney => 12,
-    }
-}
-
-/// Per-object raw parameters: FMBRDF's one NDF normalisation per object (Sec. 4.1.1).
-pub fn n_object(kind: ParametricKind) -> usize {
-    match kind {
-        ParametricKind::FresnelMicrofacet => 1,
-        _ => 0,
-    }
-}
-
 /// Initial object parameters.
 pub fn initial_object(config: &Config) -> Vec<f32> {
     vec![0.0; config.n_object()]
