@@ -310,7 +310,7 @@ pub fn fit(model: &Model, obs: &Observations, opts: &TrainOptions, setup: RunSet
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::models::{Kind, PositionEncoding};
+    use crate::models::{Kind, ParametricKind, PositionEncoding};
     use crate::toy;
 
     fn small_opts(steps: usize) -> TrainOptions {
@@ -329,7 +329,8 @@ mod tests {
         objective(model, &b, &o).unwrap().to_scalar::<f32>().unwrap()
     }
 
-    /// A short fit lowers the loss of every purely neural variant and reciprocity strategy.
+    /// A short fit lowers the loss of every variant (parametric and purely neural, each reciprocity
+    /// strategy).
     #[test]
     fn fitting_lowers_the_loss_of_every_neural_variant() {
         let obs = toy::observations(2000, PositionEncoding::Intrinsic { k: 2 }, 1);
@@ -341,6 +342,10 @@ mod tests {
             config(Kind::AdditiveShared, false, Reciprocity::Exact),
             config(Kind::AdditiveSeparate, true, Reciprocity::Exact),
             config(Kind::AdditiveShared, true, Reciprocity::Exact),
+            config(Kind::Parametric(ParametricKind::Phong), false, Reciprocity::None),
+            config(Kind::Parametric(ParametricKind::TorranceSparrow), false, Reciprocity::None),
+            config(Kind::Parametric(ParametricKind::FresnelMicrofacet), false, Reciprocity::None),
+            config(Kind::Parametric(ParametricKind::Disney), false, Reciprocity::None),
         ] {
             let model = Model::init(c, 3, &Device::Cpu).unwrap();
             let before = mean_loss(&model, &obs, &opts);

@@ -27,12 +27,6 @@ pub fn run(configs: &[Config], batch: usize, steps: usize) -> Result<Vec<StepTim
     let device = Device::Cpu;
     let mut out = Vec::new();
     for config in configs {
-        if matches!(config.kind, crate::models::Kind::Parametric(_)) {
-            // Parametric twins evaluate only once the core's tables are merged.
-            if crate::models::parametric::eval_available(config).is_err() {
-                continue;
-            }
-        }
         let obs = toy::observations(batch, config.position, 7);
         let model = Model::init(*config, 0, &device)?;
         let t0 = Instant::now();

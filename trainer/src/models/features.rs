@@ -39,9 +39,8 @@ pub struct Inputs {
     pub ones: Tensor,
     /// `[N, 1]`: 1 for a valid direction pair, 0 where the core returns black.
     pub valid: Tensor,
-    /// `[N, 3]` each: the (possibly swapped) directions, for the parametric models.
-    pub wi: Tensor,
-    pub wo: Tensor,
+    /// The (possibly swapped) direction pairs `[wi, wo]`, for the parametric models.
+    pub pairs: std::sync::Arc<Vec<[Vec3; 2]>>,
     pub n: usize,
 }
 
@@ -74,7 +73,7 @@ impl Inputs {
         let (mut pos, mut ang, mut joint) =
             (Vec::with_capacity(n * p), Vec::with_capacity(n * a), Vec::with_capacity(n * (p + a)));
         let mut valid = Vec::with_capacity(n);
-        let (mut wis, mut wos) = (Vec::with_capacity(3 * n), Vec::with_capacity(3 * n));
+        let mut pairs = Vec::with_capacity(n);
         let zeros = vec![0.0f32; config.n_angles()];
         for s in 0..n {
             let row = &raw.position[s * n_raw..(s + 1) * n_raw];
@@ -91,8 +90,7 @@ impl Inputs {
             positional_encoding(input.as_deref().unwrap_or(&zeros), config.angle_frequencies, &mut ang);
             joint.extend_from_slice(&pos[start..]);
             joint.extend_from_slice(&ang[start_a..]);
-            wis.extend_from_slice(&wi.to_array());
-            wos.extend_from_slice(&wo.to_array());
+            pairs.push([wi, wo]);
         }
         Ok(Inputs {
             position: Tensor::from_vec(pos, (n, p), device)?,
@@ -100,8 +98,7 @@ impl Inputs {
             joint: Tensor::from_vec(joint, (n, p + a), device)?,
             ones: super::mlp::ones(n, device)?,
             valid: Tensor::from_vec(valid, (n, 1), device)?,
-            wi: Tensor::from_vec(wis, (n, 3), device)?,
-            wo: Tensor::from_vec(wos, (n, 3), device)?,
+            pairs: std::sync::Arc::new(pairs),
             n,
         })
     }
