@@ -213,7 +213,8 @@ pub fn objective(model: &Model, batch: &Batch, opts: &TrainOptions) -> Result<Te
 pub struct RunSetup {
     /// Checkpoint file (written every `checkpoint_every` steps and at the end).
     pub checkpoint: Option<PathBuf>,
-    /// Continue from this checkpoint (its options win over the given ones except `steps`).
+    /// Continue from this checkpoint: its weights, Adam moments, step and log. The run uses the options
+    /// given to [`fit`]; with the same options it ends bit-identical to an uninterrupted run.
     pub resume: Option<Checkpoint>,
     /// Show a progress bar on stderr.
     pub progress: bool,

@@ -1,5 +1,5 @@
-//! `trainer fit`: fits one model variant to a dataset and writes the model, its checkpoint and the
-//! training log.
+//! `trainer fit`: fits one model variant to a dataset and writes the model (`.nbrdf`), its checkpoint
+//! and the training log.
 
 use std::path::{Path, PathBuf};
 
@@ -16,9 +16,8 @@ pub struct Outputs {
     pub checkpoint: PathBuf,
     /// Training log, `<name>.log.json`.
     pub log: PathBuf,
-    /// The weight vector in file order, `<name>.weights.json` (the `.nbrdf` export replaces it once the
-    /// core's file format is merged).
-    pub weights: PathBuf,
+    /// The fitted model for the core, `<name>.nbrdf`.
+    pub model: PathBuf,
 }
 
 impl Outputs {
@@ -28,7 +27,7 @@ impl Outputs {
         Outputs {
             checkpoint: dir.join(format!("{name}.ckpt.json")),
             log: dir.join(format!("{name}.log.json")),
-            weights: dir.join(format!("{name}.weights.json")),
+            model: dir.join(format!("{name}.nbrdf")),
         }
     }
 }
@@ -46,7 +45,7 @@ pub fn run(
     std::fs::create_dir_all(out_dir).map_err(|e| Error::io(out_dir, e))?;
     let outputs = Outputs::in_dir(out_dir, &config);
     let (obs, filtered) = obs.sanitize(opts.max_radiance)?;
-    if filtered.kept < filtered.non_finite + filtered.too_bright + filtered.below_horizon + filtered.kept {
+    if filtered.non_finite + filtered.too_bright + filtered.below_horizon > 0 {
         eprintln!(
             "filtered out {} non-finite, {} brighter than {} and {} below-horizon pixels; {} remain",
             filtered.non_finite, filtered.too_bright, opts.max_radiance, filtered.below_horizon, filtered.kept
@@ -56,8 +55,7 @@ pub fn run(
     let resume = if resume && outputs.checkpoint.exists() { Some(Checkpoint::load(&outputs.checkpoint)?) } else { None };
     let mut log = train::fit(&model, &obs, opts, RunSetup { checkpoint: Some(outputs.checkpoint.clone()), resume, progress })?;
     log.filtered = Some((&filtered).into());
-    let weights = serde_json::to_vec(&model.weights()?).map_err(|e| Error::io(&outputs.weights, e))?;
-    train::write_atomic(&outputs.weights, &weights)?;
+    crate::models::export::save(&model, &outputs.model, None)?;
     let log_json = serde_json::to_vec_pretty(&log).map_err(|e| Error::io(&outputs.log, e))?;
     train::write_atomic(&outputs.log, &log_json)?;
     Ok(log)
