@@ -132,4 +132,27 @@ mod tests {
         assert_ne!(angle_input(Reciprocity::None, wi, wo), angle_input(Reciprocity::None, wo, wi));
         assert_eq!(angle_input(Reciprocity::None, wi, -wo), None, "below the horizon");
     }
+
+    /// LitNeRF's swap: a flagged sample sees the angles of `(wo, wi)`, an unflagged one `(wi, wo)`.
+    #[test]
+    fn swap_exchanges_flagged_pairs_only() {
+        let c = Config::paper(
+            crate::models::Kind::SingleMlp,
+            false,
+            Reciprocity::Swap,
+            PositionEncoding::Uniform,
+        );
+        let wi = [Vec3::new(0.3, -0.4, 0.8).normalize(); 2];
+        let wo = [Vec3::new(-0.5, 0.1, 0.7).normalize(); 2];
+        let raw = RawBatch { position: &[], wi: &wi, wo: &wo, swap: Some(&[false, true]) };
+        let x = Inputs::build(&c, &raw, &Device::Cpu).unwrap();
+        let a = x.angles.to_vec2::<f32>().unwrap();
+        let mut plain = Vec::new();
+        positional_encoding(&angle_input(Reciprocity::None, wi[0], wo[0]).unwrap(), c.angle_frequencies, &mut plain);
+        let mut swapped = Vec::new();
+        positional_encoding(&angle_input(Reciprocity::None, wo[0], wi[0]).unwrap(), c.angle_frequencies, &mut swapped);
+        assert_eq!(a[0], plain);
+        assert_eq!(a[1], swapped);
+        assert_ne!(plain, swapped);
+    }
 }
