@@ -335,7 +335,7 @@ mod tests {
     #[test]
     fn fitting_lowers_the_loss_of_every_neural_variant() {
         let obs = toy::observations(2000, PositionEncoding::Intrinsic { k: 2 }, 1);
-        let opts = small_opts(150);
+        let opts = small_opts(100);
         for c in [
             config(Kind::SingleMlp, false, Reciprocity::Exact),
             config(Kind::SingleMlp, false, Reciprocity::Swap),
@@ -353,7 +353,7 @@ mod tests {
             let log = fit(&model, &obs, &opts, RunSetup::default()).unwrap();
             let after = mean_loss(&model, &obs, &opts);
             assert!(after < 0.5 * before, "{}: loss {before} -> {after}", c.name());
-            assert_eq!(log.steps_done, 150);
+            assert_eq!(log.steps_done, 100);
             assert!(log.loss.iter().all(|l| l.1.is_finite()));
         }
     }
