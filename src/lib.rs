@@ -26,18 +26,26 @@ extern crate alloc;
 extern crate std;
 
 pub mod angles;
+#[cfg(feature = "std")]
+pub mod atomic;
 pub mod builtin;
 pub mod encoding;
 pub mod error;
 pub mod file;
 #[cfg(feature = "std")]
+pub mod image;
+#[cfg(feature = "std")]
 pub mod io;
 pub mod math;
+#[cfg(feature = "alloc")]
+pub mod measured;
 pub mod mlp;
 pub mod model;
 pub mod neural;
 pub mod parametric;
 pub mod sampling;
+#[cfg(feature = "std")]
+pub mod scene;
 
 pub use error::Error;
 pub use glam::Vec3;

@@ -1,0 +1,401 @@
+//! Indexed triangle meshes: validation, OBJ and PLY loading, normalisation into the unit sphere and
+//! smooth vertex normals.
+//!
+//! A [`Mesh`] is always valid once built: at least one triangle, every index in range, finite positions,
+//! non-zero total area, one unit normal per vertex. Individual zero-area triangles are kept (so triangle
+//! ids match the file) but never hit by a ray and carry no weight in the vertex normals.
+
+use std::collections::HashMap;
+use std::io::BufRead;
+use std::path::Path;
+use std::string::ToString;
+use std::vec::Vec;
+use std::{format, vec};
+
+use crate::{Error, Vec3};
+
+/// An indexed triangle mesh with one shading normal per vertex.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Mesh {
+    /// Vertex positions.
+    pub positions: Vec<Vec3>,
+    /// Unit vertex normals, interpolated barycentrically at hit points (Sec. 5.1).
+    pub normals: Vec<Vec3>,
+    /// Triangles as counter-clockwise (outward-facing) vertex index triples.
+    pub triangles: Vec<[u32; 3]>,
+}
+
+/// The similarity `x ↦ (x - center) * scale` that [`Mesh::normalized`] applied.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Normalization {
+    /// Centre of the bounding box of the original mesh.
+    pub center: Vec3,
+    /// Inverse of the largest distance of a vertex from `center`.
+    pub scale: f32,
+}
+
+impl Normalization {
+    /// Maps a point of the original mesh into the normalised frame.
+    ///
+    /// ```
+    /// use nbrdf::scene::Normalization;
+    /// use nbrdf::Vec3;
+    /// let n = Normalization { center: Vec3::new(1.0, 0.0, 0.0), scale: 0.5 };
+    /// assert_eq!(n.apply(Vec3::new(3.0, 0.0, 0.0)), Vec3::new(1.0, 0.0, 0.0));
+    /// ```
+    #[inline]
+    pub fn apply(&self, p: Vec3) -> Vec3 {
+        (p - self.center) * self.scale
+    }
+}
+
+fn parse_err(what: &str, message: impl ToString) -> Error {
+    Error::Parse { what: what.to_string(), message: message.to_string() }
+}
+
+impl Mesh {
+    /// Validates positions and triangles and computes angle-weighted vertex normals.
+    ///
+    /// Errors: no triangle, an index out of range, a non-finite position, or zero total area (every
+    /// triangle degenerate).
+    ///
+    /// ```
+    /// use nbrdf::scene::Mesh;
+    /// use nbrdf::Vec3;
+    /// let quad = Mesh::new(
+    ///     vec![Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::Y],
+    ///     vec![[0, 1, 2], [0, 2, 3]],
+    /// ).unwrap();
+    /// assert!(quad.normals.iter().all(|n| (*n - Vec3::Z).length() < 1e-6));
+    /// assert!(Mesh::new(vec![Vec3::ZERO; 3], vec![[0, 1, 2]]).is_err()); // degenerate
+    /// ```
+    pub fn new(positions: Vec<Vec3>, triangles: Vec<[u32; 3]>) -> Result<Self, Error> {
+        validate(&positions, &triangles)?;
+        let normals = angle_weighted_normals(&positions, &triangles);
+        Ok(Mesh { positions, normals, triangles })
+    }
+
+    /// Like [`Mesh::new`] but with the caller's vertex normals (normalised here); a zero or non-finite
+    /// normal is an error.
+    pub fn with_normals(
+        positions: Vec<Vec3>,
+        normals: Vec<Vec3>,
+        triangles: Vec<[u32; 3]>,
+    ) -> Result<Self, Error> {
+        validate(&positions, &triangles)?;
+        if normals.len() != positions.len() {
+            return Err(Error::SizeMismatch {
+                what: "mesh vertex normals",
+                expected: positions.len(),
+                found: normals.len(),
+            });
+        }
+        let normals = normals
+            .iter()
+            .enumerate()
+            .map(|(i, n)| {
+                crate::angles::unit(*n).ok_or(Error::NonFinite { what: "mesh vertex normals (zero or non-finite)", index: i })
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(Mesh { positions, normals, triangles })
+    }
+
+    /// Loads an OBJ (`.obj`) or PLY (`.ply`) file, chosen by extension.
+    pub fn load(path: impl AsRef<Path>) -> Result<Self, Error> {
+        let path = path.as_ref();
+        let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+        match ext.as_deref() {
+            Some("obj") => {
+                let file = std::fs::File::open(path).map_err(|e| Error::io(path, &e))?;
+                Self::from_obj_reader(&mut std::io::BufReader::new(file))
+                    .map_err(|e| with_path(e, path))
+            }
+            Some("ply") => {
+                let file = std::fs::File::open(path).map_err(|e| Error::io(path, &e))?;
+                Self::from_ply_reader(&mut std::io::BufReader::new(file))
+                    .map_err(|e| with_path(e, path))
+            }
+            _ => Err(Error::Parse {
+                what: path.display().to_string(),
+                message: "unknown mesh format: expected a .obj or .ply file".to_string(),
+            }),
+        }
+    }
+
+    /// Reads a Wavefront OBJ with `tobj`: every object of the file, triangles only (a face with more
+    /// than three corners is an error), file normals where every face has them, else computed ones.
+    /// Materials and texture coordinates are ignored.
+    pub fn from_obj_reader(reader: &mut impl BufRead) -> Result<Self, Error> {
+        let options = tobj::LoadOptions {
+            single_index: false,
+            triangulate: false,
+            ignore_points: true,
+            ignore_lines: true,
+            ..Default::default()
+        };
+        let (models, _) = tobj::load_obj_buf(reader, &options, |_| {
+            Err(tobj::LoadError::OpenFileFailed) // materials are not needed
+        })
+        .map_err(|e| parse_err("OBJ", e))?;
+        let mut positions = Vec::new();
+        let mut normals = Vec::new();
+        let mut triangles = Vec::new();
+        // File normals are used only if every object has one per face corner; otherwise all are computed.
+        let all_have_normals = !models.is_empty()
+            && models.iter().all(|m| {
+                !m.mesh.normals.is_empty() && m.mesh.normal_indices.len() == m.mesh.indices.len()
+            });
+        for model in &models {
+            let m = &model.mesh;
+            if let Some((face, &arity)) = m.face_arities.iter().enumerate().find(|(_, &a)| a != 3) {
+                return Err(parse_err(
+                    "OBJ",
+                    format!(
+                        "object '{}' face {face} has {arity} corners; only triangle meshes are supported",
+                        model.name
+                    ),
+                ));
+            }
+            if m.indices.len() % 3 != 0 {
+                return Err(parse_err("OBJ", format!("object '{}' is not a triangle mesh", model.name)));
+            }
+            let p = |i: u32| {
+                let i = i as usize * 3;
+                Vec3::new(m.positions[i], m.positions[i + 1], m.positions[i + 2])
+            };
+            if all_have_normals {
+                // A position with several file normals (a crease) becomes several vertices.
+                let mut remap: HashMap<(u32, u32), u32> = HashMap::new();
+                let nrm = |i: u32| {
+                    let i = i as usize * 3;
+                    Vec3::new(m.normals[i], m.normals[i + 1], m.normals[i + 2])
+                };
+                let mut corners = Vec::with_capacity(m.indices.len());
+                for (&pi, &ni) in m.indices.iter().zip(&m.normal_indices) {
+                    let id = *remap.entry((pi, ni)).or_insert_with(|| {
+                        positions.push(p(pi));
+                        normals.push(nrm(ni));
+                        (positions.len() - 1) as u32
+                    });
+                    corners.push(id);
+                }
+                triangles.extend(corners.chunks_exact(3).map(|c| [c[0], c[1], c[2]]));
+            } else {
+                let base = positions.len() as u32;
+                positions.extend((0..m.positions.len() as u32 / 3).map(p));
+                triangles
+                    .extend(m.indices.chunks_exact(3).map(|c| [base + c[0], base + c[1], base + c[2]]));
+            }
+        }
+        if all_have_normals {
+            Self::with_normals(positions, normals, triangles)
+        } else {
+            Self::new(positions, triangles)
+        }
+    }
+
+    /// Reads an ASCII or binary PLY with `ply-rs-bw`: element `vertex` with `x, y, z` (and optional
+    /// `nx, ny, nz`), element `face` with a `vertex_indices` (or `vertex_index`) list of three entries.
+    pub fn from_ply_reader(reader: &mut impl std::io::Read) -> Result<Self, Error> {
+        use ply_rs_bw::parser::Parser;
+        use ply_rs_bw::ply::{DefaultElement, Property};
+        let ply = Parser::<DefaultElement>::new().read_ply(reader).map_err(|e| parse_err("PLY", e))?;
+        let scalar = |p: &Property| -> Option<f32> {
+            Some(match *p {
+                Property::Float(v) => v,
+                Property::Double(v) => v as f32,
+                Property::Char(v) => v as f32,
+                Property::UChar(v) => v as f32,
+                Property::Short(v) => v as f32,
+                Property::UShort(v) => v as f32,
+                Property::Int(v) => v as f32,
+                Property::UInt(v) => v as f32,
+                _ => return None,
+            })
+        };
+        let vertices = ply
+            .payload
+            .get("vertex")
+            .ok_or_else(|| parse_err("PLY", "no 'vertex' element"))?;
+        let faces =
+            ply.payload.get("face").ok_or_else(|| parse_err("PLY", "no 'face' element"))?;
+        let get3 = |e: &DefaultElement, keys: [&str; 3]| -> Option<Vec3> {
+            let c = |k: &str| e.get(k).and_then(scalar);
+            Some(Vec3::new(c(keys[0])?, c(keys[1])?, c(keys[2])?))
+        };
+        let mut positions = Vec::with_capacity(vertices.len());
+        let mut normals = Vec::with_capacity(vertices.len());
+        for (i, v) in vertices.iter().enumerate() {
+            positions.push(get3(v, ["x", "y", "z"]).ok_or_else(|| {
+                parse_err("PLY", format!("vertex {i} lacks a numeric x, y or z"))
+            })?);
+            if let Some(n) = get3(v, ["nx", "ny", "nz"]) {
+                normals.push(n);
+            }
+        }
+        let mut triangles = Vec::with_capacity(faces.len());
+        for (i, f) in faces.iter().enumerate() {
+            let list = f.get("vertex_indices").or_else(|| f.get("vertex_index"));
+            let idx: Vec<i64> = match list {
+                Some(Property::ListChar(l)) => l.iter().map(|&x| x as i64).collect(),
+                Some(Property::ListUChar(l)) => l.iter().map(|&x| x as i64).collect(),
+                Some(Property::ListShort(l)) => l.iter().map(|&x| x as i64).collect(),
+                Some(Property::ListUShort(l)) => l.iter().map(|&x| x as i64).collect(),
+                Some(Property::ListInt(l)) => l.iter().map(|&x| x as i64).collect(),
+                Some(Property::ListUInt(l)) => l.iter().map(|&x| x as i64).collect(),
+                _ => {
+                    return Err(parse_err("PLY", format!("face {i} lacks an integer vertex_indices list")))
+                }
+            };
+            if idx.len() != 3 {
+                return Err(parse_err(
+                    "PLY",
+                    format!("face {i} has {} corners; only triangle meshes are supported", idx.len()),
+                ));
+            }
+            let mut t = [0u32; 3];
+            for (k, &x) in idx.iter().enumerate() {
+                t[k] = u32::try_from(x).map_err(|_| {
+                    parse_err("PLY", format!("face {i} has the negative vertex index {x}"))
+                })?;
+            }
+            triangles.push(t);
+        }
+        if !normals.is_empty() && normals.len() == positions.len() {
+            Self::with_normals(positions, normals, triangles)
+        } else {
+            Self::new(positions, triangles)
+        }
+    }
+
+    /// The mesh moved and scaled into the unit sphere (bounding-box centre at the origin, farthest vertex
+    /// at distance 1), with the similarity applied. Normals are unchanged by a uniform scaling.
+    ///
+    /// ```
+    /// use nbrdf::scene::Mesh;
+    /// use nbrdf::Vec3;
+    /// let m = Mesh::new(vec![Vec3::new(10.0, 0.0, 0.0), Vec3::new(14.0, 0.0, 0.0), Vec3::new(10.0, 2.0, 0.0)],
+    ///                   vec![[0, 1, 2]]).unwrap();
+    /// let (n, t) = m.normalized();
+    /// let r = n.positions.iter().map(|p| p.length()).fold(0.0, f32::max);
+    /// assert!((r - 1.0).abs() < 1e-6);
+    /// assert_eq!(t.apply(m.positions[1]), n.positions[1]);
+    /// ```
+    pub fn normalized(&self) -> (Mesh, Normalization) {
+        let (lo, hi) = self.bounds();
+        let center = (lo + hi) * 0.5;
+        let radius = self.positions.iter().map(|p| (*p - center).length()).fold(0.0f32, f32::max);
+        // Validation guarantees a non-zero area, hence a non-zero radius.
+        let t = Normalization { center, scale: 1.0 / radius };
+        let positions = self.positions.iter().map(|p| t.apply(*p)).collect();
+        (Mesh { positions, normals: self.normals.clone(), triangles: self.triangles.clone() }, t)
+    }
+
+    /// Axis-aligned bounding box `(min, max)` of the vertices.
+    pub fn bounds(&self) -> (Vec3, Vec3) {
+        self.positions.iter().fold((Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)), |(lo, hi), p| {
+            (lo.min(*p), hi.max(*p))
+        })
+    }
+
+    /// Radius of the bounding sphere around the bounding-box centre: the length scale for ray offsets.
+    pub fn radius(&self) -> f32 {
+        let (lo, hi) = self.bounds();
+        let c = (lo + hi) * 0.5;
+        self.positions.iter().map(|p| (*p - c).length()).fold(0.0f32, f32::max)
+    }
+
+    /// The three corner positions of triangle `t`.
+    #[inline]
+    pub fn corners(&self, t: u32) -> [Vec3; 3] {
+        let [a, b, c] = self.triangles[t as usize];
+        [self.positions[a as usize], self.positions[b as usize], self.positions[c as usize]]
+    }
+
+    /// Shading normal at barycentrics `(b1, b2)` of triangle `t` (weights `1 - b1 - b2`, `b1`, `b2` on its
+    /// corners): the normalised barycentric interpolation of the vertex normals (Sec. 5.1).
+    #[inline]
+    pub fn shading_normal(&self, t: u32, b1: f32, b2: f32) -> Vec3 {
+        let [a, b, c] = self.triangles[t as usize];
+        let n = self.normals[a as usize] * (1.0 - b1 - b2)
+            + self.normals[b as usize] * b1
+            + self.normals[c as usize] * b2;
+        // Opposite corner normals can cancel (a knife edge); the face normal is the honest fallback.
+        crate::angles::unit(n).unwrap_or_else(|| self.face_normal(t))
+    }
+
+    /// Unit geometric normal of triangle `t` (right-handed winding); `+z` for a degenerate triangle.
+    #[inline]
+    pub fn face_normal(&self, t: u32) -> Vec3 {
+        let [a, b, c] = self.corners(t);
+        crate::angles::unit((b - a).cross(c - a)).unwrap_or(Vec3::Z)
+    }
+
+    /// Surface point at barycentrics `(b1, b2)` of triangle `t`.
+    #[inline]
+    pub fn point(&self, t: u32, b1: f32, b2: f32) -> Vec3 {
+        let [a, b, c] = self.corners(t);
+        a * (1.0 - b1 - b2) + b * b1 + c * b2
+    }
+}
+
+fn with_path(e: Error, path: &Path) -> Error {
+    match e {
+        Error::Parse { what, message } => Error::Parse { what: format!("{what} file {}", path.display()), message },
+        other => other,
+    }
+}
+
+fn validate(positions: &[Vec3], triangles: &[[u32; 3]]) -> Result<(), Error> {
+    if triangles.is_empty() {
+        return Err(Error::InvalidValue { what: "mesh", reason: "it has no triangles" });
+    }
+    if let Some(i) = positions.iter().position(|p| !p.is_finite()) {
+        return Err(Error::NonFinite { what: "mesh vertex positions", index: i });
+    }
+    for t in triangles {
+        for &i in t {
+            if i as usize >= positions.len() {
+                return Err(Error::SizeMismatch {
+                    what: "mesh vertex index (index found, vertex count expected above it)",
+                    expected: positions.len(),
+                    found: i as usize,
+                });
+            }
+        }
+    }
+    let area: f64 = triangles
+        .iter()
+        .map(|&[a, b, c]| {
+            let (a, b, c) = (positions[a as usize], positions[b as usize], positions[c as usize]);
+            (b - a).cross(c - a).length() as f64
+        })
+        .sum();
+    if !(area > 0.0) {
+        return Err(Error::InvalidValue {
+            what: "mesh",
+            reason: "it is degenerate: every triangle has zero area",
+        });
+    }
+    Ok(())
+}
+
+/// Vertex normals as the sum of incident face normals weighted by the corner angle, the "mean weighted
+/// by angle" normal of Thürmer & Wüthrich 1998, "Computing vertex normals from polygonal facets": it does
+/// not depend on how a surface is tessellated. A vertex whose weighted sum vanishes (no incident
+/// non-degenerate face) gets `+z`; such a vertex belongs only to triangles no ray can hit.
+pub fn angle_weighted_normals(positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec3> {
+    let mut acc = vec![Vec3::ZERO; positions.len()];
+    for &t in triangles {
+        let p = t.map(|i| positions[i as usize]);
+        let Some(n) = crate::angles::unit((p[1] - p[0]).cross(p[2] - p[0])) else { continue };
+        for k in 0..3 {
+            let e1 = p[(k + 1) % 3] - p[k];
+            let e2 = p[(k + 2) % 3] - p[k];
+            let (Some(e1), Some(e2)) = (crate::angles::unit(e1), crate::angles::unit(e2)) else { continue };
+            let angle = crate::math::safe_acos(e1.dot(e2));
+            acc[t[k] as usize] += n * angle;
+        }
+    }
+    acc.into_iter().map(|n| crate::angles::unit(n).unwrap_or(Vec3::Z)).collect()
+}
