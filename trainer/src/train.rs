@@ -333,7 +333,7 @@ mod tests {
     /// A short fit lowers the loss of every variant (parametric and purely neural, each reciprocity
     /// strategy).
     #[test]
-    fn fitting_lowers_the_loss_of_every_neural_variant() {
+    fn fitting_lowers_the_loss_of_every_variant() {
         let obs = toy::observations(2000, PositionEncoding::Intrinsic { k: 2 }, 1);
         let opts = small_opts(100);
         for c in [

@@ -60,3 +60,36 @@ pub fn run(
     train::write_atomic(&outputs.log, &log_json)?;
     Ok(log)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::models::{Kind, PositionEncoding, Reciprocity};
+
+    /// `fit` filters bad pixels, writes a model the core loads, a checkpoint and a JSON log that records
+    /// what was filtered; `--resume` continues where the checkpoint stopped.
+    #[test]
+    fn fit_writes_model_checkpoint_and_log() {
+        let dir = std::env::temp_dir().join(format!("nbrdf-trainer-fit-{}", std::process::id()));
+        let position = PositionEncoding::Extrinsic { frequencies: 1 };
+        let config = Config::paper(Kind::AdditiveSeparate, true, Reciprocity::Exact, position);
+        let mut obs = crate::toy::observations(300, position, 4);
+        obs.radiance[0] = [f32::NAN; 3];
+        obs.wo[1] = -obs.wo[1];
+        let opts = TrainOptions { steps: 4, batch: 64, log_every: 2, checkpoint_every: 2, ..Default::default() };
+        let log = run(config, obs.clone(), &opts, &dir, false, false).unwrap();
+        let out = Outputs::in_dir(&dir, &config);
+        let model = nbrdf::file::ModelBuf::load(&out.model).unwrap();
+        assert_eq!(model.header(), &config.header());
+        let written: train::TrainLog = serde_json::from_slice(&std::fs::read(&out.log).unwrap()).unwrap();
+        assert_eq!(written.loss.len(), 2);
+        let f = written.filtered.unwrap();
+        assert_eq!((f.non_finite, f.below_horizon, f.kept), (1, 1, 298));
+        assert!(log.samples_per_s > 0.0 && log.wall_s > 0.0);
+
+        let more = TrainOptions { steps: 6, ..opts };
+        let resumed = run(config, obs, &more, &dir, true, false).unwrap();
+        assert_eq!((resumed.steps_done, resumed.loss.len()), (6, 3));
+        std::fs::remove_dir_all(&dir).ok();
+    }
+}
