@@ -23,7 +23,9 @@ pub struct Adam {
     pub params: AdamParams,
     /// Updates applied so far.
     pub t: u64,
+    #[serde(with = "crate::bits::vec2")]
     pub m: Vec<Vec<f32>>,
+    #[serde(with = "crate::bits::vec2")]
     pub v: Vec<Vec<f32>>,
 }
 

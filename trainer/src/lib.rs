@@ -7,6 +7,7 @@
 //! - [`commands`]: the bodies of the `fit`, `models` and `bench-step` subcommands.
 
 pub mod adam;
+mod bits;
 pub mod commands;
 pub mod error;
 pub mod loss;

@@ -35,6 +35,30 @@ pub struct Filtered {
 }
 
 impl Observations {
+    /// Observations from per-pixel arrays as the dataset's `Samples` holds them (directions as
+    /// `[x, y, z]` in the local frame) and the position values of each pixel (`n_position` per pixel:
+    /// the intrinsic eigenfunctions interpolated at the hit, or the normalised hit point for the
+    /// extrinsic encoding, or none).
+    pub fn from_arrays(
+        position: Vec<f32>,
+        n_position: usize,
+        wi: &[[f32; 3]],
+        wo: &[[f32; 3]],
+        irradiance: &[[f32; 3]],
+        radiance: &[[f32; 3]],
+    ) -> crate::Result<Observations> {
+        let obs = Observations {
+            position,
+            n_position,
+            wi: wi.iter().map(|&v| Vec3::from_array(v)).collect(),
+            wo: wo.iter().map(|&v| Vec3::from_array(v)).collect(),
+            irradiance: irradiance.to_vec(),
+            radiance: radiance.to_vec(),
+        };
+        obs.check()?;
+        Ok(obs)
+    }
+
     /// Number of pixels.
     pub fn len(&self) -> usize {
         self.wi.len()

@@ -113,6 +113,7 @@ pub struct Checkpoint {
     /// Steps completed.
     pub step: usize,
     /// Model weights in file order.
+    #[serde(with = "crate::bits::vec")]
     pub weights: Vec<f32>,
     pub adam: Adam,
     pub log: TrainLog,
