@@ -4,12 +4,14 @@
 //! - [`models`]: candle twins of every core model (docs/models.md).
 //! - [`observations`]: the training pixels, [`toy`]: an analytic stand-in for tests and benchmarks.
 //! - [`loss`], [`adam`], [`train`]: Eq. 9 and 10, the optimiser, the fitting loop with checkpoints.
+//! - [`intrinsic`]: Laplace–Beltrami eigenfunctions for the intrinsic position encoding.
 //! - [`commands`]: the bodies of the `fit`, `models` and `bench-step` subcommands.
 
 pub mod adam;
 mod bits;
 pub mod commands;
 pub mod error;
+pub mod intrinsic;
 pub mod loss;
 pub mod models;
 pub mod observations;
