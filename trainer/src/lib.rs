@@ -1,6 +1,26 @@
-//! `trainer`: fits neural and parametric BRDFs from posed HDR images and runs the paper's comparison
-//! study. This library holds the commands' bodies; `main.rs` only parses the command line.
+//! `trainer`: fits the neural and parametric BRDFs of the paper from posed HDR images with candle on the
+//! CPU, exports them to the core's `.nbrdf` files, and measures them. This library holds the commands'
+//! bodies; `main.rs` only parses the command line.
+//!
+//! - [`dataset`]: the semi-synthetic renderer (`synth`), dataset loading, DiLiGenT-MV.
+//! - [`models`]: candle twins of every core model (docs/models.md).
+//! - [`observations`]: the training pixels, [`toy`]: an analytic stand-in for tests and benchmarks.
+//! - [`loss`], [`adam`], [`train`]: Eq. 9 and 10, the optimiser, the fitting loop with checkpoints.
+//! - [`intrinsic`]: Laplace–Beltrami eigenfunctions for the intrinsic position encoding.
+//! - [`metrics`]: PSNR, DSSIM, LPIPS, HDR-FLIP, BRDF-space RMSE, reciprocity and energy (Sec. 6).
+//! - [`commands`]: the bodies of the `fit`, `models` and `bench-step` subcommands.
 
+pub mod adam;
+mod bits;
+pub mod commands;
 pub mod dataset;
+pub mod error;
 pub mod intrinsic;
+pub mod loss;
 pub mod metrics;
+pub mod models;
+pub mod observations;
+pub mod toy;
+pub mod train;
+
+pub use error::{Error, Result};

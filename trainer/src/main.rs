@@ -1,12 +1,43 @@
-//! `trainer`: the command line. Each subcommand's body lives in the library.
+//! `trainer`: the command line. Argument parsing only; each subcommand's body lives in the library.
+
+use std::path::PathBuf;
 
 use clap::{Parser, Subcommand};
+use trainer::commands;
+use trainer::train::{TrainOptions, PAPER_BATCH_PIXELS};
+
+// Training allocates and frees batch-sized tensors every step; the system allocator returns them to the
+// OS and page-faults them back in, mimalloc keeps them (issue 4 "Speed").
+#[global_allocator]
+static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
 #[derive(Parser)]
 #[command(name = "trainer", version, about = "Fits and compares neural BRDFs (On Neural BRDFs)")]
 struct Cli {
     #[command(subcommand)]
     command: Command,
+}
+
+#[derive(clap::Args, Clone)]
+struct ModelArgs {
+    /// rp, ts, fmbrdf, disney, lambert, single-mlp, additive-separate, additive-shared
+    #[arg(long)]
+    model: String,
+    /// Reciprocity strategy of the purely neural models (Sec. 4.3): none, swap or exact
+    #[arg(long, default_value = "exact")]
+    reciprocity: String,
+    /// The enhanced additive split of Eq. 8
+    #[arg(long)]
+    enhanced: bool,
+    /// Position input: uniform, intrinsic:K (K eigenfunctions) or extrinsic:F (PE of xyz, F octaves)
+    #[arg(long, default_value = "intrinsic:32")]
+    position: String,
+    /// Octaves of the angles' positional encoding
+    #[arg(long, default_value_t = trainer::models::arch::DEFAULT_ANGLE_FREQUENCIES)]
+    angle_frequencies: u8,
+    /// Layers the directions pass through (Tab. 2); the paper's default per model when absent
+    #[arg(long)]
+    direction_layers: Option<u8>,
 }
 
 #[derive(Subcommand)]
@@ -16,16 +47,160 @@ enum Command {
     Synth(trainer::dataset::synth::SynthArgs),
     /// Load a data set (semi-synthetic or DiLiGenT-MV) and report its views, images and samples.
     Inspect(trainer::dataset::DataArgs),
+    /// Fit one model variant and write the model, checkpoint and training log
+    Fit {
+        /// Semi-synthetic data set directory (written by `trainer synth`)
+        #[arg(long, conflicts_with_all = ["toy", "diligent"])]
+        data: Option<PathBuf>,
+        /// A DiLiGenT-MV copy (the `mvpmsData` folder or its parent)
+        #[arg(long, conflicts_with = "toy")]
+        diligent: Option<PathBuf>,
+        /// DiLiGenT-MV object: bear, buddha, cow, pot2 or reading
+        #[arg(long, default_value = "bear")]
+        object: String,
+        /// Use every n-th masked pixel per image (1 = all)
+        #[arg(long, default_value_t = 1)]
+        pixel_stride: usize,
+        /// Where the intrinsic encoding's eigenpairs are cached per mesh
+        #[arg(long, default_value = "out/cache")]
+        cache: PathBuf,
+        /// Fit the built-in analytic toy set of this many pixels instead of a dataset
+        #[arg(long)]
+        toy: Option<usize>,
+        #[command(flatten)]
+        model: ModelArgs,
+        #[arg(long, default_value = "out")]
+        out: PathBuf,
+        #[arg(long, default_value_t = 20_000)]
+        steps: usize,
+        /// Pixels per batch (default: the paper's 2^15 colour values)
+        #[arg(long, default_value_t = PAPER_BATCH_PIXELS)]
+        batch: usize,
+        #[arg(long, default_value_t = 1e-3)]
+        lr: f32,
+        #[arg(long, default_value_t = 1e-4)]
+        lr_final: f32,
+        #[arg(long, default_value_t = 0)]
+        seed: u64,
+        /// Weight of the diffuse-vs-image L1 regulariser (enhanced, Sec. 4.4)
+        #[arg(long, default_value_t = 1e-2)]
+        lambda_diffuse: f32,
+        /// Weight of the specular sparsity L1 regulariser (enhanced, Sec. 4.4)
+        #[arg(long, default_value_t = 1e-3)]
+        lambda_specular: f32,
+        #[arg(long, default_value_t = 1000)]
+        checkpoint_every: usize,
+        /// Continue from the checkpoint in --out
+        #[arg(long)]
+        resume: bool,
+    },
+    /// List every model variant with its parameter count
+    Models {
+        #[arg(long, default_value = "intrinsic:32")]
+        position: String,
+    },
+    /// Milliseconds per training step (forward + backward + Adam) of each architecture
+    BenchStep {
+        #[arg(long, default_value_t = 32_768)]
+        batch: usize,
+        #[arg(long, default_value_t = 5)]
+        steps: usize,
+        #[arg(long, default_value = "intrinsic:32")]
+        position: String,
+        /// Also write the timings as JSON here
+        #[arg(long)]
+        json: Option<PathBuf>,
+    },
 }
 
 fn main() {
-    let cli = Cli::parse();
-    let result = match cli.command {
-        Command::Synth(args) => trainer::dataset::synth::run(&args).map(|_| ()),
-        Command::Inspect(args) => trainer::dataset::inspect(&args),
-    };
-    if let Err(e) = result {
+    if let Err(e) = run(Cli::parse()) {
         eprintln!("error: {e}");
         std::process::exit(1);
     }
+}
+
+fn run(cli: Cli) -> trainer::Result<()> {
+    match cli.command {
+        Command::Synth(args) => {
+            trainer::dataset::synth::run(&args).map_err(trainer::Error::Core)?;
+        }
+        Command::Inspect(args) => trainer::dataset::inspect(&args).map_err(trainer::Error::Core)?,
+        Command::Fit {
+            data,
+            diligent,
+            object,
+            pixel_stride,
+            cache,
+            toy,
+            model: m,
+            out,
+            steps,
+            batch,
+            lr,
+            lr_final,
+            seed,
+            lambda_diffuse,
+            lambda_specular,
+            checkpoint_every,
+            resume,
+        } => {
+            let config = commands::parse_config(
+                &m.model,
+                &m.reciprocity,
+                m.enhanced,
+                &m.position,
+                m.angle_frequencies,
+                m.direction_layers,
+            )?;
+            let (obs, table) = match (data, diligent, toy) {
+                (_, _, Some(n)) => (trainer::toy::observations(n, config.position, seed), None),
+                (None, None, None) => {
+                    return Err(trainer::Error::Invalid("give --data DIR, --diligent PATH or --toy N".into()))
+                }
+                (dataset, diligent, None) => {
+                    let args = trainer::dataset::DataArgs { dataset, diligent, object, pixel_stride };
+                    let d = commands::data::load(&args, config.position, &cache)?;
+                    (d.obs, d.position_table)
+                }
+            };
+            let opts = TrainOptions {
+                steps,
+                batch,
+                lr,
+                lr_final,
+                seed,
+                lambda_diffuse,
+                lambda_specular,
+                checkpoint_every,
+                ..TrainOptions::default()
+            };
+            let log = commands::fit::run(config, obs, &opts, &out, resume, true, table.as_deref())?;
+            let last = log.loss.last().map(|l| l.1).unwrap_or(f32::NAN);
+            println!(
+                "{}: {} steps, final loss {last:.4e}, {:.1} s, {:.0} pixels/s; files in {}",
+                log.model,
+                log.steps_done,
+                log.wall_s,
+                log.samples_per_s,
+                out.display()
+            );
+        }
+        Command::Models { position } => {
+            print!("{}", commands::models::table(commands::parse_position(&position)?));
+        }
+        Command::BenchStep { batch, steps, position, json } => {
+            let position = commands::parse_position(&position)?;
+            let t = commands::bench_step::run(&commands::bench_step::default_configs(position), batch, steps)?;
+            println!("{:<34} {:>10} {:>8} {:>12} {:>10}", "model", "parameters", "batch", "ms/step", "ms inputs");
+            for r in &t {
+                println!("{:<34} {:>10} {:>8} {:>12.1} {:>10.1}", r.model, r.n_weights, r.batch, r.ms_per_step, r.ms_inputs);
+            }
+            if let Some(p) = json {
+                let s = serde_json::to_vec_pretty(&t).map_err(|e| trainer::Error::io(&p, e))?;
+                std::fs::write(&p, s).map_err(|e| trainer::Error::io(&p, e))?;
+            }
+        }
+    }
+    Ok(())
 }

@@ -1,0 +1,58 @@
+//! Training observations from a data set (semi-synthetic or DiLiGenT-MV): the dataset's lit, unshadowed
+//! pixels with the position input the model asks for (Sec. 4.2), and the per-vertex table that goes into
+//! the exported model so a renderer can evaluate it on the mesh.
+
+use std::path::Path;
+
+use crate::dataset::{samples, DataArgs, Split};
+use crate::intrinsic::IntrinsicEncoding;
+use crate::models::PositionEncoding;
+use crate::observations::Observations;
+use crate::{Error, Result};
+
+/// What `fit` trains on.
+pub struct TrainingData {
+    /// The observations, directions in the local shading frame.
+    pub obs: Observations,
+    /// Per-vertex intrinsic encoding (`n_vertices × k`, row-major) for the model file; `None` for the
+    /// other position inputs.
+    pub position_table: Option<Vec<f32>>,
+}
+
+/// Loads the training split of `args` and attaches the position input:
+/// - `Uniform`: none;
+/// - `Extrinsic`: the hit point in the unit sphere (the model encodes it);
+/// - `Intrinsic { k }`: the `k` first non-constant Laplace–Beltrami eigenfunctions, each scaled to unit
+///   range over the mesh (Koestler et al.'s default), interpolated barycentrically at the hit. The
+///   eigenpairs are cached per mesh in `cache_dir`.
+pub fn load(args: &DataArgs, position: PositionEncoding, cache_dir: &Path) -> Result<TrainingData> {
+    let ds = args.open()?;
+    let s = samples(&ds, Split::Train, args.pixel_stride.max(1))?;
+    if s.is_empty() {
+        return Err(Error::Invalid("the data set's training split has no lit, unshadowed pixels".into()));
+    }
+    let (values, n_position, table) = match position {
+        PositionEncoding::Uniform => (Vec::new(), 0, None),
+        PositionEncoding::Extrinsic { .. } => (s.position.iter().flatten().copied().collect(), 3, None),
+        PositionEncoding::Intrinsic { k } => {
+            let k = k as usize;
+            let mesh = &ds.geometry.mesh;
+            let positions: Vec<[f32; 3]> = mesh.positions.iter().map(|p| p.to_array()).collect();
+            let enc = IntrinsicEncoding::load_or_compute(cache_dir, &positions, &mesh.triangles, k)
+                .map_err(|e| Error::Invalid(format!("intrinsic encoding of the data set's mesh: {e}")))?;
+            let table = enc.scaled_to_unit_range();
+            let mut values = vec![0.0f32; s.len() * k];
+            for (i, out) in values.chunks_exact_mut(k).enumerate() {
+                let tri = mesh.triangles[s.triangle[i] as usize];
+                let [b1, b2] = s.barycentric[i];
+                let bary = [1.0 - b1 - b2, b1, b2];
+                for (j, o) in out.iter_mut().enumerate() {
+                    *o = (0..3).map(|c| bary[c] * table[tri[c] as usize * k + j]).sum();
+                }
+            }
+            (values, k, Some(table))
+        }
+    };
+    let obs = Observations::from_arrays(values, n_position, &s.wi, &s.wo, &s.intensity, &s.radiance)?;
+    Ok(TrainingData { obs, position_table: table })
+}

@@ -1,0 +1,57 @@
+//! The bodies of the trainer's subcommands; `main.rs` only parses arguments and dispatches here.
+
+pub mod bench_step;
+pub mod data;
+pub mod fit;
+pub mod models;
+
+use crate::models::{Config, Kind, PositionEncoding, Reciprocity};
+use crate::{Error, Result};
+
+/// Parses `none|swap|exact`.
+pub fn parse_reciprocity(s: &str) -> Result<Reciprocity> {
+    match s {
+        "none" => Ok(Reciprocity::None),
+        "swap" => Ok(Reciprocity::Swap),
+        "exact" => Ok(Reciprocity::Exact),
+        _ => Err(Error::Invalid(format!("unknown reciprocity strategy {s:?}; expected none, swap or exact"))),
+    }
+}
+
+/// Parses `uniform`, `intrinsic:K` or `extrinsic:F`.
+pub fn parse_position(s: &str) -> Result<PositionEncoding> {
+    let bad = || Error::Invalid(format!("unknown position encoding {s:?}; expected uniform, intrinsic:K or extrinsic:F"));
+    match s.split_once(':') {
+        None if s == "uniform" => Ok(PositionEncoding::Uniform),
+        Some(("intrinsic", k)) => Ok(PositionEncoding::Intrinsic { k: k.parse().map_err(|_| bad())? }),
+        Some(("extrinsic", f)) => Ok(PositionEncoding::Extrinsic { frequencies: f.parse().map_err(|_| bad())? }),
+        _ => Err(bad()),
+    }
+}
+
+/// The model configuration named on the command line.
+pub fn parse_config(
+    model: &str,
+    reciprocity: &str,
+    enhanced: bool,
+    position: &str,
+    angle_frequencies: u8,
+    direction_layers: Option<u8>,
+) -> Result<Config> {
+    let kind = crate::models::arch::parse_kind(model).ok_or_else(|| {
+        Error::Invalid(format!(
+            "unknown model {model:?}; expected one of rp, ts, fmbrdf, disney, lambert, single-mlp, \
+             additive-separate, additive-shared"
+        ))
+    })?;
+    if enhanced && !matches!(kind, Kind::AdditiveSeparate | Kind::AdditiveShared) {
+        return Err(Error::Invalid(format!("--enhanced (Eq. 8) applies to the additive models, not {model}")));
+    }
+    if direction_layers.is_some() && matches!(kind, Kind::Parametric(_)) {
+        return Err(Error::Invalid("--direction-layers applies to the purely neural models".into()));
+    }
+    let mut c = Config::paper(kind, enhanced, parse_reciprocity(reciprocity)?, parse_position(position)?);
+    c.angle_frequencies = angle_frequencies;
+    c.direction_layers = direction_layers;
+    Ok(c)
+}

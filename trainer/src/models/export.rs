@@ -1,0 +1,102 @@
+//! Export of a fitted model to the core's `.nbrdf` file: the header of its configuration and the
+//! weight vector in file order, which the `Var`s already hold layer by layer (a copy, no reordering).
+
+use std::path::Path;
+
+use super::Model;
+use crate::{Error, Result};
+
+/// The file bytes of `model`; `position_table` is the per-vertex intrinsic encoding (`n_vertices × k`)
+/// a renderer interpolates itself, if it should travel with the model.
+pub fn encode(model: &Model, position_table: Option<&[f32]>) -> Result<Vec<u8>> {
+    Ok(nbrdf::file::encode(&model.config.header(), &model.weights()?, position_table)?)
+}
+
+/// Writes `model` to `path` atomically.
+pub fn save(model: &Model, path: &Path, position_table: Option<&[f32]>) -> Result<()> {
+    let bytes = encode(model, position_table)?;
+    nbrdf::file::save(path, &bytes).map_err(Error::Core)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::models::{arch, Config, Inputs, Kind, PositionEncoding, RawBatch, Reciprocity};
+    use candle_core::Device;
+    use nbrdf::file::ModelBuf;
+    use rand::{RngExt, SeedableRng};
+
+    /// Every variant the study fits, plus the other reciprocity strategies and the Tab. 2 layer counts.
+    fn variants(position: PositionEncoding) -> Vec<Config> {
+        let mut v = arch::study_variants(position, Reciprocity::Exact);
+        for r in [Reciprocity::None, Reciprocity::Swap] {
+            v.push(Config::paper(Kind::AdditiveShared, true, r, position));
+        }
+        for (kind, n) in [(Kind::SingleMlp, 3), (Kind::AdditiveSeparate, 2), (Kind::AdditiveShared, 4)] {
+            let mut c = Config::paper(kind, false, Reciprocity::None, position);
+            c.direction_layers = Some(n);
+            v.push(c);
+        }
+        v.into_iter().map(|mut c| {
+            c.angle_frequencies = 3;
+            c
+        }).collect()
+    }
+
+    /// Perturbs the freshly initialised weights so that every output nonlinearity is exercised away
+    /// from its value at 0, and biases are not all tiny.
+    fn scramble(model: &Model, seed: u64) {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        let w: Vec<f32> = model.weights().unwrap().iter().map(|w| w * rng.random_range(0.5..2.0)).collect();
+        model.set_weights(&w).unwrap();
+    }
+
+    /// The candle forward pass and the core's evaluation of the exported file agree within 1e-5
+    /// relative, for every variant and both kinds of position input.
+    #[test]
+    fn exported_models_evaluate_like_the_candle_twin() {
+        let device = Device::Cpu;
+        for position in [PositionEncoding::Intrinsic { k: 5 }, PositionEncoding::Extrinsic { frequencies: 2 }] {
+            for (i, config) in variants(position).into_iter().enumerate() {
+                let model = Model::init(config, 11 + i as u64, &device).unwrap();
+                scramble(&model, i as u64);
+                let n = 48;
+                let (wi, wo) = crate::toy::direction_pairs(n, 5 + i as u64);
+                let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(i as u64);
+                let np = position.input_len();
+                let pos: Vec<f32> = (0..n * np).map(|_| rng.random_range(-1.0..1.0)).collect();
+                let x = Inputs::build(&config, &RawBatch { position: &pos, wi: &wi, wo: &wo, swap: None }, &device).unwrap();
+                let ours = crate::models::to_rgb(&model.forward(&x).unwrap().f).unwrap();
+
+                let buf = ModelBuf::from_bytes(&encode(&model, None).unwrap()).unwrap();
+                let core = buf.model();
+                for s in 0..n {
+                    let prepared = core.prepare(&pos[s * np..(s + 1) * np]);
+                    let theirs = core.eval(&prepared, wi[s], wo[s]);
+                    for c in 0..3 {
+                        let (a, b) = (ours[s][c], theirs[c]);
+                        assert!(
+                            (a - b).abs() <= 1e-5 * a.abs().max(b.abs()) + 1e-30,
+                            "{} ({position:?}) sample {s} channel {c}: candle {a} vs core {b}",
+                            config.name()
+                        );
+                    }
+                    if config.reciprocity == Reciprocity::Exact {
+                        assert_eq!(theirs, core.eval(&prepared, wo[s], wi[s]), "{}: bitwise reciprocity", config.name());
+                    }
+                }
+            }
+        }
+    }
+
+    /// The exported file carries the configuration's header and every weight.
+    #[test]
+    fn export_round_trips_header_and_size() {
+        let c = Config::paper(Kind::AdditiveSeparate, true, Reciprocity::Exact, PositionEncoding::Intrinsic { k: 4 });
+        let model = Model::init(c, 0, &Device::Cpu).unwrap();
+        let buf = ModelBuf::from_bytes(&encode(&model, Some(&[0.5; 4 * 10])).unwrap()).unwrap();
+        assert_eq!(buf.header().nets(), c.header().nets());
+        assert_eq!(buf.header().n_vertices, 10);
+        assert_eq!(model.weights().unwrap().len(), c.header().n_weights());
+    }
+}

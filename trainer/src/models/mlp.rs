@@ -1,0 +1,111 @@
+//! The dense network `Mlp(n_in, W, H, n_out, S)` of docs/models.md as candle variables.
+//!
+//! Each layer holds its matrix `[in][out]` and its bias `[1][out]` as two `Var`s whose buffers are the
+//! layer's two blocks of the model file, so export is a copy ([`Mlp::write_weights`]).
+//!
+//! The bias enters as `ones[N,1] · b[1,out]` rather than a broadcast add: candle's backward of a
+//! broadcast reduces with `sum_keepdim(0)`, which costs as much as a whole matmul at batch 2^15, while
+//! the matmul form makes the bias gradient `onesᵀ · dy`, one fast GEMM (issue 4 "Speed").
+
+use candle_core::{DType, Device, Result, Tensor, Var};
+use rand::{Rng, RngExt};
+
+use super::arch::{layers, NetDesc};
+
+/// One `Linear` layer: `y = x M + b`.
+pub struct Linear {
+    /// `[in, out]`, the file's row-major `[in][out]` block.
+    pub weight: Var,
+    /// `[1, out]`.
+    pub bias: Var,
+    n_in: usize,
+}
+
+impl Linear {
+    /// PyTorch's `nn.Linear` default: weight and bias uniform in `±1/sqrt(fan_in)` (Kaiming/He uniform
+    /// with `a = sqrt(5)`, He et al. 2015), from `rng` so that a seed fixes the initialisation.
+    pub fn init(n_in: usize, n_out: usize, rng: &mut impl Rng, device: &Device) -> Result<Self> {
+        let bound = if n_in > 0 { 1.0 / (n_in as f32).sqrt() } else { 1.0 };
+        let mut draw = |n: usize| (0..n).map(|_| rng.random_range(-bound..bound)).collect::<Vec<f32>>();
+        let weight = Var::from_vec(draw(n_in * n_out), (n_in, n_out), device)?;
+        let bias = Var::from_vec(draw(n_out), (1, n_out), device)?;
+        Ok(Linear { weight, bias, n_in })
+    }
+
+    /// `x M + 1 b`; `ones` is `[N, 1]` of ones for the batch.
+    pub fn forward(&self, x: &Tensor, ones: &Tensor) -> Result<Tensor> {
+        let b = ones.matmul(self.bias.as_tensor())?;
+        if self.n_in == 0 {
+            // A position-only network of a uniform material: the layer is its bias.
+            return Ok(b);
+        }
+        x.matmul(self.weight.as_tensor())? + b
+    }
+}
+
+/// A network of docs/models.md.
+pub struct Mlp {
+    pub desc: NetDesc,
+    pub layers: Vec<Linear>,
+}
+
+impl Mlp {
+    /// Layers initialised in file order from `rng`.
+    pub fn init(desc: NetDesc, rng: &mut impl Rng, device: &Device) -> Result<Self> {
+        let layers = layers(&desc)
+            .into_iter()
+            .map(|(i, o)| Linear::init(i, o, rng, device))
+            .collect::<Result<_>>()?;
+        Ok(Mlp { desc, layers })
+    }
+
+    /// The network output: ReLU hidden layers, the skip input `[h, x]` at layer `S`, a linear output
+    /// layer (or the last activation for a trunk with `n_out = 0`).
+    pub fn forward(&self, x: &Tensor, ones: &Tensor) -> Result<Tensor> {
+        let hidden = self.desc.hidden as usize;
+        let skip = self.desc.skip as usize;
+        let mut h = x.clone();
+        for (l, layer) in self.layers.iter().enumerate() {
+            let input = if l > 0 && l < hidden && skip >= 1 && l == skip && self.desc.n_in > 0 {
+                Tensor::cat(&[&h, x], 1)?
+            } else {
+                h
+            };
+            let y = layer.forward(&input, ones)?;
+            h = if l < hidden { y.relu()? } else { y };
+        }
+        Ok(h)
+    }
+
+    /// The variables in file order (matrix, bias, next layer ...).
+    pub fn vars(&self) -> Vec<&Var> {
+        self.layers.iter().flat_map(|l| [&l.weight, &l.bias]).collect()
+    }
+
+    /// Appends the weights in file order.
+    pub fn write_weights(&self, out: &mut Vec<f32>) -> Result<()> {
+        for v in self.vars() {
+            out.extend(v.as_tensor().flatten_all()?.to_vec1::<f32>()?);
+        }
+        Ok(())
+    }
+}
+
+/// Copies `values` (file order) into `vars`; returns how many were read.
+pub fn read_into(vars: &[&Var], values: &[f32]) -> Result<usize> {
+    let mut at = 0;
+    for v in vars {
+        let n = v.as_tensor().elem_count();
+        let Some(chunk) = values.get(at..at + n) else {
+            candle_core::bail!("weight vector too short: {} values for a model of more", values.len())
+        };
+        v.set(&Tensor::from_slice(chunk, v.as_tensor().shape(), v.as_tensor().device())?)?;
+        at += n;
+    }
+    Ok(at)
+}
+
+/// `[n, 1]` of ones, the bias input of a batch.
+pub fn ones(n: usize, device: &Device) -> Result<Tensor> {
+    Tensor::ones((n, 1), DType::F32, device)
+}

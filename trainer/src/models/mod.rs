@@ -1,0 +1,133 @@
+//! Candle twins of every core model (docs/models.md): the same networks, wiring and output
+//! nonlinearities, with weights held as candle `Var`s in file order so that export is a copy.
+
+pub mod activation;
+pub mod arch;
+pub mod features;
+pub mod mlp;
+pub mod export;
+pub mod parametric;
+
+use candle_core::{Device, Result, Tensor, Var};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+
+pub use arch::{Config, Kind, NetDesc, ParametricKind, PositionEncoding, Reciprocity};
+pub use features::{Inputs, RawBatch};
+pub use mlp::Mlp;
+
+/// The BRDF of a batch and, for additive models, its parts (the regularisers of Sec. 4.4 need them).
+pub struct Output {
+    /// `[N, 3]`: `f(x, wi, wo)` in 1/sr, 0 for invalid pairs.
+    pub f: Tensor,
+    /// `[N, 3]`: the diffuse part `f_d = σ(d)/π` (additive models).
+    pub diffuse: Option<Tensor>,
+    /// `[N, 3]`: the specular part `f_s = softplus(s)` (additive models).
+    pub specular: Option<Tensor>,
+}
+
+/// A model: its configuration, networks and object parameters.
+pub struct Model {
+    pub config: Config,
+    pub nets: Vec<Mlp>,
+    /// Per-object raw parameters (FMBRDF's NDF normalisation), `[n_object]`.
+    pub object: Option<Var>,
+}
+
+impl Model {
+    /// A freshly initialised model; the same seed gives the same weights.
+    pub fn init(config: Config, seed: u64, device: &Device) -> Result<Model> {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let nets = config.nets().into_iter().map(|d| Mlp::init(d, &mut rng, device)).collect::<Result<_>>()?;
+        let object = match config.n_object() {
+            0 => None,
+            n => Some(Var::from_vec(parametric::initial_object(&config), n, device)?),
+        };
+        Ok(Model { config, nets, object })
+    }
+
+    /// All variables in file order.
+    pub fn vars(&self) -> Vec<&Var> {
+        let mut v: Vec<&Var> = self.nets.iter().flat_map(Mlp::vars).collect();
+        v.extend(self.object.iter());
+        v
+    }
+
+    /// The weight vector in file order (`ModelHeader::n_weights` values).
+    pub fn weights(&self) -> Result<Vec<f32>> {
+        let mut out = Vec::with_capacity(self.config.n_weights());
+        for n in &self.nets {
+            n.write_weights(&mut out)?;
+        }
+        if let Some(o) = &self.object {
+            out.extend(o.as_tensor().to_vec1::<f32>()?);
+        }
+        Ok(out)
+    }
+
+    /// Loads a weight vector in file order.
+    pub fn set_weights(&self, values: &[f32]) -> Result<()> {
+        if values.len() != self.config.n_weights() {
+            candle_core::bail!(
+                "{} weights given for {} ({} expected)",
+                values.len(),
+                self.config.name(),
+                self.config.n_weights()
+            );
+        }
+        mlp::read_into(&self.vars(), values).map(|_| ())
+    }
+
+    /// The forward pass of docs/models.md "Models".
+    pub fn forward(&self, x: &Inputs) -> Result<Output> {
+        let n = &self.nets;
+        let (f, diffuse, specular) = match self.config.kind {
+            Kind::Parametric(kind) => {
+                let raw = n[0].forward(&x.position, &x.ones)?;
+                (parametric::eval(kind, &raw, self.object.as_ref().map(Var::as_tensor), x)?, None, None)
+            }
+            Kind::SingleMlp => {
+                let out = if n.len() == 1 {
+                    n[0].forward(&x.joint, &x.ones)?
+                } else {
+                    let trunk = n[0].forward(&x.position, &x.ones)?;
+                    n[1].forward(&Tensor::cat(&[&trunk, &x.angles], 1)?, &x.ones)?
+                };
+                (activation::softplus(&out)?, None, None)
+            }
+            Kind::AdditiveSeparate => {
+                let d = n[0].forward(&x.position, &x.ones)?;
+                let s = n[1].forward(&x.joint, &x.ones)?;
+                self.additive(&d, &s)?
+            }
+            Kind::AdditiveShared => {
+                let trunk = n[0].forward(&x.position, &x.ones)?;
+                let d = n[1].forward(&trunk, &x.ones)?;
+                let s = n[2].forward(&Tensor::cat(&[&trunk, &x.angles], 1)?, &x.ones)?;
+                self.additive(&d, &s)?
+            }
+        };
+        // Invalid pairs are black in the core; multiplying keeps their gradient at zero too.
+        let f = f.broadcast_mul(&x.valid)?;
+        Ok(Output { f, diffuse, specular })
+    }
+
+    /// `f_d = σ(d)/π`, `f_s = softplus(s[0..3])`, and `f = f_d + f_s` or, enhanced (Eq. 8),
+    /// `f = (1 - ξ) ∘ f_d + f_s` with `ξ = σ(s[3..6])`.
+    fn additive(&self, d: &Tensor, s: &Tensor) -> Result<(Tensor, Option<Tensor>, Option<Tensor>)> {
+        let f_d = (activation::sigmoid(d)? * std::f64::consts::FRAC_1_PI)?;
+        let f_s = activation::softplus(&s.narrow(1, 0, 3)?)?;
+        let f = if self.config.has_xi() {
+            let xi = activation::sigmoid(&s.narrow(1, 3, 3)?)?;
+            ((1.0 - xi)? * &f_d)?.add(&f_s)?
+        } else {
+            f_d.add(&f_s)?
+        };
+        Ok((f, Some(f_d), Some(f_s)))
+    }
+}
+
+/// The model's BRDF values as plain numbers, `[N][3]`.
+pub fn to_rgb(t: &Tensor) -> Result<Vec<[f32; 3]>> {
+    Ok(t.to_vec2::<f32>()?.into_iter().map(|r| [r[0], r[1], r[2]]).collect())
+}
