@@ -8,8 +8,43 @@ use crate::{Error, Result};
 
 /// The file bytes of `model`; `position_table` is the per-vertex intrinsic encoding (`n_vertices × k`)
 /// a renderer interpolates itself, if it should travel with the model.
+///
+/// Purely neural models also get their importance-sampling proxy (issue 6): a cosine + GGX mixture
+/// fitted to the exported network averaged over a few surface points — rows of the position table,
+/// points on the unit sphere for the extrinsic encoding, the one point of a uniform material — so that a
+/// renderer can sample the model without knowing anything about it. Parametric models sample their own
+/// predicted lobes and carry no proxy.
 pub fn encode(model: &Model, position_table: Option<&[f32]>) -> Result<Vec<u8>> {
-    Ok(nbrdf::file::encode(&model.config.header(), &model.weights()?, position_table)?)
+    let header = model.config.header();
+    let weights = model.weights()?;
+    let bytes = nbrdf::file::encode(&header, &weights, position_table)?;
+    if matches!(header.kind, nbrdf::file::ModelKind::Parametric(_)) {
+        return Ok(bytes);
+    }
+    let buf = nbrdf::file::ModelBuf::from_bytes(&bytes)?;
+    let core = buf.model();
+    let points: Vec<Vec<f32>> = match header.position {
+        nbrdf::file::PositionEncoding::Uniform => vec![Vec::new()],
+        nbrdf::file::PositionEncoding::Extrinsic { .. } => (0..8)
+            .map(|i| {
+                // Fibonacci points on the unit sphere, where normalised meshes live.
+                let z = 1.0 - (2.0 * i as f32 + 1.0) / 8.0;
+                let r = (1.0 - z * z).max(0.0).sqrt();
+                let phi = i as f32 * 2.399_963;
+                vec![r * phi.cos(), r * phi.sin(), z]
+            })
+            .collect(),
+        nbrdf::file::PositionEncoding::Intrinsic { k } => match position_table {
+            Some(t) if k > 0 && t.len() >= k as usize => {
+                let rows = t.len() / k as usize;
+                (0..8).map(|i| t[(i * rows / 8) * k as usize..][..k as usize].to_vec()).collect()
+            }
+            _ => Vec::new(),
+        },
+    };
+    let prepared: Vec<_> = points.iter().map(|p| core.prepare(p)).collect();
+    let proxy = core.fit_proxy(&prepared);
+    Ok(nbrdf::file::encode(&header.with_proxy(proxy), &weights, position_table)?)
 }
 
 /// Writes `model` to `path` atomically.
@@ -98,5 +133,20 @@ mod tests {
         assert_eq!(buf.header().nets(), c.header().nets());
         assert_eq!(buf.header().n_vertices, 10);
         assert_eq!(model.weights().unwrap().len(), c.header().n_weights());
+    }
+
+    /// A neural export carries a sampling proxy whose pdf is a proper density; a parametric one none.
+    #[test]
+    fn neural_exports_carry_a_fitted_sampling_proxy() {
+        let position = PositionEncoding::Extrinsic { frequencies: 1 };
+        for (kind, want) in [(Kind::SingleMlp, true), (Kind::Parametric(nbrdf::parametric::ParametricKind::Phong), false)] {
+            let model = Model::init(Config::paper(kind, false, Reciprocity::Exact, position), 3, &Device::Cpu).unwrap();
+            let buf = nbrdf::file::ModelBuf::from_bytes(&encode(&model, None).unwrap()).unwrap();
+            let proxy = buf.header().proxy;
+            assert_eq!(proxy.is_some(), want, "{kind:?}");
+            if let Some(p) = proxy {
+                assert!(p.validate().is_ok());
+            }
+        }
     }
 }
