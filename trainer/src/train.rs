@@ -135,9 +135,7 @@ impl Checkpoint {
 
 /// Writes `bytes` to `path` through a temporary file in the same directory and a rename.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let tmp = path.with_extension("tmp");
-    std::fs::write(&tmp, bytes).map_err(|e| Error::io(&tmp, e))?;
-    std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e))
+    nbrdf::io::write_atomic(path, bytes).map_err(Error::Core)
 }
 
 /// Per-pixel constants of the loss, precomputed once: `L_i cos θ_l` and `γ(L_GT)`.
