@@ -81,7 +81,10 @@ mod tests {
         let log = run(config, obs.clone(), &opts, &dir, false, false, None).unwrap();
         let out = Outputs::in_dir(&dir, &config);
         let model = nbrdf::file::ModelBuf::load(&out.model).unwrap();
-        assert_eq!(model.header(), &config.header());
+        // The architecture as configured, plus the sampling proxy fitted at export.
+        let mut header = *model.header();
+        assert!(header.proxy.take().is_some());
+        assert_eq!(header, config.header());
         let written: train::TrainLog = serde_json::from_slice(&std::fs::read(&out.log).unwrap()).unwrap();
         assert_eq!(written.loss.len(), 2);
         let f = written.filtered.unwrap();
