@@ -3,8 +3,11 @@
 //! softplus; 6 outputs when enhanced, Eq. 8).
 
 use super::split;
-use crate::mlp::{self, forward, forward_packet, partial, Net, Partial, Weight, MAX_WIDTH, PACKET};
+use crate::mlp::{self, partial, Net, Partial, Weight, MAX_WIDTH};
 use crate::Rgb;
+
+/// The angle-dependent half is the same for both additive architectures.
+pub use super::split::{eval, eval_packet};
 
 /// The diffuse term at the point and the position part of the specular network.
 #[inline]
@@ -12,29 +15,4 @@ pub fn prepare<W: Weight>(diffuse: &Net<'_, W>, specular: &Net<'_, W>, pos: &[f3
     let mut d = [0.0f32; MAX_WIDTH];
     mlp::eval(diffuse, pos, &mut d);
     (split::diffuse(&d[..3]), partial(specular, pos))
-}
-
-/// `f_d + f_s`, or Eq. 8 when `enhanced`.
-#[inline]
-pub fn eval<W: Weight>(specular: &Net<'_, W>, f_d: Rgb, prepared: &Partial, angles: &[f32], enhanced: bool) -> Rgb {
-    let mut s = [0.0f32; MAX_WIDTH];
-    forward(specular, prepared, angles, &mut s);
-    split::combine(f_d, &s, enhanced)
-}
-
-/// [`eval`] for [`PACKET`] queries: query `q`'s encoded angles at `angles[q * stride..][..n]`.
-#[inline]
-pub fn eval_packet<W: Weight>(
-    specular: &Net<'_, W>,
-    f_d: Rgb,
-    prepared: &Partial,
-    angles: &[f32],
-    stride: usize,
-    n: usize,
-    enhanced: bool,
-) -> [Rgb; PACKET] {
-    const S: usize = super::single_mlp::OUT_STRIDE;
-    let mut s = [0.0f32; PACKET * S];
-    forward_packet(specular, prepared, angles, stride, n, &mut s, S);
-    core::array::from_fn(|q| split::combine(f_d, &s[q * S..(q + 1) * S], enhanced))
 }

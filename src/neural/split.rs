@@ -1,6 +1,7 @@
 //! The additive diffuse/specular split of Sec. 4.1.2 and its enhancement (Sec. 4.4, Eq. 8).
 
 use crate::math::{sanitize, sigmoid, softplus, INV_PI};
+use crate::mlp::{forward, forward_packet, Net, Partial, Weight, MAX_WIDTH, PACKET};
 use crate::Rgb;
 
 /// Lambertian diffuse term from the diffuse network's raw outputs: `σ(d) / π` (Sec. 4.1.2), so the
@@ -41,4 +42,30 @@ pub fn combine(f_d: Rgb, s: &[f32], enhanced: bool) -> Rgb {
         f[c] = keep * f_d[c] + softplus(s[c]);
     }
     f
+}
+
+/// The specular network of an additive model on the encoded angles, combined with `f_d` by
+/// [`combine`]: `f_d + f_s`, or Eq. 8 when `enhanced`. Shared by both additive architectures.
+#[inline]
+pub fn eval<W: Weight>(specular: &Net<'_, W>, f_d: Rgb, prepared: &Partial, angles: &[f32], enhanced: bool) -> Rgb {
+    let mut s = [0.0f32; MAX_WIDTH];
+    forward(specular, prepared, angles, &mut s);
+    combine(f_d, &s, enhanced)
+}
+
+/// [`eval`] for [`PACKET`] queries: query `q`'s encoded angles at `angles[q * stride..][..n]`.
+#[inline]
+pub fn eval_packet<W: Weight>(
+    specular: &Net<'_, W>,
+    f_d: Rgb,
+    prepared: &Partial,
+    angles: &[f32],
+    stride: usize,
+    n: usize,
+    enhanced: bool,
+) -> [Rgb; PACKET] {
+    const S: usize = super::single_mlp::OUT_STRIDE;
+    let mut s = [0.0f32; PACKET * S];
+    forward_packet(specular, prepared, angles, stride, n, &mut s, S);
+    core::array::from_fn(|q| combine(f_d, &s[q * S..(q + 1) * S], enhanced))
 }
