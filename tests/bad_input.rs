@@ -193,7 +193,8 @@ fn obj_malformed_variants() {
     assert!(obj(&format!("{TRI}f 1 2 3\n")).is_ok());
     assert_err!("empty file", obj(""), Error::InvalidValue { what: "mesh", .. });
     assert_err!("vertices only", obj(TRI), Error::InvalidValue { what: "mesh", .. });
-    assert_err!("a quad", obj(&format!("{TRI}v 1 1 0\nf 1 2 4 3\n")), Error::Parse { .. });
+    // Polygons are triangulated as fans (the paper's suzanne.obj has quads).
+    assert_eq!(obj(&format!("{TRI}v 1 1 0\nf 1 2 4 3\n")).unwrap().triangles.len(), 2);
     // tobj checks face indices itself ("face vertex index out of bounds").
     assert_err!("index past the vertices", obj(&format!("{TRI}f 1 2 4\n")), Error::Parse { what, .. } if what == "OBJ");
     assert_err!("index 0", obj(&format!("{TRI}f 0 1 2\n")), Error::Parse { what, .. } if what == "OBJ");
@@ -221,16 +222,18 @@ fn obj_malformed_variants() {
 
 #[test]
 fn ply_malformed_variants() {
-    let header = |faces: &str| {
-        format!("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face {faces}\nproperty list uchar int vertex_indices\nend_header\n")
+    let header_n = |vertices: &str, faces: &str| {
+        format!("ply\nformat ascii 1.0\nelement vertex {vertices}\nproperty float x\nproperty float y\nproperty float z\nelement face {faces}\nproperty list uchar int vertex_indices\nend_header\n")
     };
+    let header = |faces: &str| header_n("3", faces);
     let good = format!("{}0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", header("1"));
     assert!(ply(good.as_bytes()).is_ok());
     assert_err!("empty file", ply(b""), Error::Parse { .. });
     assert_err!("not a ply", ply(b"solid stl\n"), Error::Parse { .. });
     assert_err!("truncated body", ply(good[..good.len() - 6].as_bytes()), Error::Parse { .. });
     assert_err!("no face element", ply(b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nend_header\n0 0 0\n1 0 0\n0 1 0\n"), Error::Parse { .. });
-    assert_err!("a quad", ply(format!("{}0 0 0\n1 0 0\n0 1 0\n4 0 1 2 0\n", header("1")).as_bytes()), Error::Parse { .. });
+    assert_eq!(ply(format!("{}0 0 0\n1 0 0\n0 1 0\n1 1 0\n4 0 1 3 2\n", header_n("4", "1")).as_bytes()).unwrap().triangles.len(), 2);
+    assert_err!("a two-corner face", ply(format!("{}0 0 0\n1 0 0\n0 1 0\n2 0 1\n", header("1")).as_bytes()), Error::Parse { .. });
     assert_err!("negative index", ply(format!("{}0 0 0\n1 0 0\n0 1 0\n3 0 1 -2\n", header("1")).as_bytes()), Error::Parse { .. });
     assert_err!("index past the vertices", ply(format!("{}0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n", header("1")).as_bytes()),
         Error::SizeMismatch { found: 3, expected: 3, .. });
@@ -266,8 +269,8 @@ fn mesh_files_missing_or_of_unknown_type() {
     let stl = dir.write("m.stl", b"solid x\n");
     assert_err!("unknown extension", Mesh::load(&stl), Error::Parse { .. });
     // A parse error names the file it came from.
-    let bad = dir.write("bad.obj", format!("{TRI}v 1 1 0\nf 1 2 4 3\n").as_bytes());
-    assert_err!("quad in a file", Mesh::load(&bad), Error::Parse { what, .. } if what.contains("bad.obj"));
+    let bad = dir.write("bad.obj", format!("{TRI}f 1 2 4\n").as_bytes());
+    assert_err!("bad index in a file", Mesh::load(&bad), Error::Parse { what, .. } if what.contains("bad.obj"));
 }
 
 // -------------------------------------------------------------------------------------------------

@@ -263,7 +263,7 @@ fn obj_and_ply_load_and_bad_meshes_fail_clearly() {
     }
 
     let cases: [(&str, &str, &str); 6] = [
-        ("quad.obj", "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n", "4 corners"),
+        ("line.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n2 0 1\n", "2 corners"),
         ("empty.obj", "# nothing\n", "no triangles"),
         ("flat.obj", "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n", "degenerate"),
         ("range.obj", "v 0 0 0\nv 1 0 0\nf 1 2 3\n", "OBJ"),

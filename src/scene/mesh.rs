@@ -122,16 +122,17 @@ impl Mesh {
         }
     }
 
-    /// Reads a Wavefront OBJ with `tobj`: every object of the file, triangles only (a face with more
-    /// than three corners is an error), file normals where every face has them, else computed ones.
-    /// Materials and texture coordinates are ignored.
+    /// Reads a Wavefront OBJ with `tobj`: every object of the file, polygons triangulated as fans, file
+    /// normals where every face has them, else computed ones. Materials and texture coordinates are
+    /// ignored.
     pub fn from_obj_reader(reader: &mut impl BufRead) -> Result<Self, Error> {
         // `..Default::default()` stays: tobj's `merging`/`reordering` features, which another crate
         // of a build may enable, add fields.
         #[allow(clippy::needless_update)]
         let options = tobj::LoadOptions {
             single_index: false,
-            triangulate: false,
+            // Polygons (suzanne.obj has quads) become triangle fans.
+            triangulate: true,
             ignore_points: true,
             ignore_lines: true,
             ..Default::default()
@@ -157,15 +158,6 @@ impl Mesh {
             });
         for model in &models {
             let m = &model.mesh;
-            if let Some((face, &arity)) = m.face_arities.iter().enumerate().find(|(_, &a)| a != 3) {
-                return Err(parse_err(
-                    "OBJ",
-                    format!(
-                        "object '{}' face {face} has {arity} corners; only triangle meshes are supported",
-                        model.name
-                    ),
-                ));
-            }
             if m.indices.len() % 3 != 0 {
                 return Err(parse_err("OBJ", format!("object '{}' is not a triangle mesh", model.name)));
             }
@@ -205,7 +197,7 @@ impl Mesh {
     }
 
     /// Reads an ASCII or binary PLY with `ply-rs-bw`: element `vertex` with `x, y, z` (and optional
-    /// `nx, ny, nz`), element `face` with a `vertex_indices` (or `vertex_index`) list of three entries.
+    /// `nx, ny, nz`), element `face` with a `vertex_indices` (or `vertex_index`) list of three or more entries (polygons become triangle fans).
     pub fn from_ply_reader(reader: &mut impl std::io::Read) -> Result<Self, Error> {
         use ply_rs_bw::parser::Parser;
         use ply_rs_bw::ply::{DefaultElement, Property};
@@ -257,19 +249,21 @@ impl Mesh {
                     return Err(parse_err("PLY", format!("face {i} lacks an integer vertex_indices list")))
                 }
             };
-            if idx.len() != 3 {
+            if idx.len() < 3 {
                 return Err(parse_err(
                     "PLY",
-                    format!("face {i} has {} corners; only triangle meshes are supported", idx.len()),
+                    format!("face {i} has {} corners; a face needs at least three", idx.len()),
                 ));
             }
-            let mut t = [0u32; 3];
-            for (k, &x) in idx.iter().enumerate() {
-                t[k] = u32::try_from(x).map_err(|_| {
-                    parse_err("PLY", format!("face {i} has the negative vertex index {x}"))
-                })?;
-            }
-            triangles.push(t);
+            let idx: Vec<u32> = idx
+                .iter()
+                .map(|&x| {
+                    u32::try_from(x)
+                        .map_err(|_| parse_err("PLY", format!("face {i} has the negative vertex index {x}")))
+                })
+                .collect::<Result<_, _>>()?;
+            // Polygons become triangle fans, as tobj does for OBJ files.
+            triangles.extend((1..idx.len() - 1).map(|j| [idx[0], idx[j], idx[j + 1]]));
         }
         if !normals.is_empty() && normals.len() == positions.len() {
             Self::with_normals(positions, normals, triangles)
