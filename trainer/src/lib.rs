@@ -9,6 +9,7 @@
 //! - [`intrinsic`]: Laplace–Beltrami eigenfunctions for the intrinsic position encoding.
 //! - [`metrics`]: PSNR, DSSIM, LPIPS, HDR-FLIP, BRDF-space RMSE, reciprocity and energy (Sec. 6).
 //! - [`commands`]: the bodies of the `fit`, `models` and `bench-step` subcommands.
+//! - [`study`]: the comparison of Sec. 6 (fit and evaluate every variant, write the report).
 
 pub mod adam;
 mod bits;
@@ -20,6 +21,7 @@ pub mod loss;
 pub mod metrics;
 pub mod models;
 pub mod observations;
+pub mod study;
 pub mod toy;
 pub mod train;
 

@@ -14,8 +14,9 @@ static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
 #[derive(Parser)]
 #[command(name = "trainer", version, about = "Fits and compares neural BRDFs (On Neural BRDFs)")]
 struct Cli {
+    /// With no subcommand, runs the study on its embedded default (`trainer study`).
     #[command(subcommand)]
-    command: Command,
+    command: Option<Command>,
 }
 
 #[derive(clap::Args, Clone)]
@@ -42,6 +43,9 @@ struct ModelArgs {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Runs the comparison study (Sec. 6): fits and evaluates every (scene, variant) job and writes
+    /// REPORT.md, results.json and results.csv; finished jobs are reused.
+    Study(StudyArgs),
     /// Render a semi-synthetic data set (Sec. 5.3): a mesh, a ground-truth material, posed views and
     /// directional lights.
     Synth(trainer::dataset::synth::SynthArgs),
@@ -113,6 +117,30 @@ enum Command {
     },
 }
 
+#[derive(clap::Args, Clone, Default)]
+struct StudyArgs {
+    /// Study config (JSON, see trainer::study::StudyConfig); the embedded small default when absent
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Output folder: data sets, jobs and the report
+    #[arg(long, default_value = "out/study")]
+    out: PathBuf,
+    /// Run only the jobs of shard I of N (job j belongs to shard j mod N)
+    #[arg(long)]
+    shard: Option<trainer::study::Shard>,
+}
+
+fn study(args: StudyArgs) -> trainer::Result<()> {
+    let config = match &args.config {
+        Some(p) => trainer::study::StudyConfig::read(p)?,
+        None => trainer::study::StudyConfig::default_small(),
+    };
+    let out = if args.out.as_os_str().is_empty() { PathBuf::from("out/study") } else { args.out };
+    let results = trainer::study::run_and_report(&config, &out, args.shard, true)?;
+    println!("{} jobs; report in {}", results.len(), out.join("REPORT.md").display());
+    Ok(())
+}
+
 fn main() {
     if let Err(e) = run(Cli::parse()) {
         eprintln!("error: {e}");
@@ -121,7 +149,9 @@ fn main() {
 }
 
 fn run(cli: Cli) -> trainer::Result<()> {
-    match cli.command {
+    let Some(command) = cli.command else { return study(StudyArgs::default()) };
+    match command {
+        Command::Study(args) => study(args)?,
         Command::Synth(args) => {
             trainer::dataset::synth::run(&args).map_err(trainer::Error::Core)?;
         }

@@ -1,0 +1,202 @@
+//! What a study runs: the scenes (mesh × material, rendered once each by `synth`), the model variants,
+//! the training budget and the sample counts of the BRDF-space metrics. Serialised as JSON; the embedded
+//! [`StudyConfig::default_small`] is what `trainer` runs with no arguments.
+
+use std::hash::Hasher;
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use crate::commands::parse_config;
+use crate::dataset::synth::SynthArgs;
+use crate::models::Config;
+use crate::{Error, Result};
+
+/// One object of the study: a mesh and its ground-truth material (the `synth` arguments).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SceneConfig {
+    /// Built-in mesh id or OBJ/PLY path.
+    pub mesh: String,
+    /// Built-in material id, MERL/NBRDF-json file, or `lambert:R,G,B`.
+    pub material: String,
+}
+
+impl SceneConfig {
+    /// A file-system friendly id, unique among scenes with different arguments.
+    pub fn id(&self) -> String {
+        let clean = |s: &str| {
+            let base = Path::new(s).file_stem().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default();
+            base.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' { c } else { '_' }).collect::<String>()
+        };
+        format!("{}__{}", clean(&self.mesh), clean(&self.material))
+    }
+}
+
+/// One model variant: `model` as `trainer fit --model` takes it, `enhanced` for Eq. 8.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ModelSpec {
+    pub model: String,
+    #[serde(default)]
+    pub enhanced: bool,
+    /// Tab. 2 ablation: layers the directions pass through (neural models only).
+    #[serde(default)]
+    pub direction_layers: Option<u8>,
+}
+
+/// The whole study.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct StudyConfig {
+    pub scenes: Vec<SceneConfig>,
+    pub models: Vec<ModelSpec>,
+    /// Position input of every model: `uniform`, `intrinsic:K` or `extrinsic:F`.
+    pub position: String,
+    /// Reciprocity strategy of the purely neural models (`none`, `swap`, `exact`).
+    pub reciprocity: String,
+    /// Image side in pixels.
+    pub size: u32,
+    pub views: usize,
+    pub train_views: usize,
+    pub train_lights: usize,
+    pub test_lights: usize,
+    pub sigma: f32,
+    pub seed: u64,
+    /// Training steps and pixels per batch.
+    pub steps: usize,
+    pub batch: usize,
+    pub lr: f32,
+    pub lr_final: f32,
+    /// Use every n-th masked pixel of the training images.
+    pub pixel_stride: usize,
+    /// Test pairs for the reciprocity RMSE (Tab. 3) and the eval timing.
+    pub reciprocity_pairs: usize,
+    /// Point-light pairs and view samples per pair of the energy analysis (Tab. 4; paper 50k × 20k).
+    pub energy_pairs: usize,
+    pub energy_samples: usize,
+}
+
+impl StudyConfig {
+    /// The embedded default: two built-in materials on two built-in meshes at 64×64, every variant of
+    /// Tab. 1, a few hundred steps — minutes on two cores, not the paper's scale.
+    pub fn default_small() -> Self {
+        let m = |model: &str, enhanced| ModelSpec { model: model.into(), enhanced, direction_layers: None };
+        StudyConfig {
+            scenes: vec![
+                SceneConfig { mesh: "sphere".into(), material: "two-lobe-metal".into() },
+                SceneConfig { mesh: "torus".into(), material: "clear-coat".into() },
+            ],
+            models: vec![
+                m("rp", false),
+                m("ts", false),
+                m("fmbrdf", false),
+                m("disney", false),
+                m("single-mlp", false),
+                m("additive-separate", false),
+                m("additive-shared", false),
+                m("additive-separate", true),
+                m("additive-shared", true),
+            ],
+            position: "extrinsic:2".into(),
+            reciprocity: "exact".into(),
+            size: 64,
+            views: 6,
+            train_views: 4,
+            train_lights: 8,
+            test_lights: 3,
+            sigma: 1e-3,
+            seed: 0,
+            steps: 300,
+            batch: 4096,
+            lr: 3e-3,
+            lr_final: 3e-4,
+            pixel_stride: 1,
+            reciprocity_pairs: 2000,
+            energy_pairs: 64,
+            energy_samples: 1000,
+        }
+    }
+
+    /// Reads a JSON config file.
+    pub fn read(path: &Path) -> Result<Self> {
+        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        serde_json::from_slice(&bytes).map_err(|e| Error::Invalid(format!("study config {}: {e}", path.display())))
+    }
+
+    /// The trainer configuration of a model spec.
+    pub fn model_config(&self, m: &ModelSpec) -> Result<Config> {
+        let parametric = matches!(m.model.as_str(), "rp" | "ts" | "fmbrdf" | "disney" | "lambert");
+        let reciprocity = if parametric { "none" } else { &self.reciprocity };
+        parse_config(
+            &m.model,
+            reciprocity,
+            m.enhanced,
+            &self.position,
+            crate::models::arch::DEFAULT_ANGLE_FREQUENCIES,
+            m.direction_layers,
+        )
+    }
+
+    /// The `synth` arguments of a scene, writing to `out`.
+    pub fn synth_args(&self, scene: &SceneConfig, out: &Path) -> SynthArgs {
+        SynthArgs {
+            mesh: scene.mesh.clone(),
+            material: scene.material.clone(),
+            size: self.size,
+            views: self.views,
+            train_views: self.train_views,
+            train_lights: self.train_lights,
+            test_lights: self.test_lights,
+            sigma: self.sigma,
+            seed: self.seed,
+            ..SynthArgs::new(out)
+        }
+    }
+
+    /// Hash of what determines a scene's data set (its cache key).
+    pub fn scene_hash(&self, scene: &SceneConfig) -> String {
+        let key = (scene, self.size, self.views, self.train_views, self.train_lights, self.test_lights, self.sigma, self.seed);
+        hash_json(&key)
+    }
+
+    /// Hash of everything that determines one job's result (its cache key).
+    pub fn job_hash(&self, scene: &SceneConfig, m: &ModelSpec) -> String {
+        let key = (
+            self.scene_hash(scene),
+            m,
+            &self.position,
+            &self.reciprocity,
+            (self.steps, self.batch, self.lr, self.lr_final, self.pixel_stride),
+            (self.reciprocity_pairs, self.energy_pairs, self.energy_samples),
+        );
+        hash_json(&key)
+    }
+}
+
+/// FNV-1a of the value's JSON, as 16 hex digits.
+fn hash_json<T: Serialize>(v: &T) -> String {
+    let mut h = fnv::FnvHasher::default();
+    h.write(&serde_json::to_vec(v).expect("plain data serialises"));
+    format!("{:016x}", h.finish())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn default_has_every_variant_and_parses() {
+        let c = StudyConfig::default_small();
+        let names: Vec<String> = c.models.iter().map(|m| c.model_config(m).unwrap().name()).collect();
+        assert_eq!(names.len(), 9);
+        let mut unique = names.clone();
+        unique.sort();
+        unique.dedup();
+        assert_eq!(unique.len(), 9, "{names:?}");
+        let json = serde_json::to_string(&c).unwrap();
+        assert_eq!(serde_json::from_str::<StudyConfig>(&json).unwrap(), c);
+        // The cache keys change with what they depend on.
+        let mut d = c.clone();
+        d.steps += 1;
+        assert_eq!(c.scene_hash(&c.scenes[0]), d.scene_hash(&d.scenes[0]));
+        assert_ne!(c.job_hash(&c.scenes[0], &c.models[0]), d.job_hash(&d.scenes[0], &d.models[0]));
+    }
+}
