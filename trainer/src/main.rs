@@ -128,14 +128,36 @@ struct StudyArgs {
     /// Run only the jobs of shard I of N (job j belongs to shard j mod N)
     #[arg(long)]
     shard: Option<trainer::study::Shard>,
+    #[command(subcommand)]
+    action: Option<StudyAction>,
+}
+
+#[derive(Subcommand, Clone)]
+enum StudyAction {
+    /// Joins the results.json of several study outputs (e.g. shards run with different --out) and
+    /// writes the report into --out
+    Merge {
+        /// The study output folders to join
+        #[arg(required = true)]
+        dirs: Vec<PathBuf>,
+    },
 }
 
 fn study(args: StudyArgs) -> trainer::Result<()> {
+    if args.action.is_some() && (args.config.is_some() || args.shard.is_some()) {
+        return Err(trainer::Error::Invalid("study merge takes only --out and the folders to join".into()));
+    }
+    let out = if args.out.as_os_str().is_empty() { PathBuf::from("out/study") } else { args.out };
+    if let Some(StudyAction::Merge { dirs }) = &args.action {
+        let (config, results) = trainer::study::report::merge(dirs)?;
+        trainer::study::report::write(&out, &config, &results)?;
+        println!("{} jobs from {} folders; report in {}", results.len(), dirs.len(), out.join("REPORT.md").display());
+        return Ok(());
+    }
     let config = match &args.config {
         Some(p) => trainer::study::StudyConfig::read(p)?,
         None => trainer::study::StudyConfig::default_small(),
     };
-    let out = if args.out.as_os_str().is_empty() { PathBuf::from("out/study") } else { args.out };
     let results = trainer::study::run_and_report(&config, &out, args.shard, true)?;
     println!("{} jobs; report in {}", results.len(), out.join("REPORT.md").display());
     Ok(())

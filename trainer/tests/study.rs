@@ -74,4 +74,13 @@ fn tiny_study_writes_every_table_and_reuses_jobs() {
     let s1 = study::run(&config, &out, Some("1/2".parse().unwrap()), false).unwrap();
     assert_eq!((s0.len(), s1.len()), (1, 1));
     assert_ne!(s0[0].model, s1[0].model);
+
+    // Shards run into separate folders and merged give the same jobs as one run.
+    let (a, b) = (dir.path().join("a"), dir.path().join("b"));
+    study::run_and_report(&config, &a, Some("0/2".parse().unwrap()), false).unwrap();
+    study::run_and_report(&config, &b, Some("1/2".parse().unwrap()), false).unwrap();
+    let (merged_config, merged) = study::report::merge(&[a, b]).unwrap();
+    assert_eq!(merged_config, config);
+    let names = |r: &[study::JobResult]| r.iter().map(|j| j.model.clone()).collect::<Vec<_>>();
+    assert_eq!(names(&merged), names(&results));
 }

@@ -203,3 +203,30 @@ pub fn write(out: &Path, config: &StudyConfig, results: &[JobResult]) -> Result<
     put("results.json", &serde_json::to_vec_pretty(&json).map_err(|e| Error::io(out, e))?)?;
     Ok(())
 }
+
+/// Reads the `results.json` of several study outputs (e.g. one per shard) and joins their jobs; a job
+/// (scene, model) found twice keeps the later folder's result. The config is the first folder's.
+pub fn merge(dirs: &[std::path::PathBuf]) -> Result<(StudyConfig, Vec<JobResult>)> {
+    #[derive(serde::Deserialize)]
+    struct Saved {
+        config: StudyConfig,
+        jobs: Vec<JobResult>,
+    }
+    let mut config = None;
+    let mut jobs: Vec<JobResult> = Vec::new();
+    for d in dirs {
+        let p = d.join("results.json");
+        let bytes = std::fs::read(&p).map_err(|e| Error::io(&p, e))?;
+        let saved: Saved =
+            serde_json::from_slice(&bytes).map_err(|e| Error::Invalid(format!("{}: {e}", p.display())))?;
+        config.get_or_insert(saved.config);
+        for j in saved.jobs {
+            match jobs.iter_mut().find(|k| k.scene == j.scene && k.model == j.model) {
+                Some(k) => *k = j,
+                None => jobs.push(j),
+            }
+        }
+    }
+    let config = config.ok_or_else(|| Error::Invalid("study merge: give at least one folder".into()))?;
+    Ok((config, jobs))
+}
