@@ -332,11 +332,7 @@ impl TorranceSparrow {
     #[inline]
     pub fn sample(&self, u: [f32; 3], wo: Vec3) -> Option<BsdfSample> {
         let wo = valid_wo(wo)?;
-        let p = self.lobe_probabilities(wo);
-        let wi = match choose(&p, u[2]) {
-            0 => square_to_cosine_hemisphere([u[0], u[1]]),
-            _ => reflect_about(wo, sample_beckmann(clamp_alpha(self.alpha), [u[0], u[1]])),
-        };
+        let wi = sample_cosine_beckmann(self.lobe_probabilities(wo), self.alpha, u, wo);
         finish(wi, self.pdf(wo, wi), self.eval(wi, wo))
     }
 
@@ -346,11 +342,25 @@ impl TorranceSparrow {
         let Some((wi, wo)) = crate::angles::upper_hemisphere_pair(wi, wo) else {
             return 0.0;
         };
-        let p = self.lobe_probabilities(wo);
-        let alpha = clamp_alpha(self.alpha);
-        p[0] * cosine_hemisphere_pdf(wi)
-            + p[1] * half_vector_pdf(wo, wi, |c, s2| microfacet::beckmann_d(c, s2, alpha))
+        pdf_cosine_beckmann(self.lobe_probabilities(wo), self.alpha, wo, wi)
     }
+}
+
+/// A direction from the mixture `p[0]` cosine lobe + `p[1]` Beckmann half vectors of slope `alpha`
+/// reflected about `wo`: the proposal of Torrance-Sparrow and of the FMBRDF.
+#[inline]
+fn sample_cosine_beckmann(p: [f32; 2], alpha: f32, u: [f32; 3], wo: Vec3) -> Vec3 {
+    match choose(&p, u[2]) {
+        0 => square_to_cosine_hemisphere([u[0], u[1]]),
+        _ => reflect_about(wo, sample_beckmann(clamp_alpha(alpha), [u[0], u[1]])),
+    }
+}
+
+/// Density of [`sample_cosine_beckmann`] at `wi` (both directions valid and unit).
+#[inline]
+fn pdf_cosine_beckmann(p: [f32; 2], alpha: f32, wo: Vec3, wi: Vec3) -> f32 {
+    let alpha = clamp_alpha(alpha);
+    p[0] * cosine_hemisphere_pdf(wi) + p[1] * half_vector_pdf(wo, wi, |c, s2| microfacet::beckmann_d(c, s2, alpha))
 }
 
 impl FresnelMicrofacet {
@@ -367,11 +377,7 @@ impl FresnelMicrofacet {
     #[inline]
     pub fn sample(&self, u: [f32; 3], wo: Vec3) -> Option<BsdfSample> {
         let wo = valid_wo(wo)?;
-        let p = self.lobe_probabilities(wo);
-        let wi = match choose(&p, u[2]) {
-            0 => square_to_cosine_hemisphere([u[0], u[1]]),
-            _ => reflect_about(wo, sample_beckmann(clamp_alpha(self.alpha), [u[0], u[1]])),
-        };
+        let wi = sample_cosine_beckmann(self.lobe_probabilities(wo), self.alpha, u, wo);
         finish(wi, self.pdf(wo, wi), self.eval(wi, wo))
     }
 
@@ -381,10 +387,7 @@ impl FresnelMicrofacet {
         let Some((wi, wo)) = crate::angles::upper_hemisphere_pair(wi, wo) else {
             return 0.0;
         };
-        let p = self.lobe_probabilities(wo);
-        let alpha = clamp_alpha(self.alpha);
-        p[0] * cosine_hemisphere_pdf(wi)
-            + p[1] * half_vector_pdf(wo, wi, |c, s2| microfacet::beckmann_d(c, s2, alpha))
+        pdf_cosine_beckmann(self.lobe_probabilities(wo), self.alpha, wo, wi)
     }
 }
 

@@ -196,6 +196,8 @@ impl Lpips {
 #[cfg(test)]
 mod tests {
     use super::*;
+    // The integer test patterns of the SSIM test, in [0, 1].
+    use crate::metrics::ssim::tests::pair;
 
     fn weights() -> Option<Lpips> {
         match Lpips::load_or_na(None) {
@@ -205,20 +207,6 @@ mod tests {
                 None
             }
         }
-    }
-
-    /// The integer patterns of the SSIM test, in [0, 1].
-    fn pair(w: u32, h: u32) -> (RgbImage, RgbImage) {
-        let (mut x, mut y) = (Vec::new(), Vec::new());
-        for r in 0..h as usize {
-            for c in 0..w as usize {
-                let a = [0, 1, 2].map(|ch| ((r * 73 + c * 151 + ch * 37) % 256) as f32 / 255.0);
-                let b = [0, 1, 2].map(|ch| ((r * r * 7 + c * 13 + ch * 101) % 256) as f32 / 255.0);
-                x.push(a);
-                y.push([0, 1, 2].map(|ch| 0.7 * a[ch] + 0.3 * b[ch]));
-            }
-        }
-        (RgbImage::from_data(w, h, x).unwrap(), RgbImage::from_data(w, h, y).unwrap())
     }
 
     #[test]

@@ -126,11 +126,11 @@ fn mean_ssim_channel(x: &[f64], y: &[f64], w: usize, h: usize, k: &[f64; WINDOW]
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     /// The integer patterns also written out in the Python snippet that produced the reference values.
-    fn pair(w: u32, h: u32) -> (RgbImage, RgbImage) {
+    pub(crate) fn pair(w: u32, h: u32) -> (RgbImage, RgbImage) {
         let (mut x, mut y) = (Vec::new(), Vec::new());
         for r in 0..h as usize {
             for c in 0..w as usize {
