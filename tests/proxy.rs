@@ -10,113 +10,15 @@ use nbrdf::parametric::microfacet::{ggx_d, smith_ggx_g1_over_2cos};
 use nbrdf::sampling::proxy::DEFENSIVE;
 use nbrdf::sampling::{fit_proxy, GgxLobe, Proxy};
 use nbrdf::{Rgb, Vec3};
-use std::f64::consts::PI;
 
-const N_THETA: usize = 16; // bins in cos θ (equal solid angle)
-const N_PHI: usize = 32;
-const SUB: usize = 16; // quadrature points per bin and axis
+mod common;
+use common::{albedo, check_sampler, dir, Sampler};
 
-struct Rng(u64);
-impl Rng {
-    fn next(&mut self) -> f32 {
-        self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-        ((self.0 >> 40) as f32) / (1u64 << 24) as f32
-    }
-}
-
-fn dir(theta: f64, phi: f64) -> Vec3 {
-    Vec3::new((theta.sin() * phi.cos()) as f32, (theta.sin() * phi.sin()) as f32, theta.cos() as f32)
-}
-
-fn bin_of(w: Vec3) -> usize {
-    let t = ((w.z as f64) * N_THETA as f64).clamp(0.0, N_THETA as f64 - 1.0) as usize;
-    let mut phi = (w.y as f64).atan2(w.x as f64);
-    if phi < 0.0 {
-        phi += 2.0 * PI;
-    }
-    t * N_PHI + (phi / (2.0 * PI) * N_PHI as f64).clamp(0.0, N_PHI as f64 - 1.0) as usize
-}
-
-/// ∫ pdf over each bin (midpoint rule on SUB × SUB points in (cos θ, φ)).
-fn expected_mass(proxy: &Proxy, wo: Vec3) -> Vec<f64> {
-    let mut mass = vec![0.0; N_THETA * N_PHI];
-    let dz = 1.0 / (N_THETA * SUB) as f64;
-    let dphi = 2.0 * PI / (N_PHI * SUB) as f64;
-    for i in 0..N_THETA * SUB {
-        let z = (i as f64 + 0.5) * dz;
-        let r = (1.0 - z * z).sqrt();
-        for j in 0..N_PHI * SUB {
-            let phi = (j as f64 + 0.5) * dphi;
-            let wi = Vec3::new((r * phi.cos()) as f32, (r * phi.sin()) as f32, z as f32);
-            mass[(i / SUB) * N_PHI + j / SUB] += proxy.pdf(wo, wi) as f64 * dz * dphi;
-        }
-    }
-    mass
-}
-
-/// Directional albedo of `f` by a fine midpoint quadrature (independent of any sampler).
-fn albedo(f: &dyn Fn(Vec3, Vec3) -> Rgb, wo: Vec3) -> [f64; 3] {
-    let n = 768;
-    let mut a = [0.0f64; 3];
-    for i in 0..n {
-        let z = (i as f64 + 0.5) / n as f64;
-        let r = (1.0 - z * z).sqrt();
-        for j in 0..n {
-            let phi = (j as f64 + 0.5) / n as f64 * 2.0 * PI;
-            let v = f(Vec3::new((r * phi.cos()) as f32, (r * phi.sin()) as f32, z as f32), wo);
-            (0..3).for_each(|c| a[c] += v[c] as f64 * z);
-        }
-    }
-    a.map(|x| x * 2.0 * PI / (n * n) as f64)
-}
-
-/// Samples `proxy` `n` times with `brdf` for the weight: checks pdf, weight and the histogram against
-/// the pdf (χ²), and returns the mean weight.
+/// Samples `proxy` `n` times with `brdf` for the weight and checks it against its pdf
+/// ([`common::check_sampler`]); returns the mean weight.
 fn check(name: &str, proxy: &Proxy, brdf: &dyn Fn(Vec3, Vec3) -> Rgb, wo: Vec3, n: usize, seed: u64) -> [f64; 3] {
-    let mut rng = Rng(seed);
-    let mut counts = vec![0.0f64; N_THETA * N_PHI];
-    let (mut produced, mut wsum) = (0usize, [0.0f64; 3]);
-    for _ in 0..n {
-        let u = [rng.next(), rng.next(), rng.next()];
-        let Some(s) = proxy.sample(u, wo, brdf) else { continue };
-        produced += 1;
-        counts[bin_of(s.wi)] += 1.0;
-        let p = proxy.pdf(wo, s.wi);
-        assert!((s.pdf - p).abs() <= 1e-5 * p, "{name}: sampled pdf {} vs pdf() {p}", s.pdf);
-        let f = brdf(s.wi, wo);
-        for c in 0..3 {
-            let w = f[c] * s.wi.z / s.pdf;
-            assert!((s.weight[c] - w).abs() <= 1e-4 * w.max(1e-6), "{name}: weight is not f cos / pdf");
-            wsum[c] += s.weight[c] as f64;
-        }
-    }
-    let mass = expected_mass(proxy, wo);
-    let total: f64 = mass.iter().sum();
-    let frac = produced as f64 / n as f64;
-    let sigma = (frac * (1.0 - frac) / n as f64).sqrt().max(1.0 / n as f64);
-    assert!(total <= 1.0 + 2e-3, "{name}: ∫ pdf = {total}");
-    assert!((total - frac).abs() < 5.0 * sigma + 2e-3, "{name}: ∫ pdf = {total}, produced {frac}");
-    let (mut chi2, mut dof, mut pool_obs, mut pool_exp) = (0.0, 0usize, 0.0, 0.0);
-    for b in 0..mass.len() {
-        let e = mass[b] * n as f64;
-        if e < 5.0 {
-            pool_obs += counts[b];
-            pool_exp += e;
-        } else {
-            chi2 += (counts[b] - e).powi(2) / e;
-            dof += 1;
-        }
-    }
-    if pool_exp >= 5.0 {
-        chi2 += (pool_obs - pool_exp).powi(2) / pool_exp;
-        dof += 1;
-    }
-    let dof = dof.saturating_sub(1).max(1) as f64;
-    // Upper 1 - 3e-5 quantile of χ²(dof), Wilson-Hilferty with z = 4 (as in tests/sampling.rs).
-    let k = 2.0 / (9.0 * dof);
-    let limit = dof * (1.0 - k + 4.0 * k.sqrt()).powi(3);
-    assert!(chi2 < limit, "{name}: χ² = {chi2:.1} > {limit:.1} with {dof} dof");
-    wsum.map(|s| s / n as f64)
+    let sampler = Sampler { sample: &|u| proxy.sample(u, wo, brdf), pdf: &|wi| proxy.pdf(wo, wi), eval: &|wi| brdf(wi, wo) };
+    check_sampler(name, &sampler, n, seed).1
 }
 
 /// A Fresnel-free GGX microfacet BRDF, written out here independently of the fit.
@@ -145,7 +47,7 @@ fn proxy_sample_and_pdf_agree_and_weights_are_unbiased() {
                     let label = format!("{name} θo={theta}");
                     let mean = check(&label, &proxy, brdf, wo, 200_000, 11 + (2 * k + t) as u64);
                     // The cosine lobe covers the hemisphere, so E[f cos / pdf] is the albedo.
-                    let a = albedo(brdf, wo);
+                    let a = albedo(brdf, wo, 768);
                     for c in 0..3 {
                         assert!((mean[c] - a[c]).abs() < 0.03 * a[c].max(0.05), "{label}: E[weight] {mean:?} vs albedo {a:?}");
                     }

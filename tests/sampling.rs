@@ -7,11 +7,9 @@ use nbrdf::builtin::Builtin;
 use nbrdf::parametric::{Disney, FresnelMicrofacet, Lambert, Parametric, Phong, TorranceSparrow};
 use nbrdf::sampling::BsdfSample;
 use nbrdf::{Rgb, Vec3};
-use std::f64::consts::PI;
 
-const N_THETA: usize = 16; // bins in cos θ (equal solid angle)
-const N_PHI: usize = 32;
-const SUB: usize = 16; // quadrature points per bin and axis
+mod common;
+use common::{albedo, check_sampler, dir, expected_mass, Sampler};
 
 /// What the checks need of a sampled BRDF: the parametric models and the built-in materials.
 trait Sampled: Send + Sync {
@@ -42,121 +40,11 @@ impl Sampled for Builtin {
     }
 }
 
-struct Rng(u64);
-impl Rng {
-    fn next(&mut self) -> f32 {
-        self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-        ((self.0 >> 40) as f32) / (1u64 << 24) as f32 // 24 bits: exactly representable, < 1
-    }
-}
-
-fn dir(theta: f64, phi: f64) -> Vec3 {
-    Vec3::new((theta.sin() * phi.cos()) as f32, (theta.sin() * phi.sin()) as f32, theta.cos() as f32)
-}
-
-fn bin_of(w: Vec3) -> usize {
-    let t = ((w.z as f64) * N_THETA as f64).clamp(0.0, N_THETA as f64 - 1.0) as usize;
-    let mut phi = (w.y as f64).atan2(w.x as f64);
-    if phi < 0.0 {
-        phi += 2.0 * PI;
-    }
-    let p = (phi / (2.0 * PI) * N_PHI as f64).clamp(0.0, N_PHI as f64 - 1.0) as usize;
-    t * N_PHI + p
-}
-
-/// ∫ pdf over each bin (midpoint rule on SUB × SUB points in (cos θ, φ)).
-fn expected_mass(m: &dyn Sampled, wo: Vec3) -> Vec<f64> {
-    let mut mass = vec![0.0; N_THETA * N_PHI];
-    let dz = 1.0 / (N_THETA * SUB) as f64;
-    let dphi = 2.0 * PI / (N_PHI * SUB) as f64;
-    for i in 0..N_THETA * SUB {
-        let z = (i as f64 + 0.5) * dz;
-        let r = (1.0 - z * z).sqrt();
-        for j in 0..N_PHI * SUB {
-            let phi = (j as f64 + 0.5) * dphi;
-            let wi = Vec3::new((r * phi.cos()) as f32, (r * phi.sin()) as f32, z as f32);
-            mass[(i / SUB) * N_PHI + j / SUB] += m.pdf(wo, wi) as f64 * dz * dphi;
-        }
-    }
-    mass
-}
-
-/// Draws `n` samples; checks them against the pdf and returns (fraction produced, mean weight).
+/// Draws `n` samples of `m` at `wo` and checks them against its pdf ([`common::check_sampler`]);
+/// returns (share produced, mean weight).
 fn check_model(name: &str, m: &dyn Sampled, wo: Vec3, n: usize, seed: u64) -> (f64, [f64; 3]) {
-    let mut rng = Rng(seed);
-    let mut counts = vec![0.0f64; N_THETA * N_PHI];
-    let mut produced = 0usize;
-    let mut weight_sum = [0.0f64; 3];
-    for _ in 0..n {
-        let u = [rng.next(), rng.next(), rng.next()];
-        if let Some(s) = m.sample(u, wo) {
-            produced += 1;
-            counts[bin_of(s.wi)] += 1.0;
-            // The reported pdf is the pdf function's value, and the weight is f cos / pdf.
-            let p = m.pdf(wo, s.wi);
-            assert!((s.pdf - p).abs() <= 1e-4 * p, "{name}: sample pdf {} vs pdf() {p}", s.pdf);
-            let f = m.eval(s.wi, wo);
-            for c in 0..3 {
-                let w = f[c] * s.wi.z / s.pdf;
-                assert!((s.weight[c] - w).abs() <= 1e-4 * w.max(1e-6), "{name}: weight");
-                weight_sum[c] += s.weight[c] as f64;
-            }
-        }
-    }
-    let mass = expected_mass(m, wo);
-    let total: f64 = mass.iter().sum();
-    let frac = produced as f64 / n as f64;
-    let sigma = (frac * (1.0 - frac) / n as f64).sqrt().max(1.0 / n as f64);
-    assert!(total <= 1.0 + 2e-3, "{name}: ∫ pdf = {total}");
-    assert!((total - frac).abs() < 5.0 * sigma + 2e-3, "{name}: ∫ pdf = {total}, produced {frac}");
-
-    // Chi-square with bins of small expectation pooled (Mitsuba's ChiSquareTest does the same).
-    let (mut chi2, mut dof, mut pool_obs, mut pool_exp) = (0.0, 0usize, 0.0, 0.0);
-    for b in 0..mass.len() {
-        let e = mass[b] * n as f64;
-        if e < 5.0 {
-            pool_obs += counts[b];
-            pool_exp += e;
-        } else {
-            chi2 += (counts[b] - e).powi(2) / e;
-            dof += 1;
-        }
-    }
-    if pool_exp >= 5.0 {
-        chi2 += (pool_obs - pool_exp).powi(2) / pool_exp;
-        dof += 1;
-    } else {
-        assert!(
-            pool_obs < 5.0 + 5.0 * pool_exp.sqrt() + 5.0,
-            "{name}: {pool_obs} samples where the pdf has {pool_exp}"
-        );
-    }
-    let dof = dof.saturating_sub(1).max(1) as f64;
-    // Upper 1 - 3e-5 quantile of χ²(dof) by the Wilson-Hilferty approximation (z = 4): with 14 tests a
-    // correct sampler fails with probability ~5e-4 (and the seeds are fixed, so never flakily).
-    let k = 2.0 / (9.0 * dof);
-    let limit = dof * (1.0 - k + 4.0 * k.sqrt()).powi(3);
-    assert!(chi2 < limit, "{name}: χ² = {chi2:.1} > {limit:.1} with {dof} dof");
-    (frac, weight_sum.map(|s| s / n as f64))
-}
-
-/// Directional albedo by a fine midpoint quadrature (independent of the sampler).
-fn albedo(m: &dyn Sampled, wo: Vec3) -> [f64; 3] {
-    let n = 512;
-    let mut a = [0.0f64; 3];
-    for i in 0..n {
-        let z = (i as f64 + 0.5) / n as f64;
-        let r = (1.0 - z * z).sqrt();
-        for j in 0..n {
-            let phi = (j as f64 + 0.5) / n as f64 * 2.0 * PI;
-            let wi = Vec3::new((r * phi.cos()) as f32, (r * phi.sin()) as f32, z as f32);
-            let f = m.eval(wi, wo);
-            for c in 0..3 {
-                a[c] += f[c] as f64 * z;
-            }
-        }
-    }
-    a.map(|x| x * 2.0 * PI / (n * n) as f64)
+    let sampler = Sampler { sample: &|u| m.sample(u, wo), pdf: &|wi| m.pdf(wo, wi), eval: &|wi| m.eval(wi, wo) };
+    check_sampler(name, &sampler, n, seed)
 }
 
 fn parametric_models() -> Vec<(&'static str, Parametric)> {
@@ -220,7 +108,7 @@ fn sample_and_pdf_agree_and_weights_are_unbiased() {
                     let (_, mean) = check_model(&label, m.as_ref(), wo, n, 1 + (k * 3 + t) as u64);
                     // E[weight] = ∫ f cos θi dωi wherever the pdf covers f (every mixture here has full
                     // support).
-                    let a = albedo(m.as_ref(), wo);
+                    let a = albedo(&|wi, wo| m.eval(wi, wo), wo, 512);
                     for c in 0..3 {
                         assert!(
                             (mean[c] - a[c]).abs() < 0.02 * a[c].max(0.05),
@@ -236,7 +124,7 @@ fn sample_and_pdf_agree_and_weights_are_unbiased() {
 #[test]
 fn cosine_lobe_pdf_integrates_to_one() {
     let m = Parametric::Lambert(Lambert { kd: [1.0; 3] });
-    let total: f64 = expected_mass(&m, dir(0.4, 0.0)).iter().sum();
+    let total: f64 = expected_mass(&|wi| m.pdf(dir(0.4, 0.0), wi)).iter().sum();
     assert!((total - 1.0).abs() < 1e-4, "{total}");
 }
 
