@@ -32,6 +32,37 @@ pub const TINY_PACKET: usize = 16;
 /// Network inputs of a tiny network (the NBRDF-json input `[h, d]`).
 pub const TINY_INPUTS: usize = 6;
 
+/// The range of `|v|²` in which `nbrdf_json`'s input transform normalises `v` with one square root
+/// and one division (outside it: by the careful `angles::unit`).
+pub const UNIT_FAST_MIN: f32 = 1e-30;
+/// See [`UNIT_FAST_MIN`].
+pub const UNIT_FAST_MAX: f32 = 1e30;
+
+/// The NBRDF-json network input `[ρ, 0, h_z, d_x, d_y, d_z]` of the pairs `(wi, wo)` in lanes `0..m`
+/// (component-major: `wi[c][q]`), written to `x` (feature-major), with the same operations in the same
+/// order as the scalar `nbrdf_json::input` (IEEE square root and division are exact-rounded in every
+/// lane, so the bits agree). Returns `(valid, slow)` lane masks: `valid` pairs got their input;
+/// `slow` pairs have a direction outside the one-division normalisation's range (or a non-AVX-512
+/// level) and must be redone one by one with the scalar function; the rest are rejected (below
+/// the horizon, degenerate, non-finite).
+#[inline]
+pub fn half_diff_packet(
+    wi: &[[f32; TINY_PACKET]; 3],
+    wo: &[[f32; TINY_PACKET]; 3],
+    m: usize,
+    x: &mut [[f32; TINY_PACKET]; TINY_INPUTS],
+) -> (u16, u16) {
+    let lanes = if m >= 16 { 0xffff } else { ((1u32 << m) - 1) as u16 };
+    #[cfg(target_arch = "x86_64")]
+    if super::level() == Level::Avx512 {
+        // SAFETY: `level()` is at most the detected level, so the CPU has AVX-512.
+        let (valid, slow) = unsafe { avx512::half_diff_packet(wi, wo, x) };
+        return (valid & lanes, slow & lanes);
+    }
+    let _ = (wi, wo, x);
+    (0, lanes)
+}
+
 /// One dense layer of a [`TinyNet`]: its matrix `[inputs][padded]` (outputs zero-padded to a multiple of
 /// 8) starts at `offset` of the parameters, followed by the bias (`padded` values, zero-padded).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -171,6 +202,69 @@ mod avx512 {
         expm1(x)
     }
 
+    /// `v / |v|` for the lanes with `|v|²` in the fast range (see `nbrdf_json::unit_fast`), and the
+    /// mask of those lanes.
+    #[inline]
+    #[target_feature(enable = "avx512f,avx2,fma")]
+    fn unit_fast(v: [__m512; 3]) -> ([__m512; 3], __mmask16) {
+        let [x, y, z] = v;
+        let l2 = _mm512_add_ps(_mm512_add_ps(_mm512_mul_ps(x, x), _mm512_mul_ps(y, y)), _mm512_mul_ps(z, z));
+        // Ordered comparisons: false for NaN.
+        let ok = _mm512_cmp_ps_mask::<_CMP_GE_OQ>(l2, _mm512_set1_ps(super::UNIT_FAST_MIN))
+            & _mm512_cmp_ps_mask::<_CMP_LE_OQ>(l2, _mm512_set1_ps(super::UNIT_FAST_MAX));
+        let s = _mm512_div_ps(_mm512_set1_ps(1.0), _mm512_sqrt_ps(l2));
+        ([_mm512_mul_ps(x, s), _mm512_mul_ps(y, s), _mm512_mul_ps(z, s)], ok)
+    }
+
+    /// See `super::half_diff_packet`: returns `(valid, slow)` for all 16 lanes.
+    ///
+    /// # Safety
+    /// The CPU has AVX-512F.
+    #[target_feature(enable = "avx512f,avx2,fma")]
+    pub(super) unsafe fn half_diff_packet(
+        wi: &[[f32; TINY_PACKET]; 3],
+        wo: &[[f32; TINY_PACKET]; 3],
+        out: &mut [[f32; TINY_PACKET]; TINY_INPUTS],
+    ) -> (u16, u16) {
+        // SAFETY: every array holds 16 values per row.
+        let ld = |v: &[f32; TINY_PACKET]| unsafe { _mm512_loadu_ps(v.as_ptr()) };
+        let (i, i_ok) = unit_fast([ld(&wi[0]), ld(&wi[1]), ld(&wi[2])]);
+        let (o, o_ok) = unit_fast([ld(&wo[0]), ld(&wo[1]), ld(&wo[2])]);
+        let fast = i_ok & o_ok;
+        let zero = _mm512_setzero_ps();
+        let above = _mm512_cmp_ps_mask::<_CMP_GT_OQ>(i[2], zero) & _mm512_cmp_ps_mask::<_CMP_GT_OQ>(o[2], zero);
+        let (hx, hy, hz) = (_mm512_add_ps(i[0], o[0]), _mm512_add_ps(i[1], o[1]), _mm512_add_ps(i[2], o[2]));
+        let q = _mm512_add_ps(_mm512_mul_ps(hx, hx), _mm512_mul_ps(hy, hy));
+        let one = _mm512_set1_ps(1.0);
+        let inv_len = _mm512_div_ps(one, _mm512_sqrt_ps(_mm512_add_ps(q, _mm512_mul_ps(hz, hz))));
+        let hz = _mm512_mul_ps(hz, inv_len);
+        let pos = _mm512_cmp_ps_mask::<_CMP_GT_OQ>(q, zero);
+        let r = _mm512_sqrt_ps(q);
+        let inv_r = _mm512_div_ps(one, r);
+        let rho = _mm512_maskz_mov_ps(pos, _mm512_mul_ps(r, inv_len));
+        let c = _mm512_mask_mov_ps(one, pos, _mm512_mul_ps(hx, inv_r));
+        let s = _mm512_maskz_mov_ps(pos, _mm512_mul_ps(hy, inv_r));
+        let tx = _mm512_add_ps(_mm512_mul_ps(c, i[0]), _mm512_mul_ps(s, i[1]));
+        let ty = _mm512_sub_ps(_mm512_mul_ps(c, i[1]), _mm512_mul_ps(s, i[0]));
+        let v = [
+            rho,
+            zero,
+            hz,
+            _mm512_sub_ps(_mm512_mul_ps(hz, tx), _mm512_mul_ps(rho, i[2])),
+            ty,
+            _mm512_add_ps(_mm512_mul_ps(rho, tx), _mm512_mul_ps(hz, i[2])),
+        ];
+        // Finite: |v| ≤ MAX (false for NaN and infinity).
+        let max = _mm512_set1_ps(f32::MAX);
+        let mut finite = 0xffff;
+        for (o, v) in out.iter_mut().zip(v) {
+            finite &= _mm512_cmp_ps_mask::<_CMP_LE_OQ>(_mm512_abs_ps(v), max);
+            // SAFETY: `o` holds 16 values.
+            unsafe { _mm512_storeu_ps(o.as_mut_ptr(), v) };
+        }
+        (fast & above & finite, !fast)
+    }
+
     /// One layer for one query, lanes = outputs: `K` 16-lane vectors of outputs and, with `H`, one
     /// 8-lane vector more (a 21-wide layer is 16 + 8 lanes: on Zen 4 a 256-bit FMA costs half a
     /// 512-bit one, so padding to 8 instead of 16 saves a quarter of the FMA work), 4 chains each;
@@ -181,7 +275,13 @@ mod avx512 {
     /// `16 K + 8 H` values.
     #[inline]
     #[target_feature(enable = "avx512f,avx2,fma")]
-    unsafe fn layer_one<const K: usize, const H: bool>(x: *const f32, n: usize, w: *const f32, y: *mut f32, relu: bool) {
+    unsafe fn layer_one<const K: usize, const H: bool>(
+        x: *const f32,
+        n: usize,
+        w: *const f32,
+        y: *mut f32,
+        relu: bool,
+    ) -> __m512 {
         let stride = 16 * K + if H { 8 } else { 0 };
         // SAFETY (whole body): reads `x[..n]`, `w[..(n + 1) stride]`, writes `y[..stride]` (contract).
         unsafe {
@@ -219,16 +319,24 @@ mod avx512 {
             for c in 0..n - i {
                 step!(c, i + c);
             }
+            let mut first = zero;
             for k in 0..K {
                 let v = _mm512_add_ps(_mm512_add_ps(acc[0][k], acc[1][k]), _mm512_add_ps(acc[2][k], acc[3][k]));
                 let v = if relu { _mm512_max_ps(v, zero) } else { v };
                 _mm512_storeu_ps(y.add(16 * k), v);
+                if k == 0 {
+                    first = v;
+                }
             }
             if H {
                 let v = _mm256_add_ps(_mm256_add_ps(acc8[0], acc8[1]), _mm256_add_ps(acc8[2], acc8[3]));
                 let v = if relu { _mm256_max_ps(v, zero8) } else { v };
                 _mm256_storeu_ps(y.add(16 * K), v);
+                if K == 0 {
+                    first = _mm512_zextps256_ps512(v);
+                }
             }
+            first
         }
     }
 
@@ -247,10 +355,11 @@ mod avx512 {
         // `offset`, `padded ≤ 64`, and each layer's inputs are the previous layer's outputs.
         unsafe {
             core::ptr::copy_nonoverlapping(input.as_ptr(), x, TINY_INPUTS);
+            let mut last = _mm512_setzero_ps();
             for l in net.layers {
                 let w = net.params.as_ptr().add(l.offset);
                 let n = l.inputs;
-                match l.padded {
+                last = match l.padded {
                     8 => layer_one::<0, true>(x, n, w, y, l.relu),
                     16 => layer_one::<1, false>(x, n, w, y, l.relu),
                     24 => layer_one::<1, true>(x, n, w, y, l.relu),
@@ -260,12 +369,11 @@ mod avx512 {
                     56 => layer_one::<3, true>(x, n, w, y, l.relu),
                     64 => layer_one::<4, false>(x, n, w, y, l.relu),
                     // A layer without outputs (the next one has no inputs).
-                    _ => {}
-                }
+                    _ => _mm512_setzero_ps(),
+                };
                 core::mem::swap(&mut x, &mut y);
             }
-            // The last layer wrote its 3 outputs.
-            let v = expm1(_mm512_maskz_loadu_ps(0b111, x));
+            let v = expm1(last);
             let mut o = [0.0f32; 16];
             _mm512_storeu_ps(o.as_mut_ptr(), v);
             [o[0], o[1], o[2]]

@@ -22,7 +22,7 @@ use alloc::vec::Vec;
 use serde::Deserialize;
 
 use crate::angles::{half_diff_vectors, unit};
-use crate::kernels::{TinyLayer, TinyNet, TINY_PACKET};
+use crate::kernels::{half_diff_packet, TinyLayer, TinyNet, TINY_PACKET, UNIT_FAST_MAX, UNIT_FAST_MIN};
 use crate::math::sanitize;
 use crate::{Error, Rgb, Vec3, BLACK};
 
@@ -296,33 +296,40 @@ impl NbrdfNetwork {
     }
 
     /// [`eval`](Self::eval) for many direction pairs: `out[i] = eval(wi[i], wo[i])` for the common
-    /// length of the slices, bit for bit. The valid pairs go through the network in packets of
-    /// [`TINY_PACKET`] (one query per vector lane: no lane spent on padding). No allocation.
+    /// length of the slices, bit for bit. The pairs go through the input transform and the network in
+    /// packets of [`TINY_PACKET`] (one pair per vector lane). No allocation.
     pub fn eval_many(&self, wi: &[Vec3], wo: &[Vec3], out: &mut [Rgb]) {
         let n = out.len().min(wi.len()).min(wo.len());
         let net = self.tiny_net();
-        // Lanes past `filled` keep stale inputs; their results are dropped.
-        let mut x = [[0.0f32; TINY_PACKET]; INPUTS];
         let mut y = [[0.0f32; TINY_PACKET]; OUTPUTS];
-        let mut index = [0usize; TINY_PACKET];
-        let mut filled = 0;
-        for i in 0..n {
-            match input(wi[i], wo[i]) {
-                Some(v) => {
-                    for (x, v) in x.iter_mut().zip(v) {
-                        x[filled] = v;
-                    }
-                    index[filled] = i;
-                    filled += 1;
+        for start in (0..n).step_by(TINY_PACKET) {
+            let m = (n - start).min(TINY_PACKET);
+            let (wi, wo, out) = (&wi[start..start + m], &wo[start..start + m], &mut out[start..start + m]);
+            // Lanes past `m` stay 0 and are dropped.
+            let mut a = [[0.0f32; TINY_PACKET]; 3];
+            let mut b = [[0.0f32; TINY_PACKET]; 3];
+            for q in 0..m {
+                for c in 0..3 {
+                    a[c][q] = wi[q][c];
+                    b[c][q] = wo[q][c];
                 }
-                None => out[i] = BLACK,
             }
-            if filled == TINY_PACKET || (i + 1 == n && filled > 0) {
-                net.packet(&x, &mut y);
-                for (q, &i) in index[..filled].iter().enumerate() {
-                    out[i] = sanitize([y[0][q], y[1][q], y[2][q]]);
+            let mut x = [[0.0f32; TINY_PACKET]; INPUTS];
+            let (mut valid, slow) = half_diff_packet(&a, &b, m, &mut x);
+            // The pairs outside the fast path's range, one by one (the same result as `eval`).
+            for q in (0..m).filter(|q| slow >> q & 1 != 0) {
+                if let Some(v) = input(wi[q], wo[q]) {
+                    for (x, v) in x.iter_mut().zip(v) {
+                        x[q] = v;
+                    }
+                    valid |= 1 << q;
                 }
-                filled = 0;
+            }
+            // Invalid lanes run through the network too (lanes are independent); their results
+            // are dropped.
+            net.packet(&x, &mut y);
+            for (q, o) in out.iter_mut().enumerate() {
+                *o = if valid >> q & 1 != 0 { sanitize([y[0][q], y[1][q], y[2][q]]) } else { BLACK };
             }
         }
     }
@@ -352,13 +359,15 @@ impl NbrdfNetwork {
 
 /// `v / |v|` with one square root and one division where `|v|²` is comfortably inside the f32 range
 /// (always, for directions a renderer passes), otherwise the careful [`unit`] (which rescales first);
-/// `None` for zero or non-finite `v`.
+/// `None` for zero or non-finite `v`. `crate::kernels::half_diff_packet` repeats these operations in
+/// the same order on 16 pairs at once: keep the two identical.
 #[inline(always)]
 fn unit_fast(v: Vec3) -> Option<Vec3> {
-    let l2 = v.length_squared();
+    let l2 = (v.x * v.x + v.y * v.y) + v.z * v.z;
     // False for NaN and infinity.
-    if (1e-30..=1e30).contains(&l2) {
-        Some(v * (1.0 / libm::sqrtf(l2)))
+    if (UNIT_FAST_MIN..=UNIT_FAST_MAX).contains(&l2) {
+        let s = 1.0 / libm::sqrtf(l2);
+        Some(Vec3::new(v.x * s, v.y * s, v.z * s))
     } else {
         unit(v)
     }
@@ -371,7 +380,8 @@ fn unit_fast(v: Vec3) -> Option<Vec3> {
 /// then by `-θh` about y. Equal to `half_diff_vectors(rusinkiewicz_angles(wi, wo))` up to float
 /// rounding. The half vector is never normalised itself: `ρ` and `h_z` take its length from one
 /// square root, the rotation's cosine and sine from another, so the chain waits on two
-/// square-root-and-divide steps instead of four.
+/// square-root-and-divide steps instead of four. `crate::kernels::half_diff_packet` is the same
+/// computation on 16 pairs, bit for bit.
 #[inline]
 fn input(wi: Vec3, wo: Vec3) -> Option<[f32; INPUTS]> {
     let wi = unit_fast(wi)?;
@@ -380,20 +390,19 @@ fn input(wi: Vec3, wo: Vec3) -> Option<[f32; INPUTS]> {
         return None;
     }
     // Both directions are unit and above the horizon, so `h = wi + wo` has z > 0 and never vanishes.
-    let h = wi + wo;
-    let q = h.x * h.x + h.y * h.y;
-    let inv_len = 1.0 / libm::sqrtf(q + h.z * h.z);
-    let hz = h.z * inv_len;
+    let (hx, hy, hz) = (wi.x + wo.x, wi.y + wo.y, wi.z + wo.z);
+    let q = hx * hx + hy * hy;
+    let inv_len = 1.0 / libm::sqrtf(q + hz * hz);
+    let hz = hz * inv_len;
     let (rho, c, s) = if q > 0.0 {
         let r = libm::sqrtf(q);
         let inv_r = 1.0 / r;
-        (r * inv_len, h.x * inv_r, h.y * inv_r)
+        (r * inv_len, hx * inv_r, hy * inv_r)
     } else {
         (0.0, 1.0, 0.0)
     };
-    let t = Vec3::new(c * wi.x + s * wi.y, c * wi.y - s * wi.x, wi.z);
-    let d = Vec3::new(hz * t.x - rho * t.z, t.y, rho * t.x + hz * t.z);
-    let v = [rho, 0.0, hz, d.x, d.y, d.z];
+    let (tx, ty) = (c * wi.x + s * wi.y, c * wi.y - s * wi.x);
+    let v = [rho, 0.0, hz, hz * tx - rho * wi.z, ty, rho * tx + hz * wi.z];
     v.iter().all(|c| c.is_finite()).then_some(v)
 }
 
@@ -448,6 +457,34 @@ mod tests {
             assert_eq!(out[i].map(f32::to_bits), net.eval(wi[i], wo[i]).map(f32::to_bits), "pair {i}");
         }
         assert_eq!(out[2], BLACK);
+
+        // The lanes the vector input transform hands back to the scalar one, and its edge cases:
+        // vectors outside the one-division range, a half vector on the normal (h_xy = 0), directions
+        // below or on the horizon, NaN, infinity, zero.
+        let a = Vec3::new(0.3, -0.2, 0.9);
+        let b = Vec3::new(-0.3, 0.2, 0.9);
+        let special = [
+            (a * 1e20, b),
+            (a, b * 1e-20),
+            (a * 3e-38, b * 1e35),
+            (a, b),
+            (Vec3::Z, Vec3::Z),
+            (a, Vec3::new(0.5, 0.5, 0.0)),
+            (a, Vec3::new(0.5, 0.5, -1e-30)),
+            (Vec3::new(f32::NAN, 0.0, 1.0), b),
+            (a, Vec3::new(0.0, f32::INFINITY, 1.0)),
+            (Vec3::ZERO, b),
+            (a, Vec3::new(1e-30, 0.0, 1e-30)),
+        ];
+        for rot in 0..special.len() {
+            let wi: Vec<Vec3> = (0..19).map(|i| if i % 2 == 0 { special[(i / 2 + rot) % special.len()].0 } else { dir(i as f32, 0.5) }).collect();
+            let wo: Vec<Vec3> = (0..19).map(|i| if i % 2 == 0 { special[(i / 2 + rot) % special.len()].1 } else { dir(1.7 * i as f32, 0.3) }).collect();
+            let mut out = alloc::vec![[f32::NAN; 3]; wi.len()];
+            net.eval_many(&wi, &wo, &mut out);
+            for i in 0..wi.len() {
+                assert_eq!(out[i].map(f32::to_bits), net.eval(wi[i], wo[i]).map(f32::to_bits), "rotation {rot} pair {i}");
+            }
+        }
     }
 
     #[test]
