@@ -7,21 +7,23 @@
 //! function; every output sums its inputs in **four interleaved chains** (input `i` goes to chain
 //! `i mod 4`), which cuts the dependent FMAs per layer by four.
 //!
-//! # Arithmetic (the same at every lane width, so single queries and packets agree bit for bit)
-//! For output `o` of a layer with inputs `x`: `p_c = Σ_{i ≡ c (mod 4)} x_i W[i][o]` accumulated in
-//! ascending `i` (one FMA each; plain Rust: multiply, then add), `p_0` starting at the bias and `p_1..3`
-//! at `+0`; then `y = (p_0 + p_1) + (p_2 + p_3)`, then the ReLU `y > 0 ? y : +0` (0 for NaN, as
-//! `vmaxps(y, 0)`). The output map is [`expm1`] (AVX-512: a vector polynomial, within 2 ulp of
-//! `libm::expm1f`; plain Rust: `libm::expm1f`).
+//! # Arithmetic of the AVX-512 kernels
+//! The same at every lane width, so single queries and packets agree bit for bit. For output `o` of a
+//! layer with inputs `x`: `p_c = Σ_{i ≡ c (mod 4)} x_i W[i][o]` accumulated in ascending `i` (one FMA
+//! each), `p_0` starting at the bias and `p_1..3` at `+0`; then `y = (p_0 + p_1) + (p_2 + p_3)`, then the ReLU `y > 0 ? y : +0` (0 for NaN, as
+//! `vmaxps(y, 0)`). The output map is `expm1` as a vector polynomial (within 2.5e-7 relative of
+//! `libm::expm1f`).
 //!
 //! - AVX-512, one query: lanes are outputs (a 21-wide layer is a 16-lane and an 8-lane vector, 8
 //!   accumulators).
 //! - AVX-512, a packet of [`TINY_PACKET`] queries: lanes are queries (activations stored
 //!   neuron-major), the weights are broadcast from memory, 4 outputs × 4 chains = 16 accumulators per
 //!   tile; no lane is wasted on padding (a 21-wide layer costs 21 instead of 32 lanes per input).
-//! - Other levels run the plain-Rust version, query by query.
+//! - Other levels (AVX2, portable) run the layers through the generic kernels of their level
+//!   (`Kernels::one` and `Kernels::packet`, one FMA chain per output; single queries and packets agree
+//!   bit for bit there too) and `libm::expm1f`.
 
-use super::Level;
+use super::{Dense, Level, Segment};
 
 /// Widest layer the tiny kernels accept (a multiple of 8).
 pub const TINY_MAX_WIDTH: usize = 64;
@@ -112,7 +114,7 @@ impl TinyNet<'_> {
             // every extent the kernel reads.
             return unsafe { avx512::one(self, x) };
         }
-        portable_one(self, x)
+        generic_one(self, x)
     }
 
     /// [`one`](Self::one) for [`TINY_PACKET`] inputs, bit for bit, feature-major: query `q`'s input is
@@ -125,33 +127,64 @@ impl TinyNet<'_> {
             // SAFETY: as in `one`.
             return unsafe { avx512::packet(self, x, out) };
         }
-        for q in 0..TINY_PACKET {
-            let rgb = portable_one(self, &core::array::from_fn(|f| x[f][q]));
-            for c in 0..3 {
-                out[c][q] = rgb[c];
+        let mut a = [0.0f32; TINY_PACKET * W];
+        let mut b = [0.0f32; TINY_PACKET * W];
+        for (f, x) in x.iter().enumerate() {
+            for (q, v) in x.iter().enumerate() {
+                a[q * W + f] = *v;
+            }
+        }
+        generic::<TINY_PACKET>(self, &mut a, &mut b);
+        for (c, o) in out.iter_mut().enumerate() {
+            for (q, o) in o.iter_mut().enumerate() {
+                *o = libm::expm1f(a[q * W + c]);
             }
         }
     }
 }
 
-/// The plain-Rust network (module docs, "Arithmetic"), then `libm::expm1f`.
-fn portable_one(net: &TinyNet<'_>, input: &[f32; TINY_INPUTS]) -> [f32; 3] {
-    let mut x = [0.0f32; TINY_MAX_WIDTH];
-    let mut y = [0.0f32; TINY_MAX_WIDTH];
-    x[..TINY_INPUTS].copy_from_slice(input);
+/// Widest layer of the generic path: `TINY_MAX_WIDTH` floats per query.
+const W: usize = TINY_MAX_WIDTH;
+
+/// The network on `Q` queries (`x[q * W..][..6]`) through the generic layer kernels of the active
+/// level (`Kernels::one` for `Q = 1`, `Kernels::packet` for `Q = TINY_PACKET`, which agree bit for bit),
+/// leaving the last layer's outputs at `x[q * W..][..3]`.
+#[inline(always)]
+fn generic<const Q: usize>(net: &TinyNet<'_>, x: &mut [f32], y: &mut [f32]) {
+    let k = super::kernels::<f32>();
+    let (mut a, mut b) = (x, y);
     for l in net.layers {
-        let w = &net.params[l.offset..l.offset + (l.inputs + 1) * l.padded];
-        let bias = &w[l.inputs * l.padded..];
-        for (o, y) in y[..l.outputs].iter_mut().enumerate() {
-            let mut p = [bias[o], 0.0, 0.0, 0.0];
-            for (i, xi) in x[..l.inputs].iter().enumerate() {
-                p[i % 4] += xi * w[i * l.padded + o];
-            }
-            let v = (p[0] + p[1]) + (p[2] + p[3]);
-            *y = if !l.relu || v > 0.0 { v } else { 0.0 };
+        let (n_in, n_out) = (l.inputs, l.padded);
+        let w = &net.params[l.offset..l.offset + (n_in + 1) * n_out];
+        let seg = Segment { x: &a[..], stride: W, n: n_in, rows: &w[..n_in * n_out] };
+        let dense = Dense {
+            init: &w[n_in * n_out..],
+            segs: [seg, Segment { x: &[], stride: 0, n: 0, rows: &[] }],
+            n_segs: 1,
+            n_out,
+            relu: l.relu,
+        };
+        if Q == 1 {
+            k.one(&dense, &mut b[..n_out]);
+        } else {
+            k.packet(&dense, b, W);
         }
-        core::mem::swap(&mut x, &mut y);
+        core::mem::swap(&mut a, &mut b);
     }
+    // An even number of layers leaves the result in `x` itself; copy it there otherwise.
+    if net.layers.len() % 2 == 1 {
+        for q in 0..Q {
+            b[q * W..q * W + 3].copy_from_slice(&a[q * W..q * W + 3]);
+        }
+    }
+}
+
+/// [`TinyNet::one`] below AVX-512.
+fn generic_one(net: &TinyNet<'_>, input: &[f32; TINY_INPUTS]) -> [f32; 3] {
+    let mut x = [0.0f32; W];
+    let mut y = [0.0f32; W];
+    x[..TINY_INPUTS].copy_from_slice(input);
+    generic::<1>(net, &mut x, &mut y);
     [libm::expm1f(x[0]), libm::expm1f(x[1]), libm::expm1f(x[2])]
 }
 
