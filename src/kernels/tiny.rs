@@ -23,7 +23,9 @@
 //!   (`Kernels::one` and `Kernels::packet`, one FMA chain per output; single queries and packets agree
 //!   bit for bit there too) and `libm::expm1f`.
 
-use super::{Dense, Level, Segment};
+use super::{Dense, Segment};
+#[cfg(target_arch = "x86_64")]
+use super::Level;
 
 /// Widest layer the tiny kernels accept (a multiple of 8).
 pub const TINY_MAX_WIDTH: usize = 64;
@@ -353,6 +355,7 @@ mod avx512 {
                 step!(c, i + c);
             }
             let mut first = zero;
+            #[allow(clippy::needless_range_loop)] // `k` indexes the four chains' arrays alike.
             for k in 0..K {
                 let v = _mm512_add_ps(_mm512_add_ps(acc[0][k], acc[1][k]), _mm512_add_ps(acc[2][k], acc[3][k]));
                 let v = if relu { _mm512_max_ps(v, zero) } else { v };
