@@ -119,6 +119,20 @@ impl TinyNet<'_> {
         generic_one(self, x)
     }
 
+    /// [`one`](Self::one) on the input `input()` computes, `None` where it returns `None`. The input
+    /// function runs inside the AVX-512 kernel (inlined there: one call instead of two, and its
+    /// scalar square roots overlap the kernel's set-up); its results are the same bits as outside.
+    #[inline]
+    pub fn one_with(&self, input: impl FnOnce() -> Option<[f32; TINY_INPUTS]>) -> Option<[f32; 3]> {
+        self.check();
+        #[cfg(target_arch = "x86_64")]
+        if super::level() == Level::Avx512 {
+            // SAFETY: as in `one`.
+            return unsafe { avx512::one_with(self, input) };
+        }
+        input().map(|x| generic_one(self, &x))
+    }
+
     /// [`one`](Self::one) for [`TINY_PACKET`] inputs, bit for bit, feature-major: query `q`'s input is
     /// `x[..][q]`, its RGB goes to `out[..][q]`.
     #[inline]
@@ -376,10 +390,25 @@ mod avx512 {
         }
     }
 
+    /// `one` on the input of `input`.
+    ///
+    /// # Safety
+    /// As `one`.
+    #[target_feature(enable = "avx512f,avx2,fma")]
+    pub(super) unsafe fn one_with(
+        net: &TinyNet<'_>,
+        input: impl FnOnce() -> Option<[f32; TINY_INPUTS]>,
+    ) -> Option<[f32; 3]> {
+        let x = input()?;
+        // SAFETY: same contract.
+        Some(unsafe { one(net, &x) })
+    }
+
     /// The network and `expm1` for one query.
     ///
     /// # Safety
     /// The CPU has AVX-512F; `net` passed `TinyNet::check`.
+    #[inline]
     #[target_feature(enable = "avx512f,avx2,fma")]
     pub(super) unsafe fn one(net: &TinyNet<'_>, input: &[f32; TINY_INPUTS]) -> [f32; 3] {
         // Activations ping-pong between two buffers, not zeroed (a layer reads only the `inputs` values
