@@ -184,26 +184,32 @@ fn bench_nbrdf_json(c: &mut Criterion<Clock>) {
     let net = nbrdf_json();
     let (wi, wo) = directions(1024);
     let mut g = c.benchmark_group("nbrdf-json");
-    g.throughput(Throughput::Elements(1));
-    g.bench_function("eval", |b| {
-        let mut i = 0;
-        b.iter(|| {
-            i = (i + 1) & 1023;
-            black_box(net.eval(black_box(wi[i]), black_box(wo[i])))
-        })
-    });
-    g.throughput(Throughput::Elements(wi.len() as u64));
-    let mut out: Vec<Rgb> = vec![[0.0; 3]; wi.len()];
-    g.bench_function("eval_many-1024", |b| b.iter(|| net.eval_many(black_box(&wi), black_box(&wo), &mut out)));
-    g.throughput(Throughput::Elements(1));
-    g.bench_function("eval_angles", |b| {
-        let mut i = 0;
-        b.iter(|| {
-            i = (i + 1) & 1023;
-            let t = i as f32 * 1e-3;
-            black_box(net.eval_angles(black_box(0.3 + t), black_box(0.7 - t), black_box(1.0 + t)))
-        })
-    });
+    for (level, lname) in levels() {
+        set_level(Some(level));
+        g.throughput(Throughput::Elements(1));
+        g.bench_function(BenchmarkId::new("eval", lname), |b| {
+            let mut i = 0;
+            b.iter(|| {
+                i = (i + 1) & 1023;
+                black_box(net.eval(black_box(wi[i]), black_box(wo[i])))
+            })
+        });
+        g.throughput(Throughput::Elements(wi.len() as u64));
+        let mut out: Vec<Rgb> = vec![[0.0; 3]; wi.len()];
+        g.bench_function(BenchmarkId::new("eval_many-1024", lname), |b| {
+            b.iter(|| net.eval_many(black_box(&wi), black_box(&wo), &mut out))
+        });
+        g.throughput(Throughput::Elements(1));
+        g.bench_function(BenchmarkId::new("eval_angles", lname), |b| {
+            let mut i = 0;
+            b.iter(|| {
+                i = (i + 1) & 1023;
+                let t = i as f32 * 1e-3;
+                black_box(net.eval_angles(black_box(0.3 + t), black_box(0.7 - t), black_box(1.0 + t)))
+            })
+        });
+    }
+    set_level(None);
     g.finish();
 }
 
