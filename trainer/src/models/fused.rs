@@ -8,8 +8,7 @@
 //! GEMM with a matching backward, so this module does, with the GEMM itself left to the `gemm` crate
 //! (the one candle uses):
 //!
-//! * forward: the output buffer starts as the bias rows, one GEMM accumulates `x W` into it
-//!   (`dst ← dst + x W`), one pass clamps at 0;
+//! * forward: one GEMM `x W` into an uninitialised buffer, one pass adds the bias and clamps at 0;
 //! * backward (PyTorch's `threshold_backward` convention, gradient 0 where `y = 0`):
 //!   `dz = dy ⊙ [y > 0]` and the bias gradient `db = Σ_rows dz` in one pass, then `dW = xᵀ dz` and,
 //!   only when `x` needs a gradient (not for a network's constant input), `dx = dz Wᵀ`.
@@ -50,15 +49,17 @@ fn parallelism() -> gemm::Parallelism {
     }
 }
 
-/// `dst[m, n] ← dst + lhs[m, k] · rhs[k, n]`, all row-major and contiguous.
-fn gemm_acc(m: usize, n: usize, k: usize, dst: &mut [f32], lhs: &[f32], rhs: &[f32]) {
-    assert!(dst.len() == m * n && lhs.len() == m * k && rhs.len() == k * n, "gemm_acc: shapes");
-    if m == 0 || n == 0 || k == 0 {
-        return;
+/// `lhs[m, k] · rhs[k, n]` (row-major, contiguous) as a new `m × n` row-major buffer.
+fn gemm_new(m: usize, n: usize, k: usize, lhs: &[f32], rhs: &[f32]) -> Vec<f32> {
+    assert!(lhs.len() == m * k && rhs.len() == k * n, "gemm_new: shapes");
+    if k == 0 {
+        return vec![0.0; m * n];
     }
-    // SAFETY: the three buffers hold exactly the m×n, m×k and k×n row-major matrices described by the
-    // strides (column stride 1, row stride = columns), checked above; dst does not alias the inputs
-    // (it is a `&mut`).
+    let mut dst: Vec<f32> = Vec::with_capacity(m * n);
+    // SAFETY: lhs and rhs hold exactly the m×k and k×n row-major matrices the strides describe (column
+    // stride 1, row stride = columns), checked above; dst has room for m×n values, which gemm writes
+    // without reading (`read_dst = false`) before `set_len` exposes them. Skipping the zero fill saves
+    // a pass over the largest buffer of the layer; candle's own matmul allocates the same way.
     unsafe {
         gemm::gemm(
             m,
@@ -67,21 +68,23 @@ fn gemm_acc(m: usize, n: usize, k: usize, dst: &mut [f32], lhs: &[f32], rhs: &[f
             dst.as_mut_ptr(),
             1,
             n as isize,
-            true,
+            false,
             lhs.as_ptr(),
             1,
             k as isize,
             rhs.as_ptr(),
             1,
             n as isize,
-            1.0,
+            0.0,
             1.0,
             false,
             false,
             false,
             parallelism(),
-        )
+        );
+        dst.set_len(m * n);
     }
+    dst
 }
 
 /// The forward op over `(x [N, in], W [in, out], b [1, out])`.
@@ -119,15 +122,17 @@ impl CustomOp3 for Linear {
         if k != k2 || b.len() != m {
             candle_core::bail!("{op}: x [{n}, {k}], W [{k2}, {m}], b [{}] do not fit", b.len())
         }
-        // Bias rows first, so the GEMM's accumulate mode adds `x W` without a second pass.
-        let mut y: Vec<f32> = Vec::with_capacity(n * m);
-        for _ in 0..n {
-            y.extend_from_slice(b);
-        }
-        gemm_acc(n, m, k, &mut y, x, w);
-        if self.relu {
-            y.par_chunks_mut(ROW_BLOCK * m.max(1)).for_each(|c| c.iter_mut().for_each(|v| *v = v.max(0.0)));
-        }
+        let mut y = gemm_new(n, m, k, x, w);
+        // Bias and activation in one parallel pass over the GEMM output.
+        let relu = self.relu;
+        y.par_chunks_mut(ROW_BLOCK * m.max(1)).for_each(|c| {
+            for row in c.chunks_exact_mut(m) {
+                for (v, &bj) in row.iter_mut().zip(b) {
+                    let z = *v + bj;
+                    *v = if relu { z.max(0.0) } else { z };
+                }
+            }
+        });
         Ok((CpuStorage::F32(y), Shape::from((n, m))))
     }
 
@@ -171,11 +176,12 @@ impl CustomOp2 for ActivationGrad {
             .zip(dy.par_chunks(block).zip(y.par_chunks(block)))
             .map(|(dz, (dy, y))| {
                 let mut sum = vec![0.0f32; m];
+                // Iterators, not indices, and a select, not a branch: the loop vectorises.
                 for ((dz, dy), y) in dz.chunks_exact_mut(m).zip(dy.chunks_exact(m)).zip(y.chunks_exact(m)) {
-                    for j in 0..m {
-                        let g = if !relu || y[j] > 0.0 { dy[j] } else { 0.0 };
-                        dz[j] = g;
-                        sum[j] += g;
+                    for (((d, &g), &yv), s) in dz.iter_mut().zip(dy).zip(y).zip(sum.iter_mut()) {
+                        let g = if !relu || yv > 0.0 { g } else { 0.0 };
+                        *d = g;
+                        *s += g;
                     }
                 }
                 sum
