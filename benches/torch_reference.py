@@ -109,9 +109,16 @@ def step_fn(torch, spec, arch):
     return step
 
 
+STEPS = {}
+
+
 def time_arch(torch, spec, arch):
-    step = step_fn(torch, spec, arch)
-    step()  # warm-up: allocator, oneDNN primitive caches
+    """ms per step over `steps` steps; the model is built (and warmed up) on its first request only,
+    so the trainer's rounds time the same optimiser run, as its own rounds do."""
+    step = STEPS.get(arch["model"])
+    if step is None:
+        step = STEPS[arch["model"]] = step_fn(torch, spec, arch)
+        step()  # warm-up: allocator, oneDNN primitive caches
     t = time.perf_counter()
     for _ in range(max(spec["steps"], 1)):
         step()

@@ -120,6 +120,9 @@ enum Command {
         /// The PyTorch twin script
         #[arg(long, default_value = "benches/torch_reference.py")]
         torch_script: PathBuf,
+        /// Rounds of `steps` steps per architecture (alternating with PyTorch); the best round counts
+        #[arg(long, default_value_t = 3)]
+        rounds: usize,
         /// Only the architectures whose name contains one of these (comma-separated)
         #[arg(long, value_delimiter = ',')]
         only: Vec<String>,
@@ -250,7 +253,7 @@ fn run(cli: Cli) -> trainer::Result<()> {
         Command::Models { position } => {
             print!("{}", commands::models::table(commands::parse_position(&position)?));
         }
-        Command::BenchStep { batch, steps, position, json, torch, torch_script, only } => {
+        Command::BenchStep { batch, steps, position, json, torch, torch_script, rounds, only } => {
             use commands::bench_step as bench;
             let position = commands::parse_position(&position)?;
             let mut configs = bench::default_configs(position);
@@ -258,9 +261,9 @@ fn run(cli: Cli) -> trainer::Result<()> {
                 configs.retain(|c| only.iter().any(|o| c.name().contains(o.as_str())));
             }
             let t = if torch {
-                bench::run_with_torch(&configs, batch, steps, &torch_script)?
+                bench::run_with_torch(&configs, batch, steps, rounds, &torch_script)?
             } else {
-                bench::run(&configs, batch, steps)?
+                bench::run(&configs, batch, steps, rounds)?
             };
             bench::print_table(&t);
             if let Some(p) = json {

@@ -26,7 +26,7 @@ pub struct StepTiming {
     pub model: String,
     pub n_weights: usize,
     pub batch: usize,
-    /// Mean over the timed steps, forward + backward + Adam.
+    /// Forward + backward + Adam: the mean over a round of steps, best round.
     pub ms_per_step: f64,
     /// Building the batch's network inputs on the CPU (angle map, encodings), not in `ms_per_step`.
     pub ms_inputs: f64,
@@ -40,8 +40,11 @@ pub struct StepTiming {
 /// The issue 8 target: our step at most this fraction of PyTorch's.
 pub const TARGET_RATIO: f64 = 0.7;
 
-/// Times `steps` steps (after one warm-up step) of one configuration.
-pub fn time_step(config: &Config, batch: usize, steps: usize) -> Result<StepTiming> {
+/// Times one configuration: one warm-up step, then `rounds` rounds of `steps` steps, each round
+/// followed by the same round of PyTorch's step when `torch` is given. A side's time is its fastest
+/// round: on a shared machine a round only gets slower when other work takes the cores, so the
+/// minimum is the least disturbed estimate, and alternating rounds exposes both sides to the same load.
+fn time_config(config: &Config, batch: usize, steps: usize, rounds: usize, mut torch: Option<&mut Torch>) -> Result<StepTiming> {
     crate::train::keep_freed_memory();
     let device = Device::Cpu;
     let obs = toy::observations(batch, config.position, 7);
@@ -66,24 +69,38 @@ pub fn time_step(config: &Config, batch: usize, steps: usize) -> Result<StepTimi
         Ok(())
     };
     step()?;
-    let t = Instant::now();
-    for _ in 0..steps {
-        step()?;
+    let name = config.name();
+    let (mut ours, mut theirs) = (f64::INFINITY, None::<f64>);
+    for _ in 0..rounds.max(1) {
+        let t = Instant::now();
+        for _ in 0..steps {
+            step()?;
+        }
+        ours = ours.min(t.elapsed().as_secs_f64() * 1e3 / steps.max(1) as f64);
+        if let Some(py) = torch.as_deref_mut() {
+            match py.time(&name) {
+                Ok(ms) => theirs = Some(theirs.map_or(ms, |m: f64| m.min(ms))),
+                Err(e) => {
+                    eprintln!("PyTorch failed on {name}: {e}");
+                    torch = None;
+                }
+            }
+        }
     }
     Ok(StepTiming {
-        model: config.name(),
+        model: name,
         n_weights: config.n_weights(),
         batch,
-        ms_per_step: t.elapsed().as_secs_f64() * 1e3 / steps.max(1) as f64,
+        ms_per_step: ours,
         ms_inputs,
-        torch_ms_per_step: None,
-        ratio: None,
+        torch_ms_per_step: theirs,
+        ratio: theirs.map(|t| ours / t),
     })
 }
 
-/// Times each configuration (see [`time_step`]).
-pub fn run(configs: &[Config], batch: usize, steps: usize) -> Result<Vec<StepTiming>> {
-    configs.iter().map(|c| time_step(c, batch, steps)).collect()
+/// Times `steps` steps (after one warm-up step) of each configuration, best of `rounds` rounds.
+pub fn run(configs: &[Config], batch: usize, steps: usize, rounds: usize) -> Result<Vec<StepTiming>> {
+    configs.iter().map(|c| time_config(c, batch, steps, rounds, None)).collect()
 }
 
 /// The architectures timed by default: every distinct network layout of Tab. 1.
@@ -227,9 +244,9 @@ impl Drop for Torch {
     }
 }
 
-/// Our step and PyTorch's, one architecture after the other. Without python3 or torch it prints how to
-/// install it and returns our timings alone.
-pub fn run_with_torch(configs: &[Config], batch: usize, steps: usize, script: &Path) -> Result<Vec<StepTiming>> {
+/// Our step and PyTorch's, alternating rounds per architecture (see [`time_config`]). Without python3
+/// or torch it prints how to install it and returns our timings alone.
+pub fn run_with_torch(configs: &[Config], batch: usize, steps: usize, rounds: usize, script: &Path) -> Result<Vec<StepTiming>> {
     let spec = bench_spec(configs, batch, steps);
     let spec_path = std::env::temp_dir().join(format!("nbrdf-bench-spec-{}.json", std::process::id()));
     let json = serde_json::to_vec_pretty(&spec).map_err(|e| Error::io(&spec_path, e))?;
@@ -241,23 +258,10 @@ pub fn run_with_torch(configs: &[Config], batch: usize, steps: usize, script: &P
             None
         }
     };
-    let mut out = Vec::new();
-    for config in configs {
-        let mut t = time_step(config, batch, steps)?;
-        if let Some(py) = torch.as_mut() {
-            match py.time(&t.model) {
-                Ok(ms) => {
-                    t.torch_ms_per_step = Some(ms);
-                    t.ratio = Some(t.ms_per_step / ms);
-                }
-                Err(e) => eprintln!("PyTorch failed on {}: {e}", t.model),
-            }
-        }
-        out.push(t);
-    }
+    let out = configs.iter().map(|c| time_config(c, batch, steps, rounds, torch.as_mut())).collect();
     drop(torch);
     let _ = std::fs::remove_file(&spec_path);
-    Ok(out)
+    out
 }
 
 /// Prints the table of [`run`] or [`run_with_torch`].
