@@ -141,7 +141,7 @@ impl CustomOp3 for Linear {
         let packed = dy.contiguous()?.apply_op2_no_bwd(&y.contiguous()?, &ActivationGrad { relu: self.relu })?;
         let dz = packed.narrow(0, 0, n)?;
         let db = packed.narrow(0, n, 1)?;
-        let dw = x.t()?.matmul(&dz)?;
+        let dw = x.contiguous()?.apply_op2_no_bwd(&dz, &WeightGrad)?;
         // A network's input (encoded positions and angles) is a constant: its gradient would be a
         // full-size GEMM and accumulation that nothing reads.
         let dx = if x.track_op() { Some(dz.matmul(&w.t()?)?) } else { None };
@@ -199,4 +199,76 @@ impl CustomOp2 for ActivationGrad {
 /// `relu(x W + b)` (`relu = true`) or `x W + b`, with `x [N, in]`, `W [in, out]`, `b [1, out]`.
 pub fn linear(x: &Tensor, w: &Tensor, b: &Tensor, relu: bool) -> Result<Tensor> {
     x.contiguous()?.apply_op3(&w.contiguous()?, &b.contiguous()?, Linear { relu })
+}
+
+/// Rows per partial product of the weight gradient: fixed, so that the partial sums round the same way
+/// for any thread count.
+const K_BLOCK: usize = 4096;
+
+/// `(x [N, in], dz [N, out]) → xᵀ dz [in, out]`, split over the batch.
+///
+/// Why not candle's `x.t().matmul(dz)`: gemm parallelises over the output, and a `128 × 128` output
+/// with a reduction over 2^15 rows gives it too few blocks to keep the threads busy. Here each block
+/// of `K_BLOCK` rows is its own single-threaded GEMM, run in parallel, and the partial products are
+/// added in block order.
+struct WeightGrad;
+
+impl CustomOp2 for WeightGrad {
+    fn name(&self) -> &'static str {
+        "linear-weight-grad"
+    }
+
+    fn cpu_fwd(&self, s1: &CpuStorage, l1: &Layout, s2: &CpuStorage, l2: &Layout) -> Result<(CpuStorage, Shape)> {
+        let op = self.name();
+        let (x, dz) = (data(s1, l1, op)?, data(s2, l2, op)?);
+        let ((n, k), (n2, m)) = (dims2(l1, op)?, dims2(l2, op)?);
+        if n != n2 {
+            candle_core::bail!("{op}: x has {n} rows, dz {n2}")
+        }
+        let partial: Vec<Vec<f32>> = (0..n.div_ceil(K_BLOCK))
+            .into_par_iter()
+            .map(|blk| {
+                let (r0, r1) = (blk * K_BLOCK, ((blk + 1) * K_BLOCK).min(n));
+                let (xb, db) = (&x[r0 * k..r1 * k], &dz[r0 * m..r1 * m]);
+                let mut out: Vec<f32> = Vec::with_capacity(k * m);
+                if k * m > 0 {
+                    // SAFETY: xb is the (r1 - r0) × k row-major block of x, read as its transpose
+                    // (row stride 1, column stride k); db the (r1 - r0) × m block of dz; out has room
+                    // for k × m values, written without being read (`read_dst = false`).
+                    unsafe {
+                        gemm::gemm(
+                            k,
+                            m,
+                            r1 - r0,
+                            out.as_mut_ptr(),
+                            1,
+                            m as isize,
+                            false,
+                            xb.as_ptr(),
+                            k as isize,
+                            1,
+                            db.as_ptr(),
+                            1,
+                            m as isize,
+                            0.0,
+                            1.0,
+                            false,
+                            false,
+                            false,
+                            gemm::Parallelism::None,
+                        );
+                        out.set_len(k * m);
+                    }
+                }
+                out
+            })
+            .collect();
+        let mut dw = vec![0.0f32; k * m];
+        for p in &partial {
+            for (d, v) in dw.iter_mut().zip(p) {
+                *d += v;
+            }
+        }
+        Ok((CpuStorage::F32(dw), Shape::from((k, m))))
+    }
 }
