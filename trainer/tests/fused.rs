@@ -36,8 +36,9 @@ fn reference(x: &Tensor, w: &Tensor, b: &Tensor, relu: bool) -> Tensor {
 fn fused_layer_matches_candle_composition() {
     let dev = Device::Cpu;
     let mut rng = ChaCha8Rng::seed_from_u64(3);
-    // Rows beyond one 1024-row block so that the blocked column sums are exercised.
-    let (n, k, m) = (2500, 19, 23);
+    // Several 1024-row blocks (column sums) and 4096-row blocks (split-K weight gradient), the last
+    // one partial.
+    let (n, k, m) = (9000, 19, 23);
     let mut xs = random(&mut rng, n * k);
     let mut bs = random(&mut rng, m);
     // Exact zeros at the kink: zero input rows meet zero biases, so z = 0 exactly there.
