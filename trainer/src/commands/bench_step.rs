@@ -217,6 +217,10 @@ impl Torch {
         let mut stdout = BufReader::new(child.stdout.take().ok_or("no stdout")?);
         let mut line = String::new();
         stdout.read_line(&mut line).map_err(|e| e.to_string())?;
+        if line.trim().is_empty() {
+            let _ = child.wait();
+            return Err(format!("{} exited without answering (its error is above)", script.display()));
+        }
         let v: serde_json::Value = serde_json::from_str(&line).map_err(|_| format!("unexpected reply {line:?}"))?;
         if let Some(e) = v.get("error") {
             let _ = child.wait();
@@ -251,6 +255,8 @@ pub fn run_with_torch(configs: &[Config], batch: usize, steps: usize, rounds: us
     let spec_path = std::env::temp_dir().join(format!("nbrdf-bench-spec-{}.json", std::process::id()));
     let json = serde_json::to_vec_pretty(&spec).map_err(|e| Error::io(&spec_path, e))?;
     std::fs::write(&spec_path, json).map_err(|e| Error::io(&spec_path, e))?;
+    // Kept after the run, so that `python3 benches/torch_reference.py SPEC` can time PyTorch alone.
+    eprintln!("architectures for the PyTorch twin: {}", spec_path.display());
     let mut torch = match Torch::start(script, &spec_path) {
         Ok(t) => Some(t),
         Err(e) => {
@@ -260,7 +266,6 @@ pub fn run_with_torch(configs: &[Config], batch: usize, steps: usize, rounds: us
     };
     let out = configs.iter().map(|c| time_config(c, batch, steps, rounds, torch.as_mut())).collect();
     drop(torch);
-    let _ = std::fs::remove_file(&spec_path);
     out
 }
 
