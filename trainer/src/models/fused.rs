@@ -167,8 +167,10 @@ impl CustomOp2 for ActivationGrad {
         if dims2(l2, op)? != (n, m) {
             candle_core::bail!("{op}: dy {:?} and y {:?} differ", l1.shape(), l2.shape())
         }
-        let mut out = vec![0.0f32; (n + 1) * m];
-        let (dz, db) = out.split_at_mut(n * m);
+        // Every value of dz is written below, so the buffer starts uninitialised (`MaybeUninit`)
+        // instead of paying a zero fill over the layer's largest array.
+        let mut out: Vec<f32> = Vec::with_capacity((n + 1) * m);
+        let dz = &mut out.spare_capacity_mut()[..n * m];
         let block = ROW_BLOCK * m.max(1);
         let relu = self.relu;
         let partial: Vec<Vec<f32>> = dz
@@ -180,18 +182,22 @@ impl CustomOp2 for ActivationGrad {
                 for ((dz, dy), y) in dz.chunks_exact_mut(m).zip(dy.chunks_exact(m)).zip(y.chunks_exact(m)) {
                     for (((d, &g), &yv), s) in dz.iter_mut().zip(dy).zip(y).zip(sum.iter_mut()) {
                         let g = if !relu || yv > 0.0 { g } else { 0.0 };
-                        *d = g;
+                        d.write(g);
                         *s += g;
                     }
                 }
                 sum
             })
             .collect();
+        // SAFETY: the loop above wrote all n × m values of dz (the chunks cover it exactly).
+        unsafe { out.set_len(n * m) };
+        let mut db = vec![0.0f32; m];
         for p in &partial {
             for (d, s) in db.iter_mut().zip(p) {
                 *d += s;
             }
         }
+        out.extend_from_slice(&db);
         Ok((CpuStorage::F32(out), Shape::from((n + 1, m))))
     }
 }
