@@ -114,6 +114,18 @@ enum Command {
         /// Also write the timings as JSON here
         #[arg(long)]
         json: Option<PathBuf>,
+        /// Time the same step in PyTorch side by side (benches/torch_reference.py; `pip install torch`)
+        #[arg(long)]
+        torch: bool,
+        /// The PyTorch twin script
+        #[arg(long, default_value = "benches/torch_reference.py")]
+        torch_script: PathBuf,
+        /// Rounds of `steps` steps per architecture (alternating with PyTorch); the best round counts
+        #[arg(long, default_value_t = 3)]
+        rounds: usize,
+        /// Only the architectures whose name contains one of these (comma-separated)
+        #[arg(long, value_delimiter = ',')]
+        only: Vec<String>,
     },
 }
 
@@ -241,13 +253,19 @@ fn run(cli: Cli) -> trainer::Result<()> {
         Command::Models { position } => {
             print!("{}", commands::models::table(commands::parse_position(&position)?));
         }
-        Command::BenchStep { batch, steps, position, json } => {
+        Command::BenchStep { batch, steps, position, json, torch, torch_script, rounds, only } => {
+            use commands::bench_step as bench;
             let position = commands::parse_position(&position)?;
-            let t = commands::bench_step::run(&commands::bench_step::default_configs(position), batch, steps)?;
-            println!("{:<34} {:>10} {:>8} {:>12} {:>10}", "model", "parameters", "batch", "ms/step", "ms inputs");
-            for r in &t {
-                println!("{:<34} {:>10} {:>8} {:>12.1} {:>10.1}", r.model, r.n_weights, r.batch, r.ms_per_step, r.ms_inputs);
+            let mut configs = bench::default_configs(position);
+            if !only.is_empty() {
+                configs.retain(|c| only.iter().any(|o| c.name().contains(o.as_str())));
             }
+            let t = if torch {
+                bench::run_with_torch(&configs, batch, steps, rounds, &torch_script)?
+            } else {
+                bench::run(&configs, batch, steps, rounds)?
+            };
+            bench::print_table(&t);
             if let Some(p) = json {
                 let s = serde_json::to_vec_pretty(&t).map_err(|e| trainer::Error::io(&p, e))?;
                 std::fs::write(&p, s).map_err(|e| trainer::Error::io(&p, e))?;

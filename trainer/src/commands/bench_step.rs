@@ -1,14 +1,24 @@
 //! `trainer bench-step`: milliseconds per training step (forward, backward and Adam) of each
-//! architecture at batch 32768, the figure the performance issue compares with PyTorch.
+//! architecture at batch 32768, and with `--torch` the same step in PyTorch side by side (issue 8: ours
+//! should take at most 0.7× PyTorch's time on the same machine and thread count).
+//!
+//! The PyTorch twin is `benches/torch_reference.py`. It does not transcribe our layer sizes: this
+//! command writes every architecture's networks ([`ArchSpec`]) to a JSON file the script reads, so the
+//! two sides cannot diverge. The script runs as one long-lived process answering one architecture at a
+//! time, and each architecture is timed ours-then-PyTorch, so a load change on a shared machine hits
+//! both sides of a ratio alike.
 
+use std::io::{BufRead, BufReader, Write};
+use std::path::Path;
+use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
 use std::time::Instant;
 
 use candle_core::Device;
 
 use crate::adam::{Adam, AdamParams};
-use crate::models::{Config, Inputs, Model, PositionEncoding, RawBatch};
+use crate::models::{arch::layers, Config, Inputs, Kind, Model, PositionEncoding, RawBatch};
 use crate::train::{objective, Batch, TrainOptions};
-use crate::{toy, Result};
+use crate::{toy, Error, Result};
 
 /// Timing of one architecture.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -16,55 +26,263 @@ pub struct StepTiming {
     pub model: String,
     pub n_weights: usize,
     pub batch: usize,
-    /// Mean over the timed steps, forward + backward + Adam.
+    /// Forward + backward + Adam: the mean over a round of steps, best round.
     pub ms_per_step: f64,
     /// Building the batch's network inputs on the CPU (angle map, encodings), not in `ms_per_step`.
     pub ms_inputs: f64,
+    /// PyTorch's time for the same step (`--torch`), and `ms_per_step / torch_ms_per_step`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub torch_ms_per_step: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ratio: Option<f64>,
 }
 
-/// Times `steps` steps (after one warm-up step) of each configuration.
-pub fn run(configs: &[Config], batch: usize, steps: usize) -> Result<Vec<StepTiming>> {
+/// The issue 8 target: our step at most this fraction of PyTorch's.
+pub const TARGET_RATIO: f64 = 0.7;
+
+/// Times one configuration: one warm-up step, then `rounds` rounds of `steps` steps, each round
+/// followed by the same round of PyTorch's step when `torch` is given. A side's time is its fastest
+/// round: on a shared machine a round only gets slower when other work takes the cores, so the
+/// minimum is the least disturbed estimate, and alternating rounds exposes both sides to the same load.
+fn time_config(config: &Config, batch: usize, steps: usize, rounds: usize, mut torch: Option<&mut Torch>) -> Result<StepTiming> {
+    crate::train::keep_freed_memory();
     let device = Device::Cpu;
-    let mut out = Vec::new();
-    for config in configs {
-        let obs = toy::observations(batch, config.position, 7);
-        let model = Model::init(*config, 0, &device)?;
-        let t0 = Instant::now();
-        let inputs = Inputs::build(config, &RawBatch { position: &obs.position, wi: &obs.wi, wo: &obs.wo, swap: None }, &device)?;
-        let ms_inputs = t0.elapsed().as_secs_f64() * 1e3;
-        let incident: Vec<f32> = obs.wi.iter().flat_map(|w| [w.z; 3]).collect();
-        let target: Vec<f32> = obs.radiance.iter().flatten().map(|&v| crate::loss::gamma(v)).collect();
-        let b = Batch {
-            inputs,
-            incident: candle_core::Tensor::from_vec(incident, (batch, 3), &device)?,
-            target: candle_core::Tensor::from_vec(target, (batch, 3), &device)?,
-        };
-        let opts = TrainOptions::default();
-        let vars = model.vars();
-        let mut adam = Adam::new(&vars, AdamParams::default());
-        let mut step = || -> Result<()> {
-            let loss = objective(&model, &b, &opts)?;
-            let g = Adam::gradients(&vars, &loss.backward()?)?;
-            adam.step(&vars, &g, 1e-4)?;
-            Ok(())
-        };
-        step()?;
+    let obs = toy::observations(batch, config.position, 7);
+    let model = Model::init(*config, 0, &device)?;
+    let t0 = Instant::now();
+    let inputs = Inputs::build(config, &RawBatch { position: &obs.position, wi: &obs.wi, wo: &obs.wo, swap: None }, &device)?;
+    let ms_inputs = t0.elapsed().as_secs_f64() * 1e3;
+    let incident: Vec<f32> = obs.wi.iter().flat_map(|w| [w.z; 3]).collect();
+    let target: Vec<f32> = obs.radiance.iter().flatten().map(|&v| crate::loss::gamma(v)).collect();
+    let b = Batch {
+        inputs,
+        incident: candle_core::Tensor::from_vec(incident, (batch, 3), &device)?,
+        target: candle_core::Tensor::from_vec(target, (batch, 3), &device)?,
+    };
+    let opts = TrainOptions::default();
+    let vars = model.vars();
+    let mut adam = Adam::new(&vars, AdamParams::default());
+    let mut step = || -> Result<()> {
+        let loss = objective(&model, &b, &opts)?;
+        let g = Adam::gradients(&vars, &loss.backward()?)?;
+        adam.step(&vars, &g, 1e-4)?;
+        Ok(())
+    };
+    step()?;
+    let name = config.name();
+    let (mut ours, mut theirs) = (f64::INFINITY, None::<f64>);
+    for _ in 0..rounds.max(1) {
         let t = Instant::now();
         for _ in 0..steps {
             step()?;
         }
-        out.push(StepTiming {
-            model: config.name(),
-            n_weights: config.n_weights(),
-            batch,
-            ms_per_step: t.elapsed().as_secs_f64() * 1e3 / steps.max(1) as f64,
-            ms_inputs,
-        });
+        ours = ours.min(t.elapsed().as_secs_f64() * 1e3 / steps.max(1) as f64);
+        if let Some(py) = torch.as_deref_mut() {
+            match py.time(&name) {
+                Ok(ms) => theirs = Some(theirs.map_or(ms, |m: f64| m.min(ms))),
+                Err(e) => {
+                    eprintln!("PyTorch failed on {name}: {e}");
+                    torch = None;
+                }
+            }
+        }
     }
-    Ok(out)
+    Ok(StepTiming {
+        model: name,
+        n_weights: config.n_weights(),
+        batch,
+        ms_per_step: ours,
+        ms_inputs,
+        torch_ms_per_step: theirs,
+        ratio: theirs.map(|t| ours / t),
+    })
+}
+
+/// Times `steps` steps (after one warm-up step) of each configuration, best of `rounds` rounds.
+pub fn run(configs: &[Config], batch: usize, steps: usize, rounds: usize) -> Result<Vec<StepTiming>> {
+    configs.iter().map(|c| time_config(c, batch, steps, rounds, None)).collect()
 }
 
 /// The architectures timed by default: every distinct network layout of Tab. 1.
 pub fn default_configs(position: PositionEncoding) -> Vec<Config> {
     crate::models::arch::study_variants(position, crate::models::Reciprocity::Exact)
+}
+
+/// One network for the PyTorch twin: the layers `(in, out)` in file order, ReLU after the first
+/// `hidden`, layer `skip` (if ≥ 1) fed `[h, x]`, and what its input `x` is.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct NetSpec {
+    pub layers: Vec<(usize, usize)>,
+    pub hidden: usize,
+    pub skip: usize,
+    /// The input, concatenated from these parts: `"position"`, `"angles"`, `"joint"` (a batch input of
+    /// the named width) or `"net0"` (the output of the model's first network, the trunk).
+    pub input: Vec<String>,
+}
+
+/// One architecture for the PyTorch twin: its networks and how their outputs become the BRDF.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct ArchSpec {
+    pub model: String,
+    pub nets: Vec<NetSpec>,
+    /// `"softplus"` (single MLP), `"additive"`, `"additive-enhanced"` (Eq. 8 with the Sec. 4.4
+    /// regularisers) or `"parametric"` (see benches/torch_reference.py for what stands in for the
+    /// BRDF formula).
+    pub head: String,
+    /// Widths of the batch inputs: `position`, `angles`, `joint`.
+    pub widths: std::collections::BTreeMap<String, usize>,
+}
+
+/// Everything the PyTorch twin needs: the batch, the threads and the architectures.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct BenchSpec {
+    pub batch: usize,
+    pub steps: usize,
+    pub threads: usize,
+    /// Adam's learning rate and the regulariser weights of [`TrainOptions::default`].
+    pub lr: f32,
+    pub lambda_diffuse: f32,
+    pub lambda_specular: f32,
+    pub archs: Vec<ArchSpec>,
+}
+
+/// The networks of `config` as [`Model::forward`] wires them.
+pub fn arch_spec(config: &Config) -> ArchSpec {
+    let nets = config.nets();
+    let inputs: Vec<&[&str]> = match config.kind {
+        Kind::Parametric(_) => vec![&["position"]],
+        Kind::SingleMlp if nets.len() == 1 => vec![&["joint"]],
+        Kind::SingleMlp => vec![&["position"], &["net0", "angles"]],
+        Kind::AdditiveSeparate => vec![&["position"], &["joint"]],
+        Kind::AdditiveShared => vec![&["position"], &["net0"], &["net0", "angles"]],
+    };
+    let head = match config.kind {
+        Kind::Parametric(_) => "parametric",
+        Kind::SingleMlp => "softplus",
+        _ if config.has_xi() => "additive-enhanced",
+        _ => "additive",
+    };
+    let (p, a) = (config.position.encoded_len(), config.n_angle_features());
+    ArchSpec {
+        model: config.name(),
+        nets: nets
+            .iter()
+            .zip(inputs)
+            .map(|(d, input)| NetSpec {
+                layers: layers(d),
+                hidden: d.hidden as usize,
+                skip: d.skip as usize,
+                input: input.iter().map(|s| s.to_string()).collect(),
+            })
+            .collect(),
+        head: head.into(),
+        widths: [("position", p), ("angles", a), ("joint", p + a)].into_iter().map(|(k, v)| (k.to_string(), v)).collect(),
+    }
+}
+
+/// The spec of `configs` at this batch and candle's thread count.
+pub fn bench_spec(configs: &[Config], batch: usize, steps: usize) -> BenchSpec {
+    let o = TrainOptions::default();
+    BenchSpec {
+        batch,
+        steps,
+        threads: candle_core::utils::get_num_threads(),
+        lr: 1e-4,
+        lambda_diffuse: o.lambda_diffuse,
+        lambda_specular: o.lambda_specular,
+        archs: configs.iter().map(arch_spec).collect(),
+    }
+}
+
+/// The running PyTorch twin (`torch_reference.py --serve`).
+struct Torch {
+    child: Child,
+    stdin: ChildStdin,
+    stdout: BufReader<ChildStdout>,
+}
+
+impl Torch {
+    /// Starts `python3 script spec --serve` and waits for its ready line; `Err` with the reason when
+    /// python3 or torch is missing.
+    fn start(script: &Path, spec: &Path) -> std::result::Result<Torch, String> {
+        let mut child = Command::new("python3")
+            .arg(script)
+            .arg(spec)
+            .arg("--serve")
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .spawn()
+            .map_err(|e| format!("cannot run python3 ({e})"))?;
+        let stdin = child.stdin.take().ok_or("no stdin")?;
+        let mut stdout = BufReader::new(child.stdout.take().ok_or("no stdout")?);
+        let mut line = String::new();
+        stdout.read_line(&mut line).map_err(|e| e.to_string())?;
+        if line.trim().is_empty() {
+            let _ = child.wait();
+            return Err(format!("{} exited without answering (its error is above)", script.display()));
+        }
+        let v: serde_json::Value = serde_json::from_str(&line).map_err(|_| format!("unexpected reply {line:?}"))?;
+        if let Some(e) = v.get("error") {
+            let _ = child.wait();
+            return Err(e.as_str().unwrap_or("error").to_string());
+        }
+        eprintln!("PyTorch {} on {} threads", v["torch"].as_str().unwrap_or("?"), v["threads"]);
+        Ok(Torch { child, stdin, stdout })
+    }
+
+    /// PyTorch's ms per step of the architecture `model` of the spec.
+    fn time(&mut self, model: &str) -> std::result::Result<f64, String> {
+        writeln!(self.stdin, "{model}").and_then(|_| self.stdin.flush()).map_err(|e| e.to_string())?;
+        let mut line = String::new();
+        self.stdout.read_line(&mut line).map_err(|e| e.to_string())?;
+        let v: serde_json::Value = serde_json::from_str(&line).map_err(|_| format!("unexpected reply {line:?}"))?;
+        v["ms_per_step"].as_f64().ok_or_else(|| format!("no timing in {line:?}"))
+    }
+}
+
+impl Drop for Torch {
+    fn drop(&mut self) {
+        // End of input ends the script's loop.
+        let _ = writeln!(self.stdin);
+        let _ = self.child.wait();
+    }
+}
+
+/// Our step and PyTorch's, alternating rounds per architecture (see [`time_config`]). Without python3
+/// or torch it prints how to install it and returns our timings alone.
+pub fn run_with_torch(configs: &[Config], batch: usize, steps: usize, rounds: usize, script: &Path) -> Result<Vec<StepTiming>> {
+    let spec = bench_spec(configs, batch, steps);
+    let spec_path = std::env::temp_dir().join(format!("nbrdf-bench-spec-{}.json", std::process::id()));
+    let json = serde_json::to_vec_pretty(&spec).map_err(|e| Error::io(&spec_path, e))?;
+    std::fs::write(&spec_path, json).map_err(|e| Error::io(&spec_path, e))?;
+    // Kept after the run, so that `python3 benches/torch_reference.py SPEC` can time PyTorch alone.
+    eprintln!("architectures for the PyTorch twin: {}", spec_path.display());
+    let mut torch = match Torch::start(script, &spec_path) {
+        Ok(t) => Some(t),
+        Err(e) => {
+            eprintln!("PyTorch reference unavailable: {e}\n  install it with `pip install torch`; timing ours only");
+            None
+        }
+    };
+    let out = configs.iter().map(|c| time_config(c, batch, steps, rounds, torch.as_mut())).collect();
+    drop(torch);
+    out
+}
+
+/// Prints the table of [`run`] or [`run_with_torch`].
+pub fn print_table(t: &[StepTiming]) {
+    let torch = t.iter().any(|r| r.torch_ms_per_step.is_some());
+    print!("{:<34} {:>10} {:>8} {:>10} {:>10}", "model", "parameters", "batch", "ms/step", "ms inputs");
+    if torch {
+        print!(" {:>10} {:>7} {:>7}", "torch ms", "ratio", "target");
+    }
+    println!();
+    for r in t {
+        print!("{:<34} {:>10} {:>8} {:>10.1} {:>10.1}", r.model, r.n_weights, r.batch, r.ms_per_step, r.ms_inputs);
+        if let (Some(ms), Some(ratio)) = (r.torch_ms_per_step, r.ratio) {
+            let mark = if ratio <= TARGET_RATIO { "met" } else { "missed" };
+            print!(" {ms:>10.1} {ratio:>7.2} {TARGET_RATIO:>4} {mark}");
+        }
+        println!();
+    }
 }

@@ -3,9 +3,8 @@
 //! Each layer holds its matrix `[in][out]` and its bias `[1][out]` as two `Var`s whose buffers are the
 //! layer's two blocks of the model file, so export is a copy ([`Mlp::write_weights`]).
 //!
-//! The bias enters as `ones[N,1] · b[1,out]` rather than a broadcast add: candle's backward of a
-//! broadcast reduces with `sum_keepdim(0)`, which costs as much as a whole matmul at batch 2^15, while
-//! the matmul form makes the bias gradient `onesᵀ · dy`, one fast GEMM (issue 4 "Speed").
+//! A layer is one fused op ([`super::fused::linear`]: GEMM, bias and ReLU forward, and a hand-written
+//! backward), not a composition of candle ops, whose backward costs several passes per layer (issue 8).
 
 use candle_core::{DType, Device, Result, Tensor, Var};
 use rand::{Rng, RngExt};
@@ -32,14 +31,16 @@ impl Linear {
         Ok(Linear { weight, bias, n_in })
     }
 
-    /// `x M + 1 b`; `ones` is `[N, 1]` of ones for the batch.
-    pub fn forward(&self, x: &Tensor, ones: &Tensor) -> Result<Tensor> {
-        let b = ones.matmul(self.bias.as_tensor())?;
+    /// `x M + 1 b`, through a ReLU when `relu`; `ones` is `[N, 1]` of ones for the batch.
+    pub fn forward(&self, x: &Tensor, ones: &Tensor, relu: bool) -> Result<Tensor> {
         if self.n_in == 0 {
-            // A position-only network of a uniform material: the layer is its bias.
-            return Ok(b);
+            // A position-only network of a uniform material: the layer is its bias, broadcast as
+            // `ones · b` so that its gradient is the GEMM `onesᵀ dy` (candle's broadcast backward
+            // reduces with the much slower `sum_keepdim`).
+            let b = ones.matmul(self.bias.as_tensor())?;
+            return if relu { b.relu() } else { Ok(b) };
         }
-        x.matmul(self.weight.as_tensor())? + b
+        super::fused::linear(x, self.weight.as_tensor(), self.bias.as_tensor(), relu)
     }
 }
 
@@ -71,8 +72,7 @@ impl Mlp {
             } else {
                 h
             };
-            let y = layer.forward(&input, ones)?;
-            h = if l < hidden { y.relu()? } else { y };
+            h = layer.forward(&input, ones, l < hidden)?;
         }
         Ok(h)
     }

@@ -1,0 +1,280 @@
+//! A dense layer `y = act(x W + b)` (act = ReLU or identity) as one candle op with its own backward pass,
+//! the training hot spot of every network (issue 8).
+//!
+//! Why hand-written: composed from candle ops the layer is a graph of five nodes (`x·W`, `ones·b`, `+`,
+//! `relu`), and candle's backward of `relu` alone is `ge` + `to_dtype` + `mul` + accumulate — four
+//! passes and three allocations over the `[N, out]` activations, about 4 ms per layer at N = 2^15 —
+//! plus a GEMM for the useless gradient of `ones`. No crate fuses a bias and an activation into a CPU
+//! GEMM with a matching backward, so this module does, with the GEMM itself left to the `gemm` crate
+//! (the one candle uses):
+//!
+//! * forward: one GEMM `x W` into an uninitialised buffer, one pass adds the bias and clamps at 0;
+//! * backward (PyTorch's `threshold_backward` convention, gradient 0 where `y = 0`):
+//!   `dz = dy ⊙ [y > 0]` and the bias gradient `db = Σ_rows dz` in one pass, then `dW = xᵀ dz` and,
+//!   only when `x` needs a gradient (not for a network's constant input), `dx = dz Wᵀ`.
+//!
+//! Determinism: the column sums are taken over fixed row blocks and added in block order, and the GEMM
+//! splits only the output, so a step is bitwise reproducible for a thread count, as docs/training.md
+//! promises.
+
+use candle_core::{CpuStorage, CustomOp2, CustomOp3, Layout, Result, Shape, Tensor};
+use rayon::prelude::*;
+
+/// Rows per block of the elementwise passes: large enough to amortise rayon's task cost, small enough
+/// that 2 threads get many blocks; fixed (not per thread count) so that the column sums round the same
+/// way on any machine.
+const ROW_BLOCK: usize = 1024;
+
+/// The contiguous f32 data of a candle CPU tensor.
+fn data<'a>(s: &'a CpuStorage, l: &Layout, op: &str) -> Result<&'a [f32]> {
+    let CpuStorage::F32(d) = s else { candle_core::bail!("{op}: f32 only") };
+    let Some((a, b)) = l.contiguous_offsets() else { candle_core::bail!("{op}: contiguous tensors only") };
+    Ok(&d[a..b])
+}
+
+/// `[rows, cols]` of a rank-2 layout.
+fn dims2(l: &Layout, op: &str) -> Result<(usize, usize)> {
+    match l.shape().dims() {
+        &[r, c] => Ok((r, c)),
+        d => candle_core::bail!("{op}: rank-2 tensor expected, got {d:?}"),
+    }
+}
+
+/// The threads gemm may use: candle's own count (RAYON_NUM_THREADS or the cores), so a fused layer
+/// and a candle matmul run on the same threads.
+fn parallelism() -> gemm::Parallelism {
+    match candle_core::utils::get_num_threads() {
+        0 | 1 => gemm::Parallelism::None,
+        n => gemm::Parallelism::Rayon(n),
+    }
+}
+
+/// `lhs[m, k] · rhs[k, n]` (row-major, contiguous) as a new `m × n` row-major buffer.
+fn gemm_new(m: usize, n: usize, k: usize, lhs: &[f32], rhs: &[f32]) -> Vec<f32> {
+    assert!(lhs.len() == m * k && rhs.len() == k * n, "gemm_new: shapes");
+    if k == 0 {
+        return vec![0.0; m * n];
+    }
+    let mut dst: Vec<f32> = Vec::with_capacity(m * n);
+    // SAFETY: lhs and rhs hold exactly the m×k and k×n row-major matrices the strides describe (column
+    // stride 1, row stride = columns), checked above; dst has room for m×n values, which gemm writes
+    // without reading (`read_dst = false`) before `set_len` exposes them. Skipping the zero fill saves
+    // a pass over the largest buffer of the layer; candle's own matmul allocates the same way.
+    unsafe {
+        gemm::gemm(
+            m,
+            n,
+            k,
+            dst.as_mut_ptr(),
+            1,
+            n as isize,
+            false,
+            lhs.as_ptr(),
+            1,
+            k as isize,
+            rhs.as_ptr(),
+            1,
+            n as isize,
+            0.0,
+            1.0,
+            false,
+            false,
+            false,
+            parallelism(),
+        );
+        dst.set_len(m * n);
+    }
+    dst
+}
+
+/// The forward op over `(x [N, in], W [in, out], b [1, out])`.
+struct Linear {
+    relu: bool,
+}
+
+impl Linear {
+    fn name_of(relu: bool) -> &'static str {
+        if relu {
+            "linear-relu"
+        } else {
+            "linear"
+        }
+    }
+}
+
+impl CustomOp3 for Linear {
+    fn name(&self) -> &'static str {
+        Self::name_of(self.relu)
+    }
+
+    fn cpu_fwd(
+        &self,
+        s1: &CpuStorage,
+        l1: &Layout,
+        s2: &CpuStorage,
+        l2: &Layout,
+        s3: &CpuStorage,
+        l3: &Layout,
+    ) -> Result<(CpuStorage, Shape)> {
+        let op = self.name();
+        let (x, w, b) = (data(s1, l1, op)?, data(s2, l2, op)?, data(s3, l3, op)?);
+        let ((n, k), (k2, m)) = (dims2(l1, op)?, dims2(l2, op)?);
+        if k != k2 || b.len() != m {
+            candle_core::bail!("{op}: x [{n}, {k}], W [{k2}, {m}], b [{}] do not fit", b.len())
+        }
+        let mut y = gemm_new(n, m, k, x, w);
+        // Bias and activation in one parallel pass over the GEMM output.
+        let relu = self.relu;
+        y.par_chunks_mut(ROW_BLOCK * m.max(1)).for_each(|c| {
+            for row in c.chunks_exact_mut(m) {
+                for (v, &bj) in row.iter_mut().zip(b) {
+                    let z = *v + bj;
+                    *v = if relu { z.max(0.0) } else { z };
+                }
+            }
+        });
+        Ok((CpuStorage::F32(y), Shape::from((n, m))))
+    }
+
+    fn bwd(&self, x: &Tensor, w: &Tensor, _b: &Tensor, y: &Tensor, dy: &Tensor) -> Result<(Option<Tensor>, Option<Tensor>, Option<Tensor>)> {
+        let n = x.dim(0)?;
+        let packed = dy.contiguous()?.apply_op2_no_bwd(&y.contiguous()?, &ActivationGrad { relu: self.relu })?;
+        let dz = packed.narrow(0, 0, n)?;
+        let db = packed.narrow(0, n, 1)?;
+        let dw = x.contiguous()?.apply_op2_no_bwd(&dz, &WeightGrad)?;
+        // A network's input (encoded positions and angles) is a constant: its gradient would be a
+        // full-size GEMM and accumulation that nothing reads.
+        let dx = if x.track_op() { Some(dz.matmul(&w.t()?)?) } else { None };
+        Ok((dx, Some(dw), Some(db)))
+    }
+}
+
+/// `(dy [N, m], y [N, m]) → [N + 1, m]`: rows `0..N` are `dz = dy ⊙ act'(y)`, row `N` is `Σ_rows dz`
+/// (both outputs of one pass in one buffer, split by `narrow` without a copy).
+struct ActivationGrad {
+    relu: bool,
+}
+
+impl CustomOp2 for ActivationGrad {
+    fn name(&self) -> &'static str {
+        "linear-activation-grad"
+    }
+
+    fn cpu_fwd(&self, s1: &CpuStorage, l1: &Layout, s2: &CpuStorage, l2: &Layout) -> Result<(CpuStorage, Shape)> {
+        let op = self.name();
+        let (dy, y) = (data(s1, l1, op)?, data(s2, l2, op)?);
+        let (n, m) = dims2(l1, op)?;
+        if dims2(l2, op)? != (n, m) {
+            candle_core::bail!("{op}: dy {:?} and y {:?} differ", l1.shape(), l2.shape())
+        }
+        // Every value of dz is written below, so the buffer starts uninitialised (`MaybeUninit`)
+        // instead of paying a zero fill over the layer's largest array.
+        let mut out: Vec<f32> = Vec::with_capacity((n + 1) * m);
+        let dz = &mut out.spare_capacity_mut()[..n * m];
+        let block = ROW_BLOCK * m.max(1);
+        let relu = self.relu;
+        let partial: Vec<Vec<f32>> = dz
+            .par_chunks_mut(block)
+            .zip(dy.par_chunks(block).zip(y.par_chunks(block)))
+            .map(|(dz, (dy, y))| {
+                let mut sum = vec![0.0f32; m];
+                // Iterators, not indices, and a select, not a branch: the loop vectorises.
+                for ((dz, dy), y) in dz.chunks_exact_mut(m).zip(dy.chunks_exact(m)).zip(y.chunks_exact(m)) {
+                    for (((d, &g), &yv), s) in dz.iter_mut().zip(dy).zip(y).zip(sum.iter_mut()) {
+                        let g = if !relu || yv > 0.0 { g } else { 0.0 };
+                        d.write(g);
+                        *s += g;
+                    }
+                }
+                sum
+            })
+            .collect();
+        // SAFETY: the loop above wrote all n × m values of dz (the chunks cover it exactly).
+        unsafe { out.set_len(n * m) };
+        let mut db = vec![0.0f32; m];
+        for p in &partial {
+            for (d, s) in db.iter_mut().zip(p) {
+                *d += s;
+            }
+        }
+        out.extend_from_slice(&db);
+        Ok((CpuStorage::F32(out), Shape::from((n + 1, m))))
+    }
+}
+
+/// `relu(x W + b)` (`relu = true`) or `x W + b`, with `x [N, in]`, `W [in, out]`, `b [1, out]`.
+pub fn linear(x: &Tensor, w: &Tensor, b: &Tensor, relu: bool) -> Result<Tensor> {
+    x.contiguous()?.apply_op3(&w.contiguous()?, &b.contiguous()?, Linear { relu })
+}
+
+/// Rows per partial product of the weight gradient: fixed, so that the partial sums round the same way
+/// for any thread count.
+const K_BLOCK: usize = 4096;
+
+/// `(x [N, in], dz [N, out]) → xᵀ dz [in, out]`, split over the batch.
+///
+/// Why not candle's `x.t().matmul(dz)`: gemm parallelises over the output, and a `128 × 128` output
+/// with a reduction over 2^15 rows gives it too few blocks to keep the threads busy. Here each block
+/// of `K_BLOCK` rows is its own single-threaded GEMM, run in parallel, and the partial products are
+/// added in block order.
+struct WeightGrad;
+
+impl CustomOp2 for WeightGrad {
+    fn name(&self) -> &'static str {
+        "linear-weight-grad"
+    }
+
+    fn cpu_fwd(&self, s1: &CpuStorage, l1: &Layout, s2: &CpuStorage, l2: &Layout) -> Result<(CpuStorage, Shape)> {
+        let op = self.name();
+        let (x, dz) = (data(s1, l1, op)?, data(s2, l2, op)?);
+        let ((n, k), (n2, m)) = (dims2(l1, op)?, dims2(l2, op)?);
+        if n != n2 {
+            candle_core::bail!("{op}: x has {n} rows, dz {n2}")
+        }
+        let partial: Vec<Vec<f32>> = (0..n.div_ceil(K_BLOCK))
+            .into_par_iter()
+            .map(|blk| {
+                let (r0, r1) = (blk * K_BLOCK, ((blk + 1) * K_BLOCK).min(n));
+                let (xb, db) = (&x[r0 * k..r1 * k], &dz[r0 * m..r1 * m]);
+                let mut out: Vec<f32> = Vec::with_capacity(k * m);
+                if k * m > 0 {
+                    // SAFETY: xb is the (r1 - r0) × k row-major block of x, read as its transpose
+                    // (row stride 1, column stride k); db the (r1 - r0) × m block of dz; out has room
+                    // for k × m values, written without being read (`read_dst = false`).
+                    unsafe {
+                        gemm::gemm(
+                            k,
+                            m,
+                            r1 - r0,
+                            out.as_mut_ptr(),
+                            1,
+                            m as isize,
+                            false,
+                            xb.as_ptr(),
+                            k as isize,
+                            1,
+                            db.as_ptr(),
+                            1,
+                            m as isize,
+                            0.0,
+                            1.0,
+                            false,
+                            false,
+                            false,
+                            gemm::Parallelism::None,
+                        );
+                        out.set_len(k * m);
+                    }
+                }
+                out
+            })
+            .collect();
+        let mut dw = vec![0.0f32; k * m];
+        for p in &partial {
+            for (d, v) in dw.iter_mut().zip(p) {
+                *d += v;
+            }
+        }
+        Ok((CpuStorage::F32(dw), Shape::from((k, m))))
+    }
+}

@@ -1,0 +1,120 @@
+//! The fused Linear(+ReLU) op of trainer/src/models/fused.rs against the same layer composed from
+//! plain candle ops: outputs and every gradient, on random data with pre-activations exactly at the
+//! ReLU kink, and a whole network (skip layer included) before and after the fusion.
+
+use candle_core::{DType, Device, Tensor, Var};
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use trainer::models::{fused, Config, Inputs, Kind, Model, PositionEncoding, RawBatch, Reciprocity};
+
+/// `max |a - b| / max(max |b|, tiny)`: the 1e-5 relative criterion over a whole tensor.
+fn rel_err(a: &Tensor, b: &Tensor) -> f32 {
+    let a = a.flatten_all().unwrap().to_vec1::<f32>().unwrap();
+    let b = b.flatten_all().unwrap().to_vec1::<f32>().unwrap();
+    assert_eq!(a.len(), b.len());
+    let scale = b.iter().fold(0.0f32, |m, v| m.max(v.abs())).max(1e-30);
+    a.iter().zip(&b).fold(0.0f32, |m, (x, y)| m.max((x - y).abs())) / scale
+}
+
+fn random(rng: &mut ChaCha8Rng, n: usize) -> Vec<f32> {
+    (0..n).map(|_| rng.random_range(-1.0f32..1.0)).collect()
+}
+
+/// The layer from candle ops with PyTorch's ReLU gradient convention (0 at the kink, like the fused
+/// op; candle's own `relu` passes the gradient at exactly 0): `z ⊙ [z > 0]` with a constant mask.
+fn reference(x: &Tensor, w: &Tensor, b: &Tensor, relu: bool) -> Tensor {
+    let z = x.matmul(w).unwrap().broadcast_add(b).unwrap();
+    if relu {
+        let mask = z.detach().gt(0f32).unwrap().to_dtype(DType::F32).unwrap();
+        (z * mask).unwrap()
+    } else {
+        z
+    }
+}
+
+#[test]
+fn fused_layer_matches_candle_composition() {
+    let dev = Device::Cpu;
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    // Several 1024-row blocks (column sums) and 4096-row blocks (split-K weight gradient), the last
+    // one partial.
+    let (n, k, m) = (9000, 19, 23);
+    let mut xs = random(&mut rng, n * k);
+    let mut bs = random(&mut rng, m);
+    // Exact zeros at the kink: zero input rows meet zero biases, so z = 0 exactly there.
+    for r in (0..n).step_by(7) {
+        xs[r * k..(r + 1) * k].fill(0.0);
+    }
+    for j in (0..m).step_by(3) {
+        bs[j] = 0.0;
+    }
+    let x = Var::from_vec(xs, (n, k), &dev).unwrap();
+    let w = Var::from_vec(random(&mut rng, k * m), (k, m), &dev).unwrap();
+    let b = Var::from_vec(bs, (1, m), &dev).unwrap();
+    let r = Tensor::from_vec(random(&mut rng, n * m), (n, m), &dev).unwrap();
+    for relu in [true, false] {
+        let y = fused::linear(x.as_tensor(), w.as_tensor(), b.as_tensor(), relu).unwrap();
+        let y_ref = reference(x.as_tensor(), w.as_tensor(), b.as_tensor(), relu);
+        assert!(rel_err(&y, &y_ref) < 1e-5, "relu {relu}: y {}", rel_err(&y, &y_ref));
+        if relu {
+            let zeros = y.flatten_all().unwrap().to_vec1::<f32>().unwrap().iter().filter(|v| **v == 0.0).count();
+            assert!(zeros > n * m / 3, "the test must hit the kink and the negative side");
+        }
+        let g = (y * &r).unwrap().sum_all().unwrap().backward().unwrap();
+        let g_ref = (y_ref * &r).unwrap().sum_all().unwrap().backward().unwrap();
+        for (v, name) in [(&x, "dx"), (&w, "dW"), (&b, "db")] {
+            let (a, e) = (g.get(v.as_tensor()).unwrap(), g_ref.get(v.as_tensor()).unwrap());
+            assert!(rel_err(a, e) < 1e-5, "relu {relu}: {name} {}", rel_err(a, e));
+        }
+    }
+}
+
+/// A constant input gets no gradient, and the weight gradients are unchanged by skipping it.
+#[test]
+fn constant_input_skips_dx() {
+    let dev = Device::Cpu;
+    let mut rng = ChaCha8Rng::seed_from_u64(4);
+    let (n, k, m) = (300, 8, 5);
+    let x = Tensor::from_vec(random(&mut rng, n * k), (n, k), &dev).unwrap();
+    let w = Var::from_vec(random(&mut rng, k * m), (k, m), &dev).unwrap();
+    let b = Var::from_vec(random(&mut rng, m), (1, m), &dev).unwrap();
+    let y = fused::linear(&x, w.as_tensor(), b.as_tensor(), true).unwrap();
+    let g = y.sum_all().unwrap().backward().unwrap();
+    assert!(g.get(&x).is_none());
+    let y_ref = reference(&x, w.as_tensor(), b.as_tensor(), true);
+    let g_ref = y_ref.sum_all().unwrap().backward().unwrap();
+    assert!(rel_err(g.get(w.as_tensor()).unwrap(), g_ref.get(w.as_tensor()).unwrap()) < 1e-5);
+    assert!(rel_err(g.get(b.as_tensor()).unwrap(), g_ref.get(b.as_tensor()).unwrap()) < 1e-5);
+}
+
+/// A whole model (the Single MLP: 7 layers, skip concat into layer 2, softplus head) gives the same
+/// loss and gradients as the unfused network `relu(x W + b)` written with candle ops.
+#[test]
+fn whole_network_matches_unfused() {
+    let dev = Device::Cpu;
+    let config = Config::paper(Kind::SingleMlp, false, Reciprocity::Exact, PositionEncoding::Intrinsic { k: 8 });
+    let model = Model::init(config, 5, &dev).unwrap();
+    let n = 1500;
+    let obs = trainer::toy::observations(n, config.position, 9);
+    let x = Inputs::build(&config, &RawBatch { position: &obs.position, wi: &obs.wi, wo: &obs.wo, swap: None }, &dev).unwrap();
+    let net = &model.nets[0];
+    let out = net.forward(&x.joint, &x.ones).unwrap();
+    // The unfused reference: candle's matmul, broadcast bias and relu (issue 4's graph).
+    let mut h = x.joint.clone();
+    for (l, layer) in net.layers.iter().enumerate() {
+        let input = if l == net.desc.skip as usize && l > 0 { Tensor::cat(&[&h, &x.joint], 1).unwrap() } else { h };
+        let z = input.matmul(layer.weight.as_tensor()).unwrap().broadcast_add(layer.bias.as_tensor()).unwrap();
+        h = if l < net.desc.hidden as usize { z.relu().unwrap() } else { z };
+    }
+    assert!(rel_err(&out, &h) < 1e-5, "output {}", rel_err(&out, &h));
+    let target = Tensor::from_vec(obs.radiance.iter().flatten().copied().collect::<Vec<f32>>(), (n, 3), &dev).unwrap();
+    let loss = |o: &Tensor| (trainer::models::activation::softplus(o).unwrap() - &target).unwrap().sqr().unwrap().mean_all().unwrap();
+    let (l, l_ref) = (loss(&out), loss(&h));
+    let (lv, lv_ref) = (l.to_scalar::<f32>().unwrap(), l_ref.to_scalar::<f32>().unwrap());
+    assert!((lv - lv_ref).abs() <= 1e-5 * lv_ref.abs(), "loss {lv} vs {lv_ref}");
+    let (g, g_ref) = (l.backward().unwrap(), l_ref.backward().unwrap());
+    for (i, v) in model.vars().iter().enumerate() {
+        let (a, e) = (g.get(v.as_tensor()).unwrap(), g_ref.get(v.as_tensor()).unwrap());
+        assert!(rel_err(a, e) < 1e-5, "variable {i}: {}", rel_err(a, e));
+    }
+}
