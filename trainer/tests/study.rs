@@ -101,9 +101,10 @@ fn tiny_study_writes_every_table_and_reuses_jobs() {
     assert_eq!(flips.len(), 2, "one parametric and one neural comparison: {pngs:?}");
     for f in flips {
         let map = image::open(f).unwrap().to_rgb8();
-        assert_eq!(map.dimensions(), (40, 40));
+        let z = study::figures::ZOOM;
+        assert_eq!(map.dimensions(), (40 * z, 40 * z));
         let pair = std::path::PathBuf::from(f.to_string_lossy().replace("-flip.png", ".png"));
-        assert_eq!(image::open(&pair).unwrap().to_rgb8().dimensions(), (2 * 40 + 4, 40), "{}", pair.display());
+        assert_eq!(image::open(&pair).unwrap().to_rgb8().dimensions(), (2 * 40 * z + 4, 40 * z), "{}", pair.display());
         let rel = pair.strip_prefix(&out).unwrap().to_string_lossy().into_owned();
         assert!(report.contains(&rel), "{rel} not linked");
     }

@@ -137,7 +137,8 @@ impl StudyConfig {
     /// these meshes), the nine variants of Tab. 1 on both, and the ablation rows — Tab. 2's direction
     /// layer counts and Tab. 3's `none` / `swap` strategies — on the torus only, so that the whole run
     /// fits in about a quarter of an hour on two cores (27 jobs). 200 steps of 2048 pixels: a smoke-scale
-    /// comparison, far from the paper's 20k steps of 2^15 values; the report says so.
+    /// comparison, far from the paper's 20k steps of 2^15 values; the report says so. Learning rates
+    /// as the paper (1e-3 decaying to 1e-4).
     pub fn default_small() -> Self {
         StudyConfig {
             scenes: vec![
@@ -156,8 +157,10 @@ impl StudyConfig {
             seed: 0,
             steps: 200,
             batch: 2048,
-            lr: 3e-3,
-            lr_final: 3e-4,
+            // The paper's rates. At 3e-3 the purely neural models collapsed on the sphere (loss stuck at
+            // 0.047, constant output, PSNR 14 dB) while 1e-3 reached 0.003 in the same 200 steps.
+            lr: 1e-3,
+            lr_final: 1e-4,
             pixel_stride: 1,
             reciprocity_pairs: 2000,
             energy_pairs: 64,

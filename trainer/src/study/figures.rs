@@ -138,14 +138,17 @@ pub fn pareto_plot(path: &Path, title: &str, cost_label: &str, accuracy_label: &
         chart
             .draw_series(owned.iter().enumerate().map(|(i, p)| {
                 let colour = if front.contains(&i) { red } else { RGBColor(40, 70, 160) };
+                // Labels alternate above and below their points, so that close pairs (a model and its
+                // f16 copy) stay readable.
+                let dy = if i % 2 == 0 { -16 } else { 5 };
                 EmptyElement::at((p.cost, p.accuracy))
                     + Circle::new((0, 0), 4, colour.filled())
-                    + Text::new(p.label.clone(), (6, -14), (FAMILY, 12).into_font().color(&BLACK))
+                    + Text::new(p.label.clone(), (6, dy), (FAMILY, 12).into_font().color(&BLACK))
             }))
             .map_err(|e| plot_err(&e))?;
         chart
             .configure_series_labels()
-            .position(SeriesLabelPosition::LowerRight)
+            .position(SeriesLabelPosition::UpperMiddle)
             .label_font((FAMILY, 14))
             .background_style(WHITE.mix(0.8))
             .border_style(BLACK)
@@ -161,22 +164,27 @@ fn srgb8(x: f32) -> u8 {
     (srgb_encode(x) * 255.0).round() as u8
 }
 
-/// Pixels of `images` placed side by side with a 4-pixel white gap, as 8-bit RGB rows.
-fn side_by_side(images: &[Vec<[u8; 3]>], width: u32, height: u32) -> (u32, Vec<u8>) {
+/// Enlargement of the comparison images: the study renders small (64²), too small to inspect.
+pub const ZOOM: u32 = 4;
+
+/// Pixels of `images` (each `width × height`) enlarged [`ZOOM`]× by pixel replication and placed side
+/// by side with a 4-pixel white gap; returns the total width and height and the 8-bit RGB rows.
+fn side_by_side(images: &[Vec<[u8; 3]>], width: u32, height: u32) -> (u32, u32, Vec<u8>) {
     let gap = 4u32;
+    let (w, h) = (width * ZOOM, height * ZOOM);
     let n = images.len() as u32;
-    let total = n * width + n.saturating_sub(1) * gap;
-    let mut rgb = vec![255u8; (total * height * 3) as usize];
+    let total = n * w + n.saturating_sub(1) * gap;
+    let mut rgb = vec![255u8; (total * h * 3) as usize];
     for (k, img) in images.iter().enumerate() {
-        let x0 = k as u32 * (width + gap);
-        for row in 0..height {
-            for col in 0..width {
+        let x0 = k as u32 * (w + gap);
+        for row in 0..h {
+            for col in 0..w {
                 let o = ((row * total + x0 + col) * 3) as usize;
-                rgb[o..o + 3].copy_from_slice(&img[(row * width + col) as usize]);
+                rgb[o..o + 3].copy_from_slice(&img[((row / ZOOM) * width + col / ZOOM) as usize]);
             }
         }
     }
-    (total, rgb)
+    (total, h, rgb)
 }
 
 /// The FLIP map colour of an error in [0, 1]: the reference tool's magma map (`flip_rs::MAGMA`,
@@ -217,11 +225,12 @@ pub fn write_comparison(
     let images = PathBuf::from("figures").join(format!("{stem}.png"));
     let flip_map = PathBuf::from("figures").join(format!("{stem}-flip.png"));
     let to8 = |img: &RgbImage| img.data.iter().map(|p| p.map(srgb8)).collect::<Vec<_>>();
-    let (tw, rgb) = side_by_side(&[to8(reference), to8(rendering)], w, h);
-    write_png(&out.join(&images), tw, h, &rgb)?;
+    let (tw, th, rgb) = side_by_side(&[to8(reference), to8(rendering)], w, h);
+    write_png(&out.join(&images), tw, th, &rgb)?;
     let flip = hdr_flip(reference, rendering, Some(mask));
-    let map: Vec<u8> = flip.map.iter().flat_map(|&e| magma(e)).collect();
-    write_png(&out.join(&flip_map), w, h, &map)?;
+    let map: Vec<[u8; 3]> = flip.map.iter().map(|&e| magma(e)).collect();
+    let (mw, mh, map) = side_by_side(&[map], w, h);
+    write_png(&out.join(&flip_map), mw, mh, &map)?;
     Ok(Comparison { scene: scene.into(), model: model.into(), images, flip_map, flip_mean: flip.mean })
 }
 

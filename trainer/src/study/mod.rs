@@ -109,15 +109,27 @@ impl Progress {
         }))
     }
 
+    /// A log line above the bar; plain stderr when the bar is hidden (stderr not a terminal, e.g. a
+    /// log file), where indicatif would drop it.
     fn say(&self, line: String) {
-        if let Some(b) = &self.0 {
-            b.println(line);
+        match &self.0 {
+            Some(b) if b.is_hidden() => eprintln!("{line}"),
+            Some(b) => b.println(line),
+            None => {}
         }
     }
 
     fn doing(&self, what: String) {
         if let Some(b) = &self.0 {
             b.set_message(what);
+        }
+    }
+
+    /// Runs `f` with the bar cleared, for work that draws its own bar (`synthesize`).
+    fn aside<R>(&self, f: impl FnOnce() -> R) -> R {
+        match &self.0 {
+            Some(b) => b.suspend(f),
+            None => f(),
         }
     }
 
@@ -170,7 +182,7 @@ pub fn run(config: &StudyConfig, out: &Path, shard: Option<Shard>, progress: boo
         let dir = scene_dir(out, config, scene);
         if !dir.join("dataset.json").exists() {
             bar.doing(format!("{}: synthesizing", scene.id()));
-            crate::dataset::synth::synthesize(&config.synth_args(scene, &dir)).map_err(Error::Core)?;
+            bar.aside(|| crate::dataset::synth::synthesize(&config.synth_args(scene, &dir))).map_err(Error::Core)?;
         }
         let ds = Dataset::open(&dir).map_err(Error::Core)?;
         let args = DataArgs { dataset: Some(dir.clone()), diligent: None, object: String::new(), pixel_stride: config.pixel_stride };
@@ -238,7 +250,7 @@ pub fn run(config: &StudyConfig, out: &Path, shard: Option<Shard>, progress: boo
 }
 
 /// For each scene, the reference next to the rendering of the best parametric and the best purely
-/// neural model of that scene (by PSNR), with their FLIP maps (`figures::write_comparison`). Jobs whose
+/// neural Tab. 1 variant of that scene (by PSNR), with their FLIP maps (`figures::write_comparison`). Jobs whose
 /// folder is missing here (e.g. results merged from elsewhere) are skipped.
 pub fn comparisons(config: &StudyConfig, out: &Path, results: &[JobResult]) -> Result<Vec<figures::Comparison>> {
     let mut figs = Vec::new();
@@ -248,7 +260,10 @@ pub fn comparisons(config: &StudyConfig, out: &Path, results: &[JobResult]) -> R
         if !dir.join("dataset.json").exists() {
             continue;
         }
-        let on_scene: Vec<&JobResult> = results.iter().filter(|r| r.scene == id && r.eval.image.psnr.is_finite()).collect();
+        let on_scene: Vec<&JobResult> = results
+            .iter()
+            .filter(|r| r.scene == id && r.eval.image.psnr.is_finite() && report::in_tab1(&r.model, config))
+            .collect();
         let base = |r: &JobResult| r.model.split('+').next().unwrap_or_default().to_string();
         let best = |parametric: bool| {
             on_scene

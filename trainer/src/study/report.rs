@@ -133,7 +133,7 @@ pub fn role(name: &str) -> Role {
 
 /// Whether a variant is a Tab. 1 row: not a layer-count variant, and (purely neural) with the study's
 /// reciprocity strategy.
-fn in_tab1(name: &str, config: &StudyConfig) -> bool {
+pub fn in_tab1(name: &str, config: &StudyConfig) -> bool {
     let r = role(name);
     r.nol_base.is_none() && r.reciprocity.is_none_or(|s| s == config.reciprocity)
 }
@@ -217,6 +217,21 @@ fn signed(v: f64, digits: usize) -> String {
     format!("{v:+.digits$}")
 }
 
+/// A plot label short enough not to run into its neighbours: the architecture names abbreviated and
+/// the study's own reciprocity strategy (every Tab. 1 row has it) left out.
+fn short_label(name: &str, config: &StudyConfig) -> String {
+    name.split('+')
+        .filter(|p| *p != config.reciprocity)
+        .map(|p| match p {
+            "additive-separate" => "add-sep",
+            "additive-shared" => "add-shared",
+            "enhanced" => "enh",
+            other => other,
+        })
+        .collect::<Vec<_>>()
+        .join("+")
+}
+
 /// The two Pareto plots (PSNR against training wall time and against evaluation ns per query, the
 /// latter with the f16 copies) over the rows that ran on every object of the study, so that all means
 /// cover the same objects. Returns their paths relative to `out`.
@@ -225,11 +240,15 @@ pub fn pareto_plots(out: &Path, config: &StudyConfig, results: &[JobResult]) -> 
     let all = config.scenes.len();
     let full: Vec<&ModelSummary> = s.iter().filter(|m| m.objects == all).collect();
     let train: Vec<CostPoint> =
-        full.iter().map(|m| CostPoint { label: m.model.clone(), cost: m.train_wall_s, accuracy: m.psnr }).collect();
+        full.iter().map(|m| CostPoint { label: short_label(&m.model, config), cost: m.train_wall_s, accuracy: m.psnr }).collect();
     let mut eval: Vec<CostPoint> =
-        full.iter().map(|m| CostPoint { label: m.model.clone(), cost: m.eval_ns_per_query, accuracy: m.psnr }).collect();
+        full.iter().map(|m| CostPoint { label: short_label(&m.model, config), cost: m.eval_ns_per_query, accuracy: m.psnr }).collect();
     eval.extend(full.iter().filter_map(|m| {
-        m.f16.as_ref().map(|f| CostPoint { label: format!("{} f16", m.model), cost: f.eval_ns_per_query, accuracy: f.psnr })
+        m.f16.as_ref().map(|f| CostPoint {
+            label: format!("{} f16", short_label(&m.model, config)),
+            cost: f.eval_ns_per_query,
+            accuracy: f.psnr,
+        })
     }));
     let plots = [
         ("PSNR against training wall time", "figures/pareto-train.png", "training wall time (s, log)", train),
@@ -449,8 +468,8 @@ pub fn markdown(
         let _ = writeln!(
             md,
             "First test image of each object: reference (left) and the rendering of the best parametric and the best purely \
-             neural variant by PSNR on that object (right), sRGB at exposure 1 as the metrics see them; and the HDR-FLIP \
-             error map (magma: black = no error, white = largest).\n"
+             neural Tab. 1 variant by PSNR on that object (right), sRGB at exposure 1 as the metrics see them, enlarged \
+             4× (nearest pixel); and the HDR-FLIP error map (magma: black = no error, bright = large).\n"
         );
         let _ = writeln!(md, "| object | model | reference · rendering | HDR-FLIP | mean FLIP ×100 |");
         let _ = writeln!(md, "|---|---|---|---|---:|");
@@ -566,6 +585,8 @@ mod tests {
         let c = StudyConfig::default_small();
         assert!(in_tab1("disney", &c) && in_tab1("single-mlp+exact", &c));
         assert!(!in_tab1("single-mlp+swap", &c) && !in_tab1("single-mlp", &c) && !in_tab1("single-mlp+exact+nol3", &c));
+        assert_eq!(short_label("additive-shared+enhanced+exact", &c), "add-shared+enh");
+        assert_eq!(short_label("single-mlp+swap", &c), "single-mlp+swap");
     }
 
     /// Tab. 2 deltas by hand: two objects, variant − base per object, averaged.
