@@ -1,7 +1,8 @@
-//! The study end to end on a tiny config: one small scene, a parametric and a neural model, very few
-//! steps. Checks that the report has every table, that the numbers are the ones the metrics promise
-//! (reciprocity exactly 0 for RP and the Θ mapping, finite image metrics), and that a rerun reuses the
-//! finished jobs instead of fitting again.
+//! The study end to end on a tiny config: one small scene, a parametric model, a neural one with the
+//! exact Θ mapping, its Tab. 2 layer-count variant and its no-strategy Tab. 3 variant, very few steps.
+//! Checks that the report has every table and figure, that the numbers are the ones the metrics promise
+//! (reciprocity exactly 0 for RP and the Θ mapping and not for the unconstrained network, finite image
+//! metrics, f16 copies of the neural models), and that a rerun reuses the finished jobs.
 
 use trainer::study::{self, ModelSpec, SceneConfig, StudyConfig};
 
@@ -9,8 +10,10 @@ fn tiny() -> StudyConfig {
     StudyConfig {
         scenes: vec![SceneConfig { mesh: "sphere".into(), material: "two-lobe-metal".into() }],
         models: vec![
-            ModelSpec { model: "rp".into(), enhanced: false, direction_layers: None },
-            ModelSpec { model: "single-mlp".into(), enhanced: false, direction_layers: None },
+            ModelSpec::new("rp"),
+            ModelSpec::new("single-mlp"),
+            ModelSpec { direction_layers: Some(3), ..ModelSpec::new("single-mlp") },
+            ModelSpec { reciprocity: Some("none".into()), ..ModelSpec::new("single-mlp") },
         ],
         size: 40,
         views: 3,
@@ -33,28 +36,82 @@ fn tiny_study_writes_every_table_and_reuses_jobs() {
     let out = dir.path().join("study");
     let config = tiny();
     let results = study::run_and_report(&config, &out, None, false).unwrap();
-    assert_eq!(results.len(), 2);
+    let names: Vec<&str> = results.iter().map(|r| r.model.as_str()).collect();
+    assert_eq!(names, ["rp", "single-mlp+exact", "single-mlp+exact+nol3", "single-mlp"]);
     for r in &results {
         let e = &r.eval;
         assert!(e.image.psnr.is_finite() && e.image.psnr > 5.0, "{}: {:?}", r.model, e.image);
         assert!(e.image.dssim >= 0.0 && e.image.flip > 0.0 && e.image.views == 2);
         assert!(e.brdf_rmse_cbrt.value.is_finite() && e.brdf_rmse_cbrt.samples > 0);
-        // RP is symmetric in its arguments, and the exact Θ mapping makes the MLP's input symmetric.
-        assert_eq!(e.reciprocity_rmse, 0.0, "{}", r.model);
+        if r.model == "single-mlp" {
+            // Nothing constrains an unmapped network to be reciprocal.
+            assert!(e.reciprocity_rmse > 0.0, "{}", r.model);
+        } else {
+            // RP is symmetric in its arguments, and the exact Θ mapping makes the MLP's input symmetric.
+            assert_eq!(e.reciprocity_rmse, 0.0, "{}", r.model);
+        }
         assert_eq!(e.energy.pairs, 4);
         assert!(e.eval_ns_per_query > 0.0 && r.size_bytes > 0 && r.train_wall_s > 0.0);
+        // Neural models also get an f16 copy: smaller, and close to the f32 one in quality.
+        match (&r.eval_f16, r.size_bytes_f16) {
+            (Some(e16), Some(b16)) => {
+                assert_ne!(r.model, "rp");
+                assert!(b16 < r.size_bytes, "{}: f16 file {b16} B not smaller than {} B", r.model, r.size_bytes);
+                assert!((e16.image.psnr - e.image.psnr).abs() < 1.0, "{}: {} vs {}", r.model, e16.image.psnr, e.image.psnr);
+            }
+            (None, None) => assert_eq!(r.model, "rp"),
+            other => panic!("{}: f16 evaluation and size must come together, got {other:?}", r.model),
+        }
     }
     let report = std::fs::read_to_string(out.join("REPORT.md")).unwrap();
-    for heading in ["## Tab. 1", "## Tab. 3", "## Tab. 4", "## Accuracy versus cost"] {
+    for heading in ["## Tab. 1", "## Tab. 2", "## Tab. 3", "## Tab. 4", "## Accuracy versus cost", "## Renderings", "smoke test"] {
         assert!(report.contains(heading), "missing {heading}:\n{report}");
     }
+    let section = |h: &str| {
+        let start = report.find(h).unwrap();
+        let rest = &report[start + h.len()..];
+        rest[..rest.find("\n## ").unwrap_or(rest.len())].to_string()
+    };
+    let (t1, t2, t3, t4) = (section("## Tab. 1"), section("## Tab. 2"), section("## Tab. 3"), section("## Tab. 4"));
+    // Tab. 1 and 4: the base rows only; Tab. 2: the layer-count variant against its base; Tab. 3: the
+    // neural rows, the unconstrained one first.
+    for m in ["rp", "single-mlp+exact"] {
+        assert!(t1.contains(&format!("| {m} |")) && t4.contains(&format!("| {m} |")), "{m}:\n{t1}\n{t4}");
+    }
+    assert!(!t1.contains("| single-mlp |") && !t1.contains("nol3"));
+    assert!(t2.contains("| single-mlp+exact+nol3 | single-mlp+exact | sphere__two-lobe-metal |"), "{t2}");
+    assert!(t3.find("| single-mlp |").unwrap() < t3.find("| single-mlp+exact |").unwrap(), "{t3}");
+    assert!(!t3.contains("| rp |"));
+    // Every variant in the accuracy-versus-cost table, the neural ones with an f16 row too.
+    let cost = section("## Accuracy versus cost");
     for r in &results {
-        assert!(report.matches(&format!("| {} |", r.model)).count() == 4, "{} not in every table", r.model);
+        let rows = cost.matches(&format!("| {} |", r.model)).count();
+        assert_eq!(rows, if r.model == "rp" { 1 } else { 2 }, "{}:\n{cost}", r.model);
+    }
+    // The figures: Pareto plots and, per object, best parametric and best neural comparisons.
+    for plot in ["figures/pareto-train.png", "figures/pareto-eval.png"] {
+        assert!(report.contains(plot), "{plot} not linked");
+        let img = image::open(out.join(plot)).unwrap().to_rgb8();
+        assert_eq!(img.dimensions(), (900, 600));
+        // Not blank: the front is drawn in red.
+        assert!(img.pixels().any(|p| p.0 == [200, 40, 40]), "{plot} has no Pareto front");
+    }
+    let pngs: Vec<_> = std::fs::read_dir(out.join("figures")).unwrap().map(|e| e.unwrap().path()).collect();
+    let flips: Vec<_> = pngs.iter().filter(|p| p.to_string_lossy().ends_with("-flip.png")).collect();
+    assert_eq!(flips.len(), 2, "one parametric and one neural comparison: {pngs:?}");
+    for f in flips {
+        let map = image::open(f).unwrap().to_rgb8();
+        let z = study::figures::ZOOM;
+        assert_eq!(map.dimensions(), (40 * z, 40 * z));
+        let pair = std::path::PathBuf::from(f.to_string_lossy().replace("-flip.png", ".png"));
+        assert_eq!(image::open(&pair).unwrap().to_rgb8().dimensions(), (2 * 40 * z + 4, 40 * z), "{}", pair.display());
+        let rel = pair.strip_prefix(&out).unwrap().to_string_lossy().into_owned();
+        assert!(report.contains(&rel), "{rel} not linked");
     }
     let csv = std::fs::read_to_string(out.join("results.csv")).unwrap();
-    assert_eq!(csv.lines().count(), 3);
+    assert_eq!(csv.lines().count(), 5);
     let json: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("results.json")).unwrap()).unwrap();
-    assert_eq!(json["jobs"].as_array().unwrap().len(), 2);
+    assert_eq!(json["jobs"].as_array().unwrap().len(), 4);
 
     // A rerun finds both results and fits nothing: the model files stay untouched.
     let model_file = |name: &str| {
@@ -73,8 +130,8 @@ fn tiny_study_writes_every_table_and_reuses_jobs() {
     // Shards split the jobs between processes without overlap.
     let s0 = study::run(&config, &out, Some("0/2".parse().unwrap()), false).unwrap();
     let s1 = study::run(&config, &out, Some("1/2".parse().unwrap()), false).unwrap();
-    assert_eq!((s0.len(), s1.len()), (1, 1));
-    assert_ne!(s0[0].model, s1[0].model);
+    assert_eq!((s0.len(), s1.len()), (2, 2));
+    assert!(s0.iter().all(|a| s1.iter().all(|b| a.model != b.model)));
 
     // Shards run into separate folders and merged give the same jobs as one run.
     let (a, b) = (dir.path().join("a"), dir.path().join("b"));
@@ -82,6 +139,10 @@ fn tiny_study_writes_every_table_and_reuses_jobs() {
     study::run_and_report(&config, &b, Some("1/2".parse().unwrap()), false).unwrap();
     let (merged_config, merged) = study::report::merge(&[a, b]).unwrap();
     assert_eq!(merged_config, config);
-    let names = |r: &[study::JobResult]| r.iter().map(|j| j.model.clone()).collect::<Vec<_>>();
+    let names = |r: &[study::JobResult]| {
+        let mut n = r.iter().map(|j| j.model.clone()).collect::<Vec<_>>();
+        n.sort();
+        n
+    };
     assert_eq!(names(&merged), names(&results));
 }

@@ -9,9 +9,9 @@
 
 use std::time::Instant;
 
-use nbrdf::file::ModelBuf;
+use nbrdf::file::{ModelBuf, Precision};
 use nbrdf::image::{read_exr, RgbImage};
-use nbrdf::model::{Model, Prepared};
+use nbrdf::model::{Model, Prepared, Weights};
 use nbrdf::scene::render::{render_view, RenderOptions, SurfaceSample};
 use nbrdf::{Rgb, Vec3};
 use serde::{Deserialize, Serialize};
@@ -152,4 +152,109 @@ fn time_eval(model: &Model<'_>, prepared: &[Prepared], pairs: &[DirectionPair]) 
     let ns = t.elapsed().as_nanos() as f64 / (rounds * pairs.len()) as f64;
     std::hint::black_box(sink);
     ns
+}
+
+/// The first image of the first test view: reference, the model's rendering (Eq. 9, as in
+/// [`evaluate`]) and the object mask.
+pub fn first_test_image(ds: &Dataset, model_path: &std::path::Path) -> Result<(RgbImage, RgbImage, Vec<bool>)> {
+    let buf = ModelBuf::load(model_path).map_err(Error::Core)?;
+    let model = buf.model();
+    let view = ds
+        .views
+        .iter()
+        .find(|v| v.split == Split::Test && !v.images.is_empty())
+        .ok_or_else(|| Error::Invalid("the data set has no test images".into()))?;
+    let im = &view.images[0];
+    let rendered = render_view(
+        &ds.geometry,
+        &view.camera,
+        &[im.light],
+        |s, wi, wo| model.eval(&prepare_at(&model, ds, s), wi, wo),
+        &RenderOptions::default(),
+    );
+    let reference = im.load().map_err(Error::Core)?;
+    let test = RgbImage::from_data(view.camera.width, view.camera.height, rendered.images[0].radiance.clone())
+        .map_err(Error::Core)?;
+    Ok((reference, test, view.mask.clone()))
+}
+
+/// The bytes of `buf` re-encoded with f16 network weights (the core's [`Precision::F16`]: half the
+/// weight bytes, widened to f32 as they are read), for the f32-versus-f16 comparison without retraining.
+/// Object parameters and the position table stay f32, as the file format keeps them; the header
+/// (architecture, encodings, sampling proxy) is unchanged apart from the precision.
+///
+/// The core exposes the network weights but not the object parameters and the position table; those
+/// are the file's last sections before the CRC (`nbrdf::file` layout: weights, object parameters,
+/// position table, CRC-32), so they are read from the end of the validated bytes, and the result is
+/// checked to decode to the same header.
+pub fn to_f16(buf: &ModelBuf) -> Result<Vec<u8>> {
+    let model = buf.model();
+    let header = *model.header();
+    let Weights::F32(net) = model.weights() else {
+        return Err(Error::Invalid("the model already has f16 weights".into()));
+    };
+    let bytes = buf.as_bytes();
+    let n_object = header.n_object();
+    let table_len = header.n_vertices as usize * model.position_len();
+    let tail = 4 * (n_object + table_len) + 4;
+    let object_start = bytes
+        .len()
+        .checked_sub(tail)
+        .ok_or_else(|| Error::Invalid("model file shorter than its object and table sections".into()))?;
+    // The f32 weight section ends exactly where the object parameters start (no padding after 4-byte
+    // values); anything else means the layout assumption above no longer holds.
+    let weights_end = net.as_ptr() as usize + 4 * net.len() - bytes.as_ptr() as usize;
+    if weights_end != object_start {
+        return Err(Error::Invalid(format!(
+            "model file layout: weights end at byte {weights_end}, object parameters expected at {object_start}"
+        )));
+    }
+    let f32s = |b: &[u8]| b.chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect::<Vec<f32>>();
+    let object = f32s(&bytes[object_start..object_start + 4 * n_object]);
+    let table = f32s(&bytes[object_start + 4 * n_object..bytes.len() - 4]);
+    let mut weights = net.to_vec();
+    weights.extend_from_slice(&object);
+    let mut h16 = header;
+    h16.precision = Precision::F16;
+    // `encode` recomputes the vertex count from the table.
+    h16.n_vertices = 0;
+    let out = nbrdf::file::encode(&h16, &weights, (table_len > 0).then_some(&table[..])).map_err(Error::Core)?;
+    let check = ModelBuf::from_bytes(&out).map_err(Error::Core)?;
+    if check.header().n_vertices != header.n_vertices || check.header().nets() != header.nets() {
+        return Err(Error::Invalid("f16 re-encoding changed the model header".into()));
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nbrdf::file::{encode, ModelHeader, ModelKind, PositionEncoding, Reciprocity};
+
+    /// The f16 copy of a model with object parameters and a position table evaluates within f16
+    /// rounding of the f32 one, is smaller, and keeps the table (same point features).
+    #[test]
+    fn f16_copy_matches_the_f32_model() {
+        let k = 4u16;
+        let h = ModelHeader::paper(ModelKind::AdditiveShared, true, Reciprocity::Exact, PositionEncoding::Intrinsic { k }, 3);
+        let weights: Vec<f32> = (0..h.n_weights()).map(|i| ((i * 7919) % 200) as f32 * 1e-3 - 0.1).collect();
+        let table: Vec<f32> = (0..5 * k as usize).map(|i| (i as f32 * 0.37).sin()).collect();
+        let buf = ModelBuf::from_bytes(&encode(&h, &weights, Some(&table)).unwrap()).unwrap();
+        let b16 = ModelBuf::from_bytes(&to_f16(&buf).unwrap()).unwrap();
+        assert_eq!(b16.header().precision, Precision::F16);
+        assert!(b16.as_bytes().len() < buf.as_bytes().len());
+        let (m32, m16) = (buf.model(), b16.model());
+        let mut f32_feat = vec![0.0; k as usize];
+        let mut f16_feat = vec![0.0; k as usize];
+        m32.position_features([0, 1, 2], [0.2, 0.3, 0.5], &mut f32_feat).unwrap();
+        m16.position_features([0, 1, 2], [0.2, 0.3, 0.5], &mut f16_feat).unwrap();
+        assert_eq!(f32_feat, f16_feat);
+        let (wi, wo) = (Vec3::new(0.3, 0.1, 0.9).normalize(), Vec3::new(-0.5, 0.2, 0.7).normalize());
+        let (a, b) = (m32.eval(&m32.prepare(&f32_feat), wi, wo), m16.eval(&m16.prepare(&f16_feat), wi, wo));
+        for c in 0..3 {
+            assert!((a[c] - b[c]).abs() <= 1e-2 * a[c].abs().max(1e-2), "{a:?} vs {b:?}");
+        }
+        // Converting twice is refused rather than silently doing nothing.
+        assert!(to_f16(&b16).is_err());
+    }
 }

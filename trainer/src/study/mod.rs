@@ -4,13 +4,16 @@
 //! - [`config`]: what runs (scenes, variants, budgets); an embedded small default.
 //! - [`evaluate`]: one fitted model, through the core evaluator, on its scene's test views.
 //! - [`report`]: `REPORT.md`, `results.json`, `results.csv`.
+//! - [`figures`]: the Pareto plots and the reference / rendering / FLIP-map PNGs.
 //!
 //! Layout of `--out`: `data/<scene>-<hash>/` (one synthesized data set per scene, reused while its
 //! arguments hash the same), `cache/` (intrinsic eigenpairs), `jobs/<scene>/<model>/` (the fit's files
-//! and `result.json`; a job whose `result.json` carries the current job hash is not run again).
+//! and `result.json`; a job whose `result.json` carries the current job hash is not run again),
+//! `figures/` (PNGs linked from `REPORT.md`).
 
 pub mod config;
 pub mod evaluate;
+pub mod figures;
 pub mod report;
 
 use std::path::{Path, PathBuf};
@@ -41,6 +44,12 @@ pub struct JobResult {
     pub steps: usize,
     pub final_loss: f32,
     pub eval: Evaluation,
+    /// The same fit re-encoded with f16 network weights (purely neural models; parametric models
+    /// keep their few per-object values in f32 anyway): its evaluation and file size.
+    #[serde(default)]
+    pub eval_f16: Option<Evaluation>,
+    #[serde(default)]
+    pub size_bytes_f16: Option<u64>,
 }
 
 /// Which jobs this process runs: job `j` (in scene-major order) belongs to shard `j % count`.
@@ -74,15 +83,78 @@ pub fn job_dir(out: &Path, scene: &SceneConfig, model_name: &str) -> PathBuf {
     out.join("jobs").join(scene.id()).join(model_name.replace('+', "_"))
 }
 
+/// The jobs of a config in scene-major order: (scene index, model index) for every model that runs on
+/// the scene ([`ModelSpec::runs_on`]); job `j` of this list belongs to shard `j % count`.
+pub fn jobs(config: &StudyConfig) -> Vec<(usize, usize)> {
+    (0..config.scenes.len())
+        .flat_map(|s| (0..config.models.len()).filter(move |&m| config.models[m].runs_on(s)).map(move |m| (s, m)))
+        .collect()
+}
+
+/// Progress over the jobs: an overall bar (`jobs done / total`, the current job as its message) when
+/// `progress`, silent otherwise. The per-fit bar is hidden while this one is shown, so the two never
+/// fight over the terminal; the overall bar ticks every second so a long fit still shows it is alive.
+struct Progress(Option<indicatif::ProgressBar>);
+
+impl Progress {
+    fn new(total: usize, progress: bool) -> Self {
+        Progress(progress.then(|| {
+            let bar = indicatif::ProgressBar::new(total as u64);
+            let style = indicatif::ProgressStyle::with_template("{elapsed_precise} [{bar:30}] {pos}/{len} jobs  {msg}")
+                .expect("valid template")
+                .progress_chars("=> ");
+            bar.set_style(style);
+            bar.enable_steady_tick(std::time::Duration::from_secs(1));
+            bar
+        }))
+    }
+
+    /// A log line above the bar; plain stderr when the bar is hidden (stderr not a terminal, e.g. a
+    /// log file), where indicatif would drop it.
+    fn say(&self, line: String) {
+        match &self.0 {
+            Some(b) if b.is_hidden() => eprintln!("{line}"),
+            Some(b) => b.println(line),
+            None => {}
+        }
+    }
+
+    fn doing(&self, what: String) {
+        if let Some(b) = &self.0 {
+            b.set_message(what);
+        }
+    }
+
+    /// Runs `f` with the bar cleared, for work that draws its own bar (`synthesize`).
+    fn aside<R>(&self, f: impl FnOnce() -> R) -> R {
+        match &self.0 {
+            Some(b) => b.suspend(f),
+            None => f(),
+        }
+    }
+
+    fn done(&self) {
+        if let Some(b) = &self.0 {
+            b.inc(1);
+        }
+    }
+
+    fn finish(&self) {
+        if let Some(b) = &self.0 {
+            b.finish_with_message("done");
+        }
+    }
+}
+
 /// Runs (or reuses) the jobs of `shard` and returns their results, scene-major, in config order.
 pub fn run(config: &StudyConfig, out: &Path, shard: Option<Shard>, progress: bool) -> Result<Vec<JobResult>> {
     if config.scenes.is_empty() || config.models.is_empty() {
         return Err(Error::Invalid("the study config needs at least one scene and one model".into()));
     }
-    // Fail on a bad model name before anything is rendered.
+    // Fail on a bad model spec before anything is rendered.
     let configs = config.models.iter().map(|m| config.model_config(m)).collect::<Result<Vec<_>>>()?;
     let lpips = Lpips::load_or_na(None);
-    if let Err(reason) = &lpips {
+    if let (Err(reason), true) = (&lpips, progress) {
         eprintln!("LPIPS: {reason}");
     }
     let opts = TrainOptions {
@@ -94,50 +166,62 @@ pub fn run(config: &StudyConfig, out: &Path, shard: Option<Shard>, progress: boo
         checkpoint_every: config.steps.max(1),
         ..TrainOptions::default()
     };
+    let mine: Vec<(usize, usize)> = jobs(config)
+        .into_iter()
+        .enumerate()
+        .filter(|(j, _)| shard.is_none_or(|s| j % s.count == s.index))
+        .map(|(_, job)| job)
+        .collect();
+    let bar = Progress::new(mine.len(), progress);
     let mut results = Vec::new();
-    let mut job = 0usize;
-    for scene in &config.scenes {
-        let mine: Vec<usize> = (0..configs.len())
-            .filter(|_| {
-                let take = shard.is_none_or(|s| job % s.count == s.index);
-                job += 1;
-                take
-            })
-            .collect();
-        if mine.is_empty() {
+    for (si, scene) in config.scenes.iter().enumerate() {
+        let here: Vec<usize> = mine.iter().filter(|(s, _)| *s == si).map(|(_, m)| *m).collect();
+        if here.is_empty() {
             continue;
         }
         let dir = scene_dir(out, config, scene);
         if !dir.join("dataset.json").exists() {
-            eprintln!("synthesizing {} into {}", scene.id(), dir.display());
-            crate::dataset::synth::synthesize(&config.synth_args(scene, &dir)).map_err(Error::Core)?;
+            bar.doing(format!("{}: synthesizing", scene.id()));
+            bar.aside(|| crate::dataset::synth::synthesize(&config.synth_args(scene, &dir))).map_err(Error::Core)?;
         }
         let ds = Dataset::open(&dir).map_err(Error::Core)?;
         let args = DataArgs { dataset: Some(dir.clone()), diligent: None, object: String::new(), pixel_stride: config.pixel_stride };
         let mut training: Option<data::TrainingData> = None;
-        for m in mine {
+        for m in here {
             let (spec, model_config) = (&config.models[m], configs[m]);
             let name = model_config.name();
             let jdir = job_dir(out, scene, &name);
             let hash = config.job_hash(scene, spec);
             let result_path = jdir.join("result.json");
             if let Some(r) = read_result(&result_path).filter(|r| r.hash == hash) {
-                eprintln!("{} / {name}: cached", scene.id());
+                bar.say(format!("{} / {name}: cached", scene.id()));
                 results.push(r);
+                bar.done();
                 continue;
             }
             if training.is_none() {
+                bar.doing(format!("{}: loading the training pixels", scene.id()));
                 training = Some(data::load(&args, model_config.position, &out.join("cache"))?);
             }
             let t = training.as_ref().expect("just loaded");
-            eprintln!("{} / {name}: fitting {} steps on {} pixels", scene.id(), config.steps, t.obs.len());
-            let log = fit::run(model_config, t.obs.clone(), &opts, &jdir, false, progress, t.position_table.as_deref())?;
+            bar.doing(format!("{} / {name}: fitting {} steps", scene.id(), config.steps));
+            let log = fit::run(model_config, t.obs.clone(), &opts, &jdir, false, false, t.position_table.as_deref())?;
+            bar.doing(format!("{} / {name}: evaluating", scene.id()));
             let model_path = fit::Outputs::in_dir(&jdir, &model_config).model;
             let eval = evaluate::evaluate(&ds, &model_path, &lpips, config)?;
             let size_bytes = std::fs::metadata(&model_path).map_err(|e| Error::io(&model_path, e))?.len();
+            let (eval_f16, size_bytes_f16) = if config::is_parametric(&spec.model) {
+                (None, None)
+            } else {
+                let buf = nbrdf::file::ModelBuf::load(&model_path).map_err(Error::Core)?;
+                let path16 = model_path.with_extension("f16.nbrdf");
+                let bytes = evaluate::to_f16(&buf)?;
+                crate::train::write_atomic(&path16, &bytes)?;
+                (Some(evaluate::evaluate(&ds, &path16, &lpips, config)?), Some(bytes.len() as u64))
+            };
             let r = JobResult {
                 scene: scene.id(),
-                model: name,
+                model: name.clone(),
                 hash,
                 n_weights: log.n_weights,
                 size_bytes,
@@ -145,13 +229,63 @@ pub fn run(config: &StudyConfig, out: &Path, shard: Option<Shard>, progress: boo
                 steps: log.steps_done,
                 final_loss: log.loss.last().map(|l| l.1).unwrap_or(f32::NAN),
                 eval,
+                eval_f16,
+                size_bytes_f16,
             };
             let json = serde_json::to_vec_pretty(&r).map_err(|e| Error::io(&result_path, e))?;
             crate::train::write_atomic(&result_path, &json)?;
+            bar.say(format!(
+                "{} / {name}: {:.1} s, PSNR {:.2} dB, RMSE∛ {:.4}",
+                scene.id(),
+                r.train_wall_s,
+                r.eval.image.psnr,
+                r.eval.brdf_rmse_cbrt.value
+            ));
             results.push(r);
+            bar.done();
         }
     }
+    bar.finish();
     Ok(results)
+}
+
+/// For each scene, the reference next to the rendering of the best parametric and the best purely
+/// neural Tab. 1 variant of that scene (by PSNR), with their FLIP maps (`figures::write_comparison`). Jobs whose
+/// folder is missing here (e.g. results merged from elsewhere) are skipped.
+pub fn comparisons(config: &StudyConfig, out: &Path, results: &[JobResult]) -> Result<Vec<figures::Comparison>> {
+    let mut figs = Vec::new();
+    for scene in &config.scenes {
+        let id = scene.id();
+        let dir = scene_dir(out, config, scene);
+        if !dir.join("dataset.json").exists() {
+            continue;
+        }
+        let on_scene: Vec<&JobResult> = results
+            .iter()
+            .filter(|r| r.scene == id && r.eval.image.psnr.is_finite() && report::in_tab1(&r.model, config))
+            .collect();
+        let base = |r: &JobResult| r.model.split('+').next().unwrap_or_default().to_string();
+        let best = |parametric: bool| {
+            on_scene
+                .iter()
+                .filter(|r| config::is_parametric(&base(r)) == parametric)
+                .max_by(|a, b| a.eval.image.psnr.total_cmp(&b.eval.image.psnr))
+                .copied()
+        };
+        let mut ds = None;
+        for r in [best(true), best(false)].into_iter().flatten() {
+            let model_path = job_dir(out, scene, &r.model).join(format!("{}.nbrdf", r.model.replace('+', "_")));
+            if !model_path.exists() {
+                continue;
+            }
+            if ds.is_none() {
+                ds = Some(Dataset::open(&dir).map_err(Error::Core)?);
+            }
+            let (reference, rendering, mask) = evaluate::first_test_image(ds.as_ref().expect("just opened"), &model_path)?;
+            figs.push(figures::write_comparison(out, &id, &r.model, &reference, &rendering, &mask)?);
+        }
+    }
+    Ok(figs)
 }
 
 fn read_result(path: &Path) -> Option<JobResult> {
@@ -161,6 +295,7 @@ fn read_result(path: &Path) -> Option<JobResult> {
 /// Runs the study and writes the report into `out`; returns the results.
 pub fn run_and_report(config: &StudyConfig, out: &Path, shard: Option<Shard>, progress: bool) -> Result<Vec<JobResult>> {
     let results = run(config, out, shard, progress)?;
-    report::write(out, config, &results)?;
+    let figs = comparisons(config, out, &results)?;
+    report::write(out, config, &results, &figs)?;
     Ok(results)
 }

@@ -1,12 +1,15 @@
 //! The study's report: per-model means over the objects in the layout of the paper's tables (Tab. 1
-//! image and BRDF metrics, Tab. 3 reciprocity, Tab. 4 energy, and accuracy against cost), plus every
-//! per-job number in `results.json` and `results.csv`.
+//! image and BRDF metrics, Tab. 2 direction-layer ablation as differences to Tab. 1, Tab. 3
+//! reciprocity, Tab. 4 energy, and accuracy against cost with f32 and f16 weights and its Pareto
+//! plots), plus every per-job number in `results.json` and `results.csv`.
 
 use std::fmt::Write as _;
 use std::path::Path;
 
 use serde::Serialize;
 
+use super::config::is_parametric;
+use super::figures::{self, Comparison, CostPoint};
 use super::{JobResult, StudyConfig};
 use crate::{Error, Result};
 
@@ -29,6 +32,17 @@ pub struct ModelSummary {
     pub train_wall_s: f64,
     pub eval_ns_per_query: f64,
     pub n_weights: usize,
+    pub size_bytes: u64,
+    /// The f16-weight copies (purely neural models; `None` when some object has none).
+    pub f16: Option<F16Summary>,
+}
+
+/// Means over the objects of the f16-weight copies of a model.
+#[derive(Clone, Debug, Serialize)]
+pub struct F16Summary {
+    pub psnr: f64,
+    pub brdf_rmse_cbrt: f64,
+    pub eval_ns_per_query: f64,
     pub size_bytes: u64,
 }
 
@@ -66,6 +80,17 @@ pub fn summarize(results: &[JobResult]) -> Vec<ModelSummary> {
                 eval_ns_per_query: mean(rs.iter().map(|r| r.eval.eval_ns_per_query)),
                 n_weights: rs[0].n_weights,
                 size_bytes: rs[0].size_bytes,
+                f16: rs
+                    .iter()
+                    .map(|r| r.eval_f16.as_ref().zip(r.size_bytes_f16))
+                    .collect::<Option<Vec<_>>>()
+                    .filter(|v| !v.is_empty())
+                    .map(|v| F16Summary {
+                        psnr: mean(v.iter().map(|(e, _)| e.image.psnr)),
+                        brdf_rmse_cbrt: mean(v.iter().map(|(e, _)| e.brdf_rmse_cbrt.value)),
+                        eval_ns_per_query: mean(v.iter().map(|(e, _)| e.eval_ns_per_query)),
+                        size_bytes: v[0].1,
+                    }),
             }
         })
         .collect()
@@ -75,18 +100,198 @@ fn opt(v: Option<f64>, scale: f64, digits: usize) -> String {
     v.map_or("n/a".into(), |x| format!("{:.*}", digits, x * scale))
 }
 
-/// The Markdown report.
-pub fn markdown(config: &StudyConfig, results: &[JobResult]) -> String {
+/// Where a variant belongs in the paper's tables, from its name (`Config::name`): the base kind,
+/// its reciprocity strategy (purely neural models) and whether it is a Tab. 2 layer-count variant.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Role {
+    pub parametric: bool,
+    /// `none`, `swap` or `exact`; `None` for parametric models.
+    pub reciprocity: Option<&'static str>,
+    /// The Tab. 1 row a Tab. 2 variant is compared with (its name without `+nolN`).
+    pub nol_base: Option<String>,
+}
+
+/// The [`Role`] of a variant name.
+pub fn role(name: &str) -> Role {
+    let parts: Vec<&str> = name.split('+').collect();
+    let parametric = is_parametric(parts[0]);
+    let reciprocity = (!parametric).then(|| {
+        if parts.contains(&"swap") {
+            "swap"
+        } else if parts.contains(&"exact") {
+            "exact"
+        } else {
+            "none"
+        }
+    });
+    let nol_base = parts
+        .iter()
+        .any(|p| p.starts_with("nol"))
+        .then(|| parts.iter().filter(|p| !p.starts_with("nol")).copied().collect::<Vec<_>>().join("+"));
+    Role { parametric, reciprocity, nol_base }
+}
+
+/// Whether a variant is a Tab. 1 row: not a layer-count variant, and (purely neural) with the study's
+/// reciprocity strategy.
+pub fn in_tab1(name: &str, config: &StudyConfig) -> bool {
+    let r = role(name);
+    r.nol_base.is_none() && r.reciprocity.is_none_or(|s| s == config.reciprocity)
+}
+
+/// The Tab. 1 scores of one job, as the paper scales them (RMSE∛, DSSIM, LPIPS, FLIP ×100).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Scores {
+    pub rmse: f64,
+    pub psnr: f64,
+    pub dssim: f64,
+    pub lpips: Option<f64>,
+    pub flip: f64,
+}
+
+impl Scores {
+    pub fn of(r: &JobResult) -> Self {
+        let e = &r.eval;
+        Scores {
+            rmse: e.brdf_rmse_cbrt.value * 100.0,
+            psnr: e.image.psnr,
+            dssim: e.image.dssim * 100.0,
+            lpips: e.image.lpips.value().map(|v| v * 100.0),
+            flip: e.image.flip * 100.0,
+        }
+    }
+}
+
+/// Mean over objects of `variant − base` for each score (paper Tab. 2: "the difference to the results
+/// in Tab. 1"; the mean of the per-object differences equals the difference of the per-model means when
+/// both rows cover the same objects, which pairing guarantees). LPIPS is `None` if missing anywhere.
+pub fn mean_delta(pairs: &[(Scores, Scores)]) -> Scores {
+    let d = |f: fn(&Scores) -> f64| mean(pairs.iter().map(|(v, b)| f(v) - f(b)));
+    let lpips: Option<Vec<f64>> = pairs.iter().map(|(v, b)| Some(v.lpips? - b.lpips?)).collect();
+    Scores {
+        rmse: d(|s| s.rmse),
+        psnr: d(|s| s.psnr),
+        dssim: d(|s| s.dssim),
+        lpips: lpips.filter(|v| !v.is_empty()).map(|v| mean(v.into_iter())),
+        flip: d(|s| s.flip),
+    }
+}
+
+/// One row of Tab. 2: a layer-count variant, its Tab. 1 base, the objects both ran on, the deltas.
+#[derive(Clone, Debug)]
+pub struct Tab2Row {
+    pub model: String,
+    pub base: String,
+    pub objects: Vec<String>,
+    pub delta: Scores,
+}
+
+/// Tab. 2: every `+nolN` variant against its base row, paired per object.
+pub fn tab2(results: &[JobResult]) -> Vec<Tab2Row> {
+    let mut rows: Vec<Tab2Row> = Vec::new();
+    for r in results {
+        let Some(base) = role(&r.model).nol_base else { continue };
+        if rows.iter().any(|t| t.model == r.model) {
+            continue;
+        }
+        let mut objects = Vec::new();
+        let mut pairs = Vec::new();
+        for v in results.iter().filter(|v| v.model == r.model) {
+            if let Some(b) = results.iter().find(|b| b.model == base && b.scene == v.scene) {
+                objects.push(v.scene.clone());
+                pairs.push((Scores::of(v), Scores::of(b)));
+            }
+        }
+        if !pairs.is_empty() {
+            rows.push(Tab2Row { model: r.model.clone(), base, objects, delta: mean_delta(&pairs) });
+        }
+    }
+    rows
+}
+
+/// Objects (scenes) a summary row averages over.
+fn objects_of(results: &[JobResult], model: &str) -> Vec<String> {
+    results.iter().filter(|r| r.model == model).map(|r| r.scene.clone()).collect()
+}
+
+fn signed(v: f64, digits: usize) -> String {
+    format!("{v:+.digits$}")
+}
+
+/// A plot label short enough not to run into its neighbours: the architecture names abbreviated and
+/// the study's own reciprocity strategy (every Tab. 1 row has it) left out.
+fn short_label(name: &str, config: &StudyConfig) -> String {
+    name.split('+')
+        .filter(|p| *p != config.reciprocity)
+        .map(|p| match p {
+            "additive-separate" => "add-sep",
+            "additive-shared" => "add-shared",
+            "enhanced" => "enh",
+            other => other,
+        })
+        .collect::<Vec<_>>()
+        .join("+")
+}
+
+/// The two Pareto plots (PSNR against training wall time and against evaluation ns per query, the
+/// latter with the f16 copies) over the rows that ran on every object of the study, so that all means
+/// cover the same objects. Returns their paths relative to `out`.
+pub fn pareto_plots(out: &Path, config: &StudyConfig, results: &[JobResult]) -> Result<Vec<(String, std::path::PathBuf)>> {
+    let s = summarize(results);
+    let all = config.scenes.len();
+    let full: Vec<&ModelSummary> = s.iter().filter(|m| m.objects == all).collect();
+    let train: Vec<CostPoint> =
+        full.iter().map(|m| CostPoint { label: short_label(&m.model, config), cost: m.train_wall_s, accuracy: m.psnr }).collect();
+    let mut eval: Vec<CostPoint> =
+        full.iter().map(|m| CostPoint { label: short_label(&m.model, config), cost: m.eval_ns_per_query, accuracy: m.psnr }).collect();
+    eval.extend(full.iter().filter_map(|m| {
+        m.f16.as_ref().map(|f| CostPoint {
+            label: format!("{} f16", short_label(&m.model, config)),
+            cost: f.eval_ns_per_query,
+            accuracy: f.psnr,
+        })
+    }));
+    let plots = [
+        ("PSNR against training wall time", "figures/pareto-train.png", "training wall time (s, log)", train),
+        ("PSNR against evaluation cost", "figures/pareto-eval.png", "core eval ns per query (log)", eval),
+    ];
+    let mut written = Vec::new();
+    for (title, rel, xlabel, pts) in plots {
+        figures::pareto_plot(&out.join(rel), title, xlabel, "PSNR (dB), mean over objects", &pts)?;
+        written.push((title.to_string(), std::path::PathBuf::from(rel)));
+    }
+    Ok(written)
+}
+
+/// The Markdown report; `plots` and `comparisons` are the figures to link (paths relative to the
+/// report).
+pub fn markdown(
+    config: &StudyConfig,
+    results: &[JobResult],
+    plots: &[(String, std::path::PathBuf)],
+    comparisons: &[Comparison],
+) -> String {
     let s = summarize(results);
     let mut md = String::new();
     let scenes: Vec<String> = config.scenes.iter().map(|sc| format!("{} / {}", sc.mesh, sc.material)).collect();
+    let paper_scale = config.steps >= 20_000 && config.size >= 256;
     let _ = writeln!(md, "# Neural BRDF study\n");
+    if paper_scale {
+        let _ = writeln!(md, "**Scale:** the paper's training budget (≥ 20k steps, 256² images); numbers comparable in kind to the paper's Tabs. 1–4 (semi-synthetic objects rendered by `synth`, not the paper's renders).\n");
+    } else {
+        let _ = writeln!(
+            md,
+            "**Scale: smoke test, not the paper's numbers.** {} steps at batch {} on {}² images (paper: 20k steps at 2^15 values on 256² \
+             renders of 25 meshes × 9 MERL materials): the neural models are far from converged, so rankings can differ from the \
+             paper's; the tables show that every measurement of Sec. 6 runs end to end and how the variants compare at this budget.\n",
+            config.steps, config.batch, config.size
+        );
+    }
     let _ = writeln!(
         md,
         "Objects: {}. Images {}×{}, {} views ({} train), {} / {} lights per train / test view, σ = {}. \
          Position input `{}`, {} steps at batch {}. Reciprocity over {} test pairs; energy over {} pairs × {} \
-         view samples (paper: 50k × 20k). Every number is a mean over the objects; per-job values are in \
-         `results.json` / `results.csv`.\n",
+         view samples (paper: 50k × 20k). Every number is a mean over the objects a row ran on (each table says which); \
+         per-job values are in `results.json` / `results.csv`.\n",
         scenes.join(", "),
         config.size,
         config.size,
@@ -102,34 +307,99 @@ pub fn markdown(config: &StudyConfig, results: &[JobResult]) -> String {
         config.energy_pairs,
         config.energy_samples
     );
+    let tab1: Vec<&ModelSummary> = s.iter().filter(|m| in_tab1(&m.model, config)).collect();
     let _ = writeln!(md, "## Tab. 1 — reconstruction quality\n");
-    let _ = writeln!(md, "DSSIM, LPIPS and FLIP ×100, as in the paper. ↑ higher is better, ↓ lower.\n");
-    let _ = writeln!(md, "| model | PSNR ↑ | DSSIM ↓ | LPIPS ↓ | FLIP ↓ | RMSE ∛ ↓ |");
-    let _ = writeln!(md, "|---|---:|---:|---:|---:|---:|");
-    for m in &s {
+    let _ = writeln!(
+        md,
+        "Purely neural models with the `{}` reciprocity strategy. RMSE ∛, DSSIM, LPIPS and FLIP ×100, as in the paper. \
+         ↑ higher is better, ↓ lower.\n",
+        config.reciprocity
+    );
+    let _ = writeln!(md, "| model | objects | RMSE ∛ ↓ | PSNR ↑ | DSSIM ↓ | LPIPS ↓ | FLIP ↓ |");
+    let _ = writeln!(md, "|---|---:|---:|---:|---:|---:|---:|");
+    for m in &tab1 {
         let _ = writeln!(
             md,
-            "| {} | {:.2} | {:.3} | {} | {:.3} | {:.4} |",
+            "| {} | {} | {:.2} | {:.2} | {:.2} | {} | {:.2} |",
             m.model,
+            m.objects,
+            m.brdf_rmse_cbrt * 100.0,
             m.psnr,
             m.dssim * 100.0,
-            opt(m.lpips, 100.0, 3),
-            m.flip * 100.0,
-            m.brdf_rmse_cbrt
+            opt(m.lpips, 100.0, 2),
+            m.flip * 100.0
         );
     }
-    let _ = writeln!(md, "\n## Tab. 3 — reciprocity\n");
-    let _ = writeln!(md, "RMSE of f(x, l, v) − f(x, v, l) in 1/sr (0 by construction for parametric models and Θ).\n");
-    let _ = writeln!(md, "| model | reciprocity RMSE ↓ |");
-    let _ = writeln!(md, "|---|---:|");
-    for m in &s {
-        let _ = writeln!(md, "| {} | {:.3e} |", m.model, m.reciprocity_rmse);
+
+    let _ = writeln!(md, "\n## Tab. 2 — number of layers the directions pass through (NOL)\n");
+    let rows2 = tab2(results);
+    if rows2.is_empty() {
+        let _ = writeln!(md, "No `direction_layers` variants in this config.");
+    } else {
+        let _ = writeln!(
+            md,
+            "Difference to the Tab. 1 row of the same architecture (variant − Tab. 1), paired per object and averaged over \
+             the objects listed; RMSE ∛, DSSIM, LPIPS and FLIP ×100, as in the paper.\n"
+        );
+        let _ = writeln!(md, "| model | vs. | objects | Δ RMSE ∛ | Δ PSNR | Δ DSSIM | Δ LPIPS | Δ FLIP |");
+        let _ = writeln!(md, "|---|---|---|---:|---:|---:|---:|---:|");
+        for t in &rows2 {
+            let d = &t.delta;
+            let _ = writeln!(
+                md,
+                "| {} | {} | {} | {} | {} | {} | {} | {} |",
+                t.model,
+                t.base,
+                t.objects.join(", "),
+                signed(d.rmse, 2),
+                signed(d.psnr, 2),
+                signed(d.dssim, 2),
+                d.lpips.map_or("n/a".into(), |v| signed(v, 2)),
+                signed(d.flip, 2)
+            );
+        }
     }
+
+    let _ = writeln!(md, "\n## Tab. 3 — reciprocity\n");
+    let _ = writeln!(
+        md,
+        "RMSE of f(x, l, v) − f(x, v, l) in 1/sr, not scaled (as the paper). The exact Θ mapping (Sec. 4.3) and the \
+         parametric models are reciprocal by construction, so their RMSE is 0 (the paper leaves them out; the exact rows \
+         below are measured and confirm it). PSNR for the influence on quality.\n"
+    );
+    let _ = writeln!(md, "| model | strategy | objects | reciprocity RMSE ↓ | PSNR ↑ |");
+    let _ = writeln!(md, "|---|---|---|---:|---:|");
+    let mut neural: Vec<&ModelSummary> =
+        s.iter().filter(|m| role(&m.model).reciprocity.is_some() && role(&m.model).nol_base.is_none()).collect();
+    // Grouped as the paper: no strategy, random input swap, then the exact mapping.
+    let rank = |m: &ModelSummary| match role(&m.model).reciprocity {
+        Some("none") => 0,
+        Some("swap") => 1,
+        _ => 2,
+    };
+    neural.sort_by_key(|m| rank(m));
+    for m in &neural {
+        let strategy = match role(&m.model).reciprocity {
+            Some("none") => "none",
+            Some("swap") => "random input swap",
+            _ => "exact Θ (0 by construction)",
+        };
+        let _ = writeln!(
+            md,
+            "| {} | {} | {} | {:.3e} | {:.2} |",
+            m.model,
+            strategy,
+            objects_of(results, &m.model).join(", "),
+            m.reciprocity_rmse,
+            m.psnr
+        );
+    }
+
     let _ = writeln!(md, "\n## Tab. 4 — energy conservation\n");
-    let _ = writeln!(md, "Share of point-light pairs whose albedo is above 1 by more than 3 standard errors, and the median albedo of those.\n");
+    let _ = writeln!(md, "Tab. 1 rows. Share of point-light pairs whose albedo is above 1 by more than 3 standard errors, and the median albedo of those.\n");
     let _ = writeln!(md, "| model | % > 1 | μ.5 > 1 |");
     let _ = writeln!(md, "|---|---:|---:|");
-    for m in &s {
+    for m in &tab1 {
         let _ = writeln!(
             md,
             "| {} | {:.1} | {} |",
@@ -138,22 +408,84 @@ pub fn markdown(config: &StudyConfig, results: &[JobResult]) -> String {
             m.energy_median_above_one.map_or("all valid".into(), |v| format!("{v:.3}"))
         );
     }
+
     let _ = writeln!(md, "\n## Accuracy versus cost\n");
-    let _ = writeln!(md, "Training wall time on this machine (CPU), core evaluation ns per query (one thread, point prepared), model file size.\n");
-    let _ = writeln!(md, "| model | train s | eval ns/query | parameters | size (KiB) | PSNR ↑ | RMSE ∛ ↓ |");
-    let _ = writeln!(md, "|---|---:|---:|---:|---:|---:|---:|");
+    let _ = writeln!(
+        md,
+        "Every variant. Training wall time on this machine (CPU, shared), core evaluation ns per query (one thread, point \
+         prepared), model file size; `f16` rows are the same fit re-encoded with f16 network weights (no retraining), \
+         evaluated the same way. Means over the objects column.\n"
+    );
+    let _ = writeln!(md, "| model | weights | objects | train s | eval ns/query | parameters | size (KiB) | PSNR ↑ | RMSE ∛ ×100 ↓ |");
+    let _ = writeln!(md, "|---|---|---:|---:|---:|---:|---:|---:|---:|");
     for m in &s {
         let _ = writeln!(
             md,
-            "| {} | {:.1} | {:.0} | {} | {:.1} | {:.2} | {:.4} |",
+            "| {} | f32 | {} | {:.1} | {:.0} | {} | {:.1} | {:.2} | {:.2} |",
             m.model,
+            m.objects,
             m.train_wall_s,
             m.eval_ns_per_query,
             m.n_weights,
             m.size_bytes as f64 / 1024.0,
             m.psnr,
-            m.brdf_rmse_cbrt
+            m.brdf_rmse_cbrt * 100.0
         );
+        if let Some(f) = &m.f16 {
+            let _ = writeln!(
+                md,
+                "| {} | f16 | {} | {:.1} | {:.0} | {} | {:.1} | {:.2} | {:.2} |",
+                m.model,
+                m.objects,
+                m.train_wall_s,
+                f.eval_ns_per_query,
+                m.n_weights,
+                f.size_bytes as f64 / 1024.0,
+                f.psnr,
+                f.brdf_rmse_cbrt * 100.0
+            );
+        }
+    }
+    if !plots.is_empty() {
+        let _ = writeln!(
+            md,
+            "\nPareto plots over the variants that ran on every object (red: the Pareto front — no other variant is both \
+             cheaper and more accurate):\n"
+        );
+        for (title, path) in plots {
+            let _ = writeln!(md, "![{title}]({})", path.display());
+        }
+    }
+
+    let _ = writeln!(md, "\n## Renderings\n");
+    if comparisons.is_empty() {
+        let _ = writeln!(
+            md,
+            "None here (the job folders are not in this output, e.g. a merged report; rerun `trainer study` over the same \
+             `--out` to render them)."
+        );
+    } else {
+        let _ = writeln!(
+            md,
+            "First test image of each object: reference (left) and the rendering of the best parametric and the best purely \
+             neural Tab. 1 variant by PSNR on that object (right), sRGB at exposure 1 as the metrics see them, enlarged \
+             4× (nearest pixel); and the HDR-FLIP error map (magma: black = no error, bright = large).\n"
+        );
+        let _ = writeln!(md, "| object | model | reference · rendering | HDR-FLIP | mean FLIP ×100 |");
+        let _ = writeln!(md, "|---|---|---|---|---:|");
+        for c in comparisons {
+            let _ = writeln!(
+                md,
+                "| {} | {} | ![{} {}]({}) | ![FLIP]({}) | {:.2} |",
+                c.scene,
+                c.model,
+                c.scene,
+                c.model,
+                c.images.display(),
+                c.flip_map.display(),
+                c.flip_mean * 100.0
+            );
+        }
     }
     md
 }
@@ -162,14 +494,16 @@ pub fn markdown(config: &StudyConfig, results: &[JobResult]) -> String {
 pub fn csv(results: &[JobResult]) -> String {
     let mut out = String::from(
         "scene,model,psnr,dssim,lpips,flip,brdf_rmse_cbrt,brdf_samples,reciprocity_rmse,energy_share_above_one,\
-         energy_median_above_one,energy_mean_albedo,train_wall_s,eval_ns_per_query,n_weights,size_bytes,steps,final_loss\n",
+         energy_median_above_one,energy_mean_albedo,train_wall_s,eval_ns_per_query,n_weights,size_bytes,steps,final_loss,\
+         psnr_f16,brdf_rmse_cbrt_f16,eval_ns_per_query_f16,size_bytes_f16\n",
     );
     let o = |v: Option<f64>| v.map_or(String::new(), |x| x.to_string());
     for r in results {
         let e = &r.eval;
+        let f16 = r.eval_f16.as_ref();
         let _ = writeln!(
             out,
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             r.scene,
             r.model,
             e.image.psnr,
@@ -187,17 +521,23 @@ pub fn csv(results: &[JobResult]) -> String {
             r.n_weights,
             r.size_bytes,
             r.steps,
-            r.final_loss
+            r.final_loss,
+            o(f16.map(|e| e.image.psnr)),
+            o(f16.map(|e| e.brdf_rmse_cbrt.value)),
+            o(f16.map(|e| e.eval_ns_per_query)),
+            r.size_bytes_f16.map_or(String::new(), |b| b.to_string())
         );
     }
     out
 }
 
-/// Writes `REPORT.md`, `results.json` (config, per-model summary, every job) and `results.csv`.
-pub fn write(out: &Path, config: &StudyConfig, results: &[JobResult]) -> Result<()> {
+/// Writes the Pareto plots, `REPORT.md` (linking them and `comparisons`), `results.json` (config,
+/// per-model summary, every job) and `results.csv`.
+pub fn write(out: &Path, config: &StudyConfig, results: &[JobResult], comparisons: &[Comparison]) -> Result<()> {
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    let plots = pareto_plots(out, config, results)?;
     let put = |name: &str, bytes: &[u8]| crate::train::write_atomic(&out.join(name), bytes);
-    put("REPORT.md", markdown(config, results).as_bytes())?;
+    put("REPORT.md", markdown(config, results, &plots, comparisons).as_bytes())?;
     put("results.csv", csv(results).as_bytes())?;
     let json = serde_json::json!({ "config": config, "summary": summarize(results), "jobs": results });
     put("results.json", &serde_json::to_vec_pretty(&json).map_err(|e| Error::io(out, e))?)?;
@@ -229,4 +569,43 @@ pub fn merge(dirs: &[std::path::PathBuf]) -> Result<(StudyConfig, Vec<JobResult>
     }
     let config = config.ok_or_else(|| Error::Invalid("study merge: give at least one folder".into()))?;
     Ok((config, jobs))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn roles_from_names() {
+        assert_eq!(role("rp"), Role { parametric: true, reciprocity: None, nol_base: None });
+        assert_eq!(role("single-mlp"), Role { parametric: false, reciprocity: Some("none"), nol_base: None });
+        assert_eq!(role("additive-shared+enhanced+swap").reciprocity, Some("swap"));
+        let r = role("additive-separate+exact+nol2");
+        assert_eq!((r.reciprocity, r.nol_base.as_deref()), (Some("exact"), Some("additive-separate+exact")));
+        let c = StudyConfig::default_small();
+        assert!(in_tab1("disney", &c) && in_tab1("single-mlp+exact", &c));
+        assert!(!in_tab1("single-mlp+swap", &c) && !in_tab1("single-mlp", &c) && !in_tab1("single-mlp+exact+nol3", &c));
+        assert_eq!(short_label("additive-shared+enhanced+exact", &c), "add-shared+enh");
+        assert_eq!(short_label("single-mlp+swap", &c), "single-mlp+swap");
+    }
+
+    /// Tab. 2 deltas by hand: two objects, variant − base per object, averaged.
+    #[test]
+    fn tab2_delta_by_hand() {
+        let sc = |rmse, psnr, dssim, lpips, flip| Scores { rmse, psnr, dssim, lpips, flip };
+        let pairs = [
+            (sc(5.0, 30.0, 2.0, Some(4.0), 10.0), sc(4.0, 31.0, 1.5, Some(3.0), 9.0)),
+            (sc(3.0, 25.0, 1.0, Some(2.0), 6.0), sc(3.5, 24.0, 1.5, Some(2.5), 7.0)),
+        ];
+        let d = mean_delta(&pairs);
+        // ((5-4) + (3-3.5)) / 2 = 0.25; ((30-31) + (25-24)) / 2 = 0; ((2-1.5) + (1-1.5)) / 2 = 0;
+        // ((4-3) + (2-2.5)) / 2 = 0.25; ((10-9) + (6-7)) / 2 = 0.
+        assert_eq!(d, sc(0.25, 0.0, 0.0, Some(0.25), 0.0));
+        // LPIPS missing for one object: no LPIPS delta rather than a partial mean.
+        let mut p2 = pairs;
+        p2[1].1.lpips = None;
+        assert_eq!(mean_delta(&p2).lpips, None);
+        assert_eq!(signed(0.25, 2), "+0.25");
+        assert_eq!(signed(-0.094, 2), "-0.09");
+    }
 }
