@@ -8,7 +8,6 @@
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use nbrdf::builtin::Builtin;
 use nbrdf::scene::builtin::BuiltinMesh;
-use nbrdf::scene::ray::intersect_triangle;
 use nbrdf::scene::render::{render_view, RenderOptions, ShadowPass};
 use nbrdf::scene::{Camera, DirectionalLight, Geometry, Mesh, Ray};
 use nbrdf::Vec3;
@@ -53,6 +52,7 @@ fn meshes() -> Vec<(String, Mesh)> {
 mod alt {
     //! The `bvh` crate (binary SAH BVH) over the same triangles, closest hit by candidate iteration.
     use super::*;
+    use nbrdf::scene::ray::intersect_triangle;
     use bvh::aabb::{Aabb, Bounded};
     use bvh::bounding_hierarchy::BHShape;
     use nalgebra::{Point3, Vector3};
