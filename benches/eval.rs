@@ -1,7 +1,8 @@
 //! Evaluation cost of every model: ns per `eval` (one direction pair at a prepared point) and per
 //! `prepare` (one shading point), f32 and f16 weights, single queries and batches of many directions
 //! at one point, at every kernel level this CPU has (`portable` is the pre-SIMD scalar path, the
-//! "before" of issue 8), plus the NBRDF-json networks. Run: `cargo bench --bench eval`, or e.g.
+//! "before" of issue 8), plus the NBRDF-json networks, plus the neural models' batched throughput with
+//! one thread per core (`eval-f32-N-threads`, wall time). Run: `cargo bench --bench eval`, or e.g.
 //! `cargo bench --bench eval -- 'eval-f32/.*single-mlp'` for one model.
 //!
 //! On Linux the clock is the thread's CPU time (`CLOCK_THREAD_CPUTIME_ID`), not wall time: the
@@ -213,9 +214,48 @@ fn bench_nbrdf_json(c: &mut Criterion<Clock>) {
     g.finish();
 }
 
+/// Batched evaluation over every core: the throughput a renderer sees when each of its threads
+/// evaluates its own batch (the machine-wide figure of issue 8, where the FLOP limit of the paper-size
+/// Single MLP is quoted for the whole two-core machine). Wall time per query over all threads; each
+/// thread owns its output and its own prepared point, as in a renderer.
+fn bench_all_cores(c: &mut Criterion<WallTime>) {
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let p: Vec<f32> = (0..64).map(|i| (i as f32 * 0.1).sin()).collect();
+    let (wi, wo) = directions(1024);
+    let mut g = c.benchmark_group(format!("eval-f32-{threads}-threads"));
+    g.throughput(Throughput::Elements((threads * 8 * wi.len()) as u64));
+    for (name, h) in variants().into_iter().filter(|(n, _)| !ParametricKind::ALL.iter().any(|k| k.id() == n)) {
+        let buf = ModelBuf::from_bytes(&encode(&h, &weights(h.n_weights()), None).unwrap()).unwrap();
+        let m = buf.model();
+        g.bench_function(BenchmarkId::new("batch-8x1024", &name), |b| {
+            b.iter(|| {
+                std::thread::scope(|s| {
+                    for _ in 0..threads {
+                        s.spawn(|| {
+                            let prepared = m.prepare(&p);
+                            let mut out: Vec<Rgb> = vec![[0.0; 3]; wi.len()];
+                            for _ in 0..8 {
+                                m.eval_many(&prepared, black_box(&wi), black_box(&wo), &mut out);
+                            }
+                            black_box(out[0])
+                        });
+                    }
+                })
+            })
+        });
+    }
+    g.finish();
+}
+
+criterion_group! {
+    name = all_cores;
+    config = Criterion::default().sample_size(20).warm_up_time(std::time::Duration::from_millis(300)).measurement_time(std::time::Duration::from_secs(2));
+    targets = bench_all_cores
+}
+
 criterion_group! {
     name = benches;
     config = Criterion::default().with_measurement(Clock::new()).sample_size(20).warm_up_time(std::time::Duration::from_millis(300)).measurement_time(std::time::Duration::from_secs(1));
     targets = bench_models, bench_nbrdf_json
 }
-criterion_main!(benches);
+criterion_main!(benches, all_cores);

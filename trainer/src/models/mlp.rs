@@ -60,6 +60,15 @@ impl Mlp {
         Ok(Mlp { desc, layers })
     }
 
+    /// Adds `by` to the first `n` biases of the output layer: sets where an output nonlinearity starts.
+    pub fn shift_output_bias(&self, n: usize, by: f32) -> Result<()> {
+        let Some(last) = self.layers.last() else { return Ok(()) };
+        let bias = last.bias.as_tensor();
+        let mut v = bias.flatten_all()?.to_vec1::<f32>()?;
+        v.iter_mut().take(n).for_each(|b| *b += by);
+        last.bias.set(&Tensor::from_vec(v, bias.shape(), bias.device())?)
+    }
+
     /// The network output: ReLU hidden layers, the skip input `[h, x]` at layer `S`, a linear output
     /// layer (or the last activation for a trunk with `n_out = 0`).
     pub fn forward(&self, x: &Tensor, ones: &Tensor) -> Result<Tensor> {
