@@ -64,7 +64,7 @@ fn tiny_study_writes_every_table_and_reuses_jobs() {
         }
     }
     let report = std::fs::read_to_string(out.join("REPORT.md")).unwrap();
-    for heading in ["## Tab. 1", "## Tab. 2", "## Tab. 3", "## Tab. 4", "## Accuracy versus cost", "## Renderings", "smoke test"] {
+    for heading in ["## Tab. 1", "## Tab. 2", "## Tab. 3", "## Tab. 4", "## Accuracy versus cost", "## Renderings", "Reduced scale"] {
         assert!(report.contains(heading), "missing {heading}:\n{report}");
     }
     let section = |h: &str| {
@@ -137,8 +137,14 @@ fn tiny_study_writes_every_table_and_reuses_jobs() {
     let (a, b) = (dir.path().join("a"), dir.path().join("b"));
     study::run_and_report(&config, &a, Some("0/2".parse().unwrap()), false).unwrap();
     study::run_and_report(&config, &b, Some("1/2".parse().unwrap()), false).unwrap();
-    let (merged_config, merged) = study::report::merge(&[a, b]).unwrap();
+    let shards = [a, b];
+    let (merged_config, merged) = study::report::merge(&shards).unwrap();
     assert_eq!(merged_config, config);
+    // The merged report renders its comparisons from the shard folders, as the single run did.
+    let joined = dir.path().join("joined");
+    let figs = study::comparisons(&config, &shards, &joined, &merged).unwrap();
+    assert_eq!(figs.len(), 2, "one parametric and one neural comparison from the shards");
+    assert!(figs.iter().all(|f| joined.join(&f.images).is_file() && joined.join(&f.flip_map).is_file()));
     let names = |r: &[study::JobResult]| {
         let mut n = r.iter().map(|j| j.model.clone()).collect::<Vec<_>>();
         n.sort();

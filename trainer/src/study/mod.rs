@@ -250,16 +250,16 @@ pub fn run(config: &StudyConfig, out: &Path, shard: Option<Shard>, progress: boo
 }
 
 /// For each scene, the reference next to the rendering of the best parametric and the best purely
-/// neural Tab. 1 variant of that scene (by PSNR), with their FLIP maps (`figures::write_comparison`). Jobs whose
-/// folder is missing here (e.g. results merged from elsewhere) are skipped.
-pub fn comparisons(config: &StudyConfig, out: &Path, results: &[JobResult]) -> Result<Vec<figures::Comparison>> {
+/// neural Tab. 1 variant of that scene (by PSNR), with their FLIP maps (`figures::write_comparison`),
+/// written under `out`. The data sets and fitted models are looked up in `roots` in order (the study's
+/// own folder, or the shard folders that `study merge` joins); a case none of them holds is skipped.
+pub fn comparisons(config: &StudyConfig, roots: &[PathBuf], out: &Path, results: &[JobResult]) -> Result<Vec<figures::Comparison>> {
     let mut figs = Vec::new();
     for scene in &config.scenes {
         let id = scene.id();
-        let dir = scene_dir(out, config, scene);
-        if !dir.join("dataset.json").exists() {
+        let Some(dir) = roots.iter().map(|r| scene_dir(r, config, scene)).find(|d| d.join("dataset.json").exists()) else {
             continue;
-        }
+        };
         let on_scene: Vec<&JobResult> = results
             .iter()
             .filter(|r| r.scene == id && r.eval.image.psnr.is_finite() && report::in_tab1(&r.model, config))
@@ -274,10 +274,10 @@ pub fn comparisons(config: &StudyConfig, out: &Path, results: &[JobResult]) -> R
         };
         let mut ds = None;
         for r in [best(true), best(false)].into_iter().flatten() {
-            let model_path = job_dir(out, scene, &r.model).join(format!("{}.nbrdf", r.model.replace('+', "_")));
-            if !model_path.exists() {
+            let file = format!("{}.nbrdf", r.model.replace('+', "_"));
+            let Some(model_path) = roots.iter().map(|root| job_dir(root, scene, &r.model).join(&file)).find(|p| p.exists()) else {
                 continue;
-            }
+            };
             if ds.is_none() {
                 ds = Some(Dataset::open(&dir).map_err(Error::Core)?);
             }
@@ -295,7 +295,7 @@ fn read_result(path: &Path) -> Option<JobResult> {
 /// Runs the study and writes the report into `out`; returns the results.
 pub fn run_and_report(config: &StudyConfig, out: &Path, shard: Option<Shard>, progress: bool) -> Result<Vec<JobResult>> {
     let results = run(config, out, shard, progress)?;
-    let figs = comparisons(config, out, &results)?;
+    let figs = comparisons(config, &[out.to_path_buf()], out, &results)?;
     report::write(out, config, &results, &figs)?;
     Ok(results)
 }

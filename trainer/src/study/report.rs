@@ -280,9 +280,10 @@ pub fn markdown(
     } else {
         let _ = writeln!(
             md,
-            "**Scale: smoke test, not the paper's numbers.** {} steps at batch {} on {}² images (paper: 20k steps at 2^15 values on 256² \
-             renders of 25 meshes × 9 MERL materials): the neural models are far from converged, so rankings can differ from the \
-             paper's; the tables show that every measurement of Sec. 6 runs end to end and how the variants compare at this budget.\n",
+            "**Reduced scale, not the paper's numbers.** {} steps at batch {} on {}² images (paper: 20k steps at 2^15 values on 256² \
+             renders of 25 meshes × 9 MERL materials): no model is converged and two objects are a small sample, so compare \
+             rankings and differences, not values; the tables show that every measurement of Sec. 6 runs end to end and how the \
+             variants compare at this budget.\n",
             config.steps, config.batch, config.size
         );
     }
@@ -461,8 +462,8 @@ pub fn markdown(
     if comparisons.is_empty() {
         let _ = writeln!(
             md,
-            "None here (the job folders are not in this output, e.g. a merged report; rerun `trainer study` over the same \
-             `--out` to render them)."
+            "None here: no data set or fitted model of a Tab. 1 variant was found (a merge renders them from the shard \
+             folders it joins, so those must still hold their `data/` and `jobs/`)."
         );
     } else {
         let _ = writeln!(
