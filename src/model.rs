@@ -150,6 +150,21 @@ impl<'a> Model<'a> {
         self.weights
     }
 
+    /// The per-object parameters (FMBRDF's NDF normalisation; empty for the other models).
+    #[inline]
+    pub fn object_parameters(&self) -> &[f32] {
+        &self.object[..self.header.n_object()]
+    }
+
+    /// The stored per-vertex position encoding, `n_vertices` rows of [`Model::position_len`] values
+    /// (empty when the file carries none). With [`Model::weights`] and
+    /// [`Model::object_parameters`] this is everything [`crate::file::encode`] needs to write the
+    /// model again, e.g. with other weight precision.
+    #[inline]
+    pub fn position_table(&self) -> &'a [f32] {
+        self.table
+    }
+
     /// Number of point values [`Model::prepare`] expects (0, the intrinsic `k`, or 3 for xyz).
     #[inline]
     pub fn position_len(&self) -> usize {

@@ -4,7 +4,7 @@
 
 use nbrdf::angles::{rusinkiewicz_angles, theta_map};
 use nbrdf::file::{
-    encode, Model, ModelBuf, ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity,
+    encode, Model, ModelBuf, ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity, Weights,
 };
 use nbrdf::parametric::ParametricKind;
 use nbrdf::{Error, Vec3};
@@ -204,6 +204,31 @@ fn exact_reciprocity_is_bitwise_for_every_neural_kind_and_absent_without_it() {
             }
         }
     }
+}
+
+/// Weights, object parameters and the position table read back from a file are exactly what was
+/// encoded, so a model can be written again (here with f16 weights) without knowing the file layout.
+#[test]
+fn a_model_reencodes_from_its_own_parts() {
+    let h = ModelHeader::paper(ModelKind::Parametric(ParametricKind::FresnelMicrofacet), false, Reciprocity::None, PositionEncoding::Intrinsic { k: 2 }, 0);
+    assert!(h.n_object() > 0, "FMBRDF carries object parameters");
+    let w = weights(h.n_weights(), 9, 0.1);
+    let table = [0.5f32, -1.0, 2.0, 0.25];
+    let buf = ModelBuf::from_bytes(&encode(&h, &w, Some(&table)).unwrap()).unwrap();
+    let m = buf.model();
+    let Weights::F32(net) = m.weights() else { panic!("f32 file") };
+    let n_net = h.n_weights() - h.n_object();
+    assert_eq!((net, m.object_parameters(), m.position_table()), (&w[..n_net], &w[n_net..], &table[..]));
+
+    let mut parts = net.to_vec();
+    parts.extend_from_slice(m.object_parameters());
+    let mut h16 = *m.header();
+    h16.precision = Precision::F16;
+    h16.n_vertices = 0;
+    let buf16 = ModelBuf::from_bytes(&encode(&h16, &parts, Some(m.position_table())).unwrap()).unwrap();
+    let m16 = buf16.model();
+    assert_eq!((m16.object_parameters(), m16.position_table()), (m.object_parameters(), m.position_table()));
+    assert_eq!(m16.header().n_vertices, 2);
 }
 
 #[test]

@@ -182,43 +182,20 @@ pub fn first_test_image(ds: &Dataset, model_path: &std::path::Path) -> Result<(R
 /// weight bytes, widened to f32 as they are read), for the f32-versus-f16 comparison without retraining.
 /// Object parameters and the position table stay f32, as the file format keeps them; the header
 /// (architecture, encodings, sampling proxy) is unchanged apart from the precision.
-///
-/// The core exposes the network weights but not the object parameters and the position table; those
-/// are the file's last sections before the CRC (`nbrdf::file` layout: weights, object parameters,
-/// position table, CRC-32), so they are read from the end of the validated bytes, and the result is
-/// checked to decode to the same header.
 pub fn to_f16(buf: &ModelBuf) -> Result<Vec<u8>> {
     let model = buf.model();
     let header = *model.header();
     let Weights::F32(net) = model.weights() else {
         return Err(Error::Invalid("the model already has f16 weights".into()));
     };
-    let bytes = buf.as_bytes();
-    let n_object = header.n_object();
-    let table_len = header.n_vertices as usize * model.position_len();
-    let tail = 4 * (n_object + table_len) + 4;
-    let object_start = bytes
-        .len()
-        .checked_sub(tail)
-        .ok_or_else(|| Error::Invalid("model file shorter than its object and table sections".into()))?;
-    // The f32 weight section ends exactly where the object parameters start (no padding after 4-byte
-    // values); anything else means the layout assumption above no longer holds.
-    let weights_end = net.as_ptr() as usize + 4 * net.len() - bytes.as_ptr() as usize;
-    if weights_end != object_start {
-        return Err(Error::Invalid(format!(
-            "model file layout: weights end at byte {weights_end}, object parameters expected at {object_start}"
-        )));
-    }
-    let f32s = |b: &[u8]| b.chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect::<Vec<f32>>();
-    let object = f32s(&bytes[object_start..object_start + 4 * n_object]);
-    let table = f32s(&bytes[object_start + 4 * n_object..bytes.len() - 4]);
     let mut weights = net.to_vec();
-    weights.extend_from_slice(&object);
+    weights.extend_from_slice(model.object_parameters());
+    let table = model.position_table();
     let mut h16 = header;
     h16.precision = Precision::F16;
     // `encode` recomputes the vertex count from the table.
     h16.n_vertices = 0;
-    let out = nbrdf::file::encode(&h16, &weights, (table_len > 0).then_some(&table[..])).map_err(Error::Core)?;
+    let out = nbrdf::file::encode(&h16, &weights, (!table.is_empty()).then_some(table)).map_err(Error::Core)?;
     let check = ModelBuf::from_bytes(&out).map_err(Error::Core)?;
     if check.header().n_vertices != header.n_vertices || check.header().nets() != header.nets() {
         return Err(Error::Invalid("f16 re-encoding changed the model header".into()));
