@@ -145,7 +145,7 @@ fn brdf_of(spec: &str) -> Result<Brdf, String> {
         "torrance-sparrow" => {
             let v = parse_floats(rest, 7, "torrance-sparrow")?;
             range(&v[..6])?;
-            if !(v[6] > 0.0) {
+            if v[6].is_nan() || v[6] <= 0.0 {
                 return Err(format!("BRDF `{spec}`: alpha must be > 0"));
             }
             Brdf::Parametric(Parametric::TorranceSparrow(TorranceSparrow {

@@ -124,6 +124,8 @@ fn half_frame(wi: Vec3, wo: Vec3) -> Option<HalfFrame> {
     let s = wi + wo;
     let u = wi - wo;
     let s_len = libm::sqrtf(s.length_squared());
+    // NaN must take this branch too, hence not `s_len <= 0.0`.
+    #[allow(clippy::neg_cmp_op_on_partial_ord)]
     if !(s_len > 0.0) {
         return None;
     }

@@ -409,7 +409,7 @@ impl ModelHeader {
         if a > crate::model::MAX_ANGLE_INPUT {
             return Err(Error::TooLarge { what: "angle input", found: a, max: crate::model::MAX_ANGLE_INPUT });
         }
-        debug_assert!(MAX_WIDTH >= 6);
+        const { assert!(MAX_WIDTH >= 6) };
         Ok(())
     }
 }

@@ -103,7 +103,7 @@ impl<'a> Model<'a> {
     /// that names the problem (see [`crate::file`]).
     pub fn from_bytes(bytes: &'a [u8]) -> Result<Self, Error> {
         let (header, sections) = crate::file::parse(bytes)?;
-        if bytes.as_ptr() as usize % 4 != 0 {
+        if !(bytes.as_ptr() as usize).is_multiple_of(4) {
             return Err(Error::Misaligned);
         }
         Self::from_parsed(bytes, header, &sections)

@@ -27,12 +27,12 @@ use nbrdf::{Rgb, Vec3, BLACK};
 fn directions() -> Vec<Vec3> {
     let mut d = Vec::new();
     // A polar grid from the normal to just short of the horizon, at azimuths including the axes.
-    let thetas = [0.0, 1e-6, 1e-3, 0.1, 0.4, 0.785, 1.1, 1.4, 1.55, 1.5707, FRAC_PI_2 - 1e-6];
+    let thetas = [0.0, 1e-6, 1e-3, 0.1, 0.4, 0.785, 1.1, 1.4, 1.55, FRAC_PI_2 - 1e-4, FRAC_PI_2 - 1e-6];
     let phis = [0.0, 0.5, FRAC_PI_2, 2.0, PI, 4.0, 1.5 * PI, 5.9];
     for &t in &thetas {
         for &p in &phis {
-            let (st, ct) = (t as f32).sin_cos();
-            let (sp, cp) = (p as f32).sin_cos();
+            let (st, ct) = t.sin_cos();
+            let (sp, cp) = p.sin_cos();
             d.push(Vec3::new(st * cp, st * sp, ct));
         }
     }

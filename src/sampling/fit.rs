@@ -82,8 +82,9 @@ fn solve<const N: usize>(mut a: [[f64; N]; N], mut b: [f64; N]) -> Option<[f64; 
         b.swap(c, p);
         for r in c + 1..N {
             let f = a[r][c] / a[c][c];
-            for k in c..N {
-                a[r][k] -= f * a[c][k];
+            let pivot = a[c];
+            for (ark, ack) in a[r][c..].iter_mut().zip(&pivot[c..]) {
+                *ark -= f * ack;
             }
             b[r] -= f * b[c];
         }
@@ -107,8 +108,8 @@ impl Normal {
             let cols: [usize; 3] = {
                 let mut c = [0; 3];
                 let mut j = 0;
-                for k in 0..3 {
-                    if sel[k] {
+                for (k, &on) in sel.iter().enumerate() {
+                    if on {
                         c[j] = k;
                         j += 1;
                     }

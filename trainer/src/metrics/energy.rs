@@ -240,7 +240,7 @@ mod tests {
     fn known_albedo_is_recovered_within_the_standard_error() {
         let k = |albedo: f64| (3.0 * albedo / (2.0 * std::f64::consts::PI)) as f32;
         let (hi, lo) = (k(1.2), k(0.9));
-        let f = |x: usize, _: Vec3, v: Vec3| [if x % 2 == 0 { hi } else { lo } * v.z; 3];
+        let f = |x: usize, _: Vec3, v: Vec3| [if x.is_multiple_of(2) { hi } else { lo } * v.z; 3];
         let cfg = config(2000);
         let ps = pairs(200);
         let est = albedo_estimates(&ps, f, &cfg);
