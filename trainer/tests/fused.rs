@@ -118,3 +118,36 @@ fn whole_network_matches_unfused() {
         assert!(rel_err(a, e) < 1e-5, "variable {i}: {}", rel_err(a, e));
     }
 }
+
+/// Every model variant gives the same output and gradients with each network run as one op
+/// (`fused::network`) as layer by layer (`fused::linear`): skip layers, trunks ending in a ReLU, and
+/// the Additive Shared head, whose input (the trunk's output) needs a gradient.
+#[test]
+fn whole_network_op_matches_layer_by_layer_for_every_variant() {
+    let dev = Device::Cpu;
+    let position = PositionEncoding::Intrinsic { k: 6 };
+    let n = 5000;
+    let obs = trainer::toy::observations(n, position, 4);
+    let mut configs = trainer::models::arch::study_variants(position, Reciprocity::Exact);
+    let mut split = Config::paper(Kind::SingleMlp, false, Reciprocity::Exact, position);
+    split.direction_layers = Some(3);
+    configs.push(split);
+    for (i, config) in configs.into_iter().enumerate() {
+        let model = Model::init(config, 20 + i as u64, &dev).unwrap();
+        let x = Inputs::build(&config, &RawBatch { position: &obs.position, wi: &obs.wi, wo: &obs.wo, swap: None }, &dev).unwrap();
+        let r = Tensor::from_vec(random(&mut ChaCha8Rng::seed_from_u64(i as u64), n * 3), (n, 3), &dev).unwrap();
+        let run = |whole: bool| {
+            fused::set_whole_network(whole);
+            let f = model.forward(&x).unwrap().f;
+            fused::set_whole_network(true);
+            let g = (&f * &r).unwrap().sum_all().unwrap().backward().unwrap();
+            (f, g)
+        };
+        let ((f, g), (f_ref, g_ref)) = (run(true), run(false));
+        assert!(rel_err(&f, &f_ref) < 1e-5, "{}: f {}", config.name(), rel_err(&f, &f_ref));
+        for (j, v) in model.vars().iter().enumerate() {
+            let (a, e) = (g.get(v.as_tensor()).unwrap(), g_ref.get(v.as_tensor()).unwrap());
+            assert!(rel_err(a, e) < 1e-5, "{}: variable {j}: {}", config.name(), rel_err(a, e));
+        }
+    }
+}

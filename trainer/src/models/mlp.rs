@@ -74,6 +74,19 @@ impl Mlp {
     pub fn forward(&self, x: &Tensor, ones: &Tensor) -> Result<Tensor> {
         let hidden = self.desc.hidden as usize;
         let skip = self.desc.skip as usize;
+        if super::fused::whole_network() && self.desc.n_in > 0 && !self.layers.is_empty() {
+            // One op for the whole network (fused::network); its weights as two concatenated
+            // vectors, whose `cat` hands each layer's gradient back to its own variables.
+            let flat = |v: &Var| v.as_tensor().flatten_all();
+            let w = Tensor::cat(&self.layers.iter().map(|l| flat(&l.weight)).collect::<Result<Vec<_>>>()?, 0)?;
+            let b = Tensor::cat(&self.layers.iter().map(|l| flat(&l.bias)).collect::<Result<Vec<_>>>()?, 0)?;
+            let shape = super::fused::NetShape {
+                layers: layers(&self.desc),
+                hidden,
+                skip: (skip >= 1 && skip < hidden && self.layers.len() > skip).then_some(skip),
+            };
+            return super::fused::network(x, &w, &b, shape);
+        }
         let mut h = x.clone();
         for (l, layer) in self.layers.iter().enumerate() {
             let input = if l > 0 && l < hidden && skip >= 1 && l == skip && self.desc.n_in > 0 {
