@@ -126,6 +126,10 @@ enum Command {
         /// Only the architectures whose name contains one of these (comma-separated)
         #[arg(long, value_delimiter = ',')]
         only: Vec<String>,
+        /// Run each network layer by layer (one fused op per layer) instead of as one op, to time the
+        /// difference
+        #[arg(long)]
+        per_layer: bool,
     },
 }
 
@@ -255,8 +259,9 @@ fn run(cli: Cli) -> trainer::Result<()> {
         Command::Models { position } => {
             print!("{}", commands::models::table(commands::parse_position(&position)?));
         }
-        Command::BenchStep { batch, steps, position, json, torch, torch_script, rounds, only } => {
+        Command::BenchStep { batch, steps, position, json, torch, torch_script, rounds, only, per_layer } => {
             use commands::bench_step as bench;
+            trainer::models::fused::set_whole_network(!per_layer);
             let position = commands::parse_position(&position)?;
             let mut configs = bench::default_configs(position);
             if !only.is_empty() {
