@@ -261,7 +261,7 @@ fn run(cli: Cli) -> trainer::Result<()> {
         }
         Command::BenchStep { batch, steps, position, json, torch, torch_script, rounds, only, per_layer } => {
             use commands::bench_step as bench;
-            trainer::models::fused::set_whole_network(!per_layer);
+            trainer::models::network::set_whole_network(!per_layer);
             let position = commands::parse_position(&position)?;
             let mut configs = bench::default_configs(position);
             if !only.is_empty() {

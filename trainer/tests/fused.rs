@@ -5,7 +5,7 @@
 use candle_core::{DType, Device, Tensor, Var};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use trainer::models::{fused, Config, Inputs, Kind, Model, PositionEncoding, RawBatch, Reciprocity};
+use trainer::models::{fused, network, Config, Inputs, Kind, Model, PositionEncoding, RawBatch, Reciprocity};
 
 /// `max |a - b| / max(max |b|, tiny)`: the 1e-5 relative criterion over a whole tensor.
 fn rel_err(a: &Tensor, b: &Tensor) -> f32 {
@@ -137,9 +137,9 @@ fn whole_network_op_matches_layer_by_layer_for_every_variant() {
         let x = Inputs::build(&config, &RawBatch { position: &obs.position, wi: &obs.wi, wo: &obs.wo, swap: None }, &dev).unwrap();
         let r = Tensor::from_vec(random(&mut ChaCha8Rng::seed_from_u64(i as u64), n * 3), (n, 3), &dev).unwrap();
         let run = |whole: bool| {
-            fused::set_whole_network(whole);
+            network::set_whole_network(whole);
             let f = model.forward(&x).unwrap().f;
-            fused::set_whole_network(true);
+            network::set_whole_network(true);
             let g = (&f * &r).unwrap().sum_all().unwrap().backward().unwrap();
             (f, g)
         };

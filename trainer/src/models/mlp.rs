@@ -3,8 +3,9 @@
 //! Each layer holds its matrix `[in][out]` and its bias `[1][out]` as two `Var`s whose buffers are the
 //! layer's two blocks of the model file, so export is a copy ([`Mlp::write_weights`]).
 //!
-//! A layer is one fused op ([`super::fused::linear`]: GEMM, bias and ReLU forward, and a hand-written
-//! backward), not a composition of candle ops, whose backward costs several passes per layer (issue 8).
+//! A network runs as one op ([`super::network::network`]), or layer by layer as fused ops
+//! ([`super::fused::linear`]: GEMM, bias and ReLU forward, and a hand-written backward); never as a
+//! composition of candle ops, whose backward costs several passes per layer (issue 8).
 
 use candle_core::{DType, Device, Result, Tensor, Var};
 use rand::{Rng, RngExt};
@@ -74,18 +75,18 @@ impl Mlp {
     pub fn forward(&self, x: &Tensor, ones: &Tensor) -> Result<Tensor> {
         let hidden = self.desc.hidden as usize;
         let skip = self.desc.skip as usize;
-        if super::fused::whole_network() && self.desc.n_in > 0 && !self.layers.is_empty() {
-            // One op for the whole network (fused::network); its weights as two concatenated
+        if super::network::whole_network() && self.desc.n_in > 0 && !self.layers.is_empty() {
+            // One op for the whole network (network::network); its weights as two concatenated
             // vectors, whose `cat` hands each layer's gradient back to its own variables.
             let flat = |v: &Var| v.as_tensor().flatten_all();
             let w = Tensor::cat(&self.layers.iter().map(|l| flat(&l.weight)).collect::<Result<Vec<_>>>()?, 0)?;
             let b = Tensor::cat(&self.layers.iter().map(|l| flat(&l.bias)).collect::<Result<Vec<_>>>()?, 0)?;
-            let shape = super::fused::NetShape {
+            let shape = super::network::NetShape {
                 layers: layers(&self.desc),
                 hidden,
                 skip: (skip >= 1 && skip < hidden && self.layers.len() > skip).then_some(skip),
             };
-            return super::fused::network(x, &w, &b, shape);
+            return super::network::network(x, &w, &b, shape);
         }
         let mut h = x.clone();
         for (l, layer) in self.layers.iter().enumerate() {

@@ -5,6 +5,7 @@ pub mod activation;
 pub mod arch;
 pub mod features;
 pub mod fused;
+pub mod network;
 pub mod mlp;
 pub mod export;
 pub mod parametric;
