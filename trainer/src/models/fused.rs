@@ -49,42 +49,86 @@ pub(super) fn parallelism() -> gemm::Parallelism {
     }
 }
 
+/// `dst [m, n] (+)= lhs [m, k] · rhs`, with `rhs` read as `[k, n]` through strides `(rs, cs)`: the
+/// one place this module calls `gemm` on a row-major left-hand side.
+///
+/// # Safety
+/// `dst` must hold `m × n` values (initialised when `accumulate`), `lhs` `m × k` row-major values,
+/// and `rhs` every element `r·rs + c·cs` for `r < k`, `c < n`.
+#[allow(clippy::too_many_arguments)]
+pub(super) unsafe fn gemm_into(dst: *mut f32, accumulate: bool, m: usize, n: usize, k: usize, lhs: &[f32], rhs: *const f32, rs: isize, cs: isize, par: gemm::Parallelism) {
+    // SAFETY: forwarded from the caller; dst row-major with row stride n, lhs row-major with row
+    // stride k.
+    unsafe {
+        gemm::gemm(m, n, k, dst, 1, n as isize, accumulate, lhs.as_ptr(), 1, k as isize, rhs, cs, rs, 1.0, 1.0, false, false, false, par)
+    }
+}
+
 /// `lhs[m, k] · rhs[k, n]` (row-major, contiguous) as a new `m × n` row-major buffer.
-fn gemm_new(m: usize, n: usize, k: usize, lhs: &[f32], rhs: &[f32]) -> Vec<f32> {
+pub(super) fn gemm_new(m: usize, n: usize, k: usize, lhs: &[f32], rhs: &[f32]) -> Vec<f32> {
     assert!(lhs.len() == m * k && rhs.len() == k * n, "gemm_new: shapes");
     if k == 0 {
         return vec![0.0; m * n];
     }
     let mut dst: Vec<f32> = Vec::with_capacity(m * n);
-    // SAFETY: lhs and rhs hold exactly the m×k and k×n row-major matrices the strides describe (column
-    // stride 1, row stride = columns), checked above; dst has room for m×n values, which gemm writes
-    // without reading (`read_dst = false`) before `set_len` exposes them. Skipping the zero fill saves
-    // a pass over the largest buffer of the layer; candle's own matmul allocates the same way.
+    // SAFETY: lhs and rhs hold exactly the m×k and k×n row-major matrices (checked above); dst has
+    // room for m×n values, which gemm writes without reading before `set_len` exposes them. Skipping
+    // the zero fill saves a pass over the largest buffer of the layer; candle's own matmul allocates
+    // the same way.
     unsafe {
-        gemm::gemm(
-            m,
-            n,
-            k,
-            dst.as_mut_ptr(),
-            1,
-            n as isize,
-            false,
-            lhs.as_ptr(),
-            1,
-            k as isize,
-            rhs.as_ptr(),
-            1,
-            n as isize,
-            0.0,
-            1.0,
-            false,
-            false,
-            false,
-            parallelism(),
-        );
+        gemm_into(dst.as_mut_ptr(), false, m, n, k, lhs, rhs.as_ptr(), n as isize, 1, parallelism());
         dst.set_len(m * n);
     }
     dst
+}
+
+/// `y ← act(y + b)` row by row (`y [N, m]`, `b [m]`), in parallel: the pass after a layer's GEMM.
+pub(super) fn add_bias_act(y: &mut [f32], b: &[f32], relu: bool) {
+    let m = b.len();
+    y.par_chunks_mut(ROW_BLOCK * m.max(1)).for_each(|c| {
+        for row in c.chunks_exact_mut(m) {
+            for (v, &bj) in row.iter_mut().zip(b) {
+                let z = *v + bj;
+                *v = if relu { z.max(0.0) } else { z };
+            }
+        }
+    });
+}
+
+/// `g ← g ⊙ act'(out)` in place (`g`, `out` `[N, m]`; PyTorch's convention: gradient 0 where
+/// `out = 0`) and returns the column sums of the result, the bias gradient, taken over fixed row
+/// blocks and added in block order.
+pub(super) fn act_grad_colsum(g: &mut [f32], out: &[f32], m: usize, relu: bool) -> Vec<f32> {
+    let block = ROW_BLOCK * m.max(1);
+    let partial: Vec<Vec<f32>> = g
+        .par_chunks_mut(block)
+        .zip(out.par_chunks(block))
+        .map(|(g, a)| {
+            let mut sum = vec![0.0f32; m];
+            // Iterators, not indices, and a select, not a branch: the loop vectorises.
+            for (g, a) in g.chunks_exact_mut(m).zip(a.chunks_exact(m)) {
+                for ((d, &av), s) in g.iter_mut().zip(a).zip(sum.iter_mut()) {
+                    let v = if !relu || av > 0.0 { *d } else { 0.0 };
+                    *d = v;
+                    *s += v;
+                }
+            }
+            sum
+        })
+        .collect();
+    let mut db = vec![0.0f32; m];
+    add_in_order(&mut db, &partial);
+    db
+}
+
+/// `dst += Σ partial`, the partial results added in their order (the same rounding for any number of
+/// threads).
+fn add_in_order(dst: &mut [f32], partial: &[Vec<f32>]) {
+    for p in partial {
+        for (d, v) in dst.iter_mut().zip(p) {
+            *d += v;
+        }
+    }
 }
 
 /// The forward op over `(x [N, in], W [in, out], b [1, out])`.
@@ -123,16 +167,7 @@ impl CustomOp3 for Linear {
             candle_core::bail!("{op}: x [{n}, {k}], W [{k2}, {m}], b [{}] do not fit", b.len())
         }
         let mut y = gemm_new(n, m, k, x, w);
-        // Bias and activation in one parallel pass over the GEMM output.
-        let relu = self.relu;
-        y.par_chunks_mut(ROW_BLOCK * m.max(1)).for_each(|c| {
-            for row in c.chunks_exact_mut(m) {
-                for (v, &bj) in row.iter_mut().zip(b) {
-                    let z = *v + bj;
-                    *v = if relu { z.max(0.0) } else { z };
-                }
-            }
-        });
+        add_bias_act(&mut y, b, self.relu);
         Ok((CpuStorage::F32(y), Shape::from((n, m))))
     }
 
@@ -167,36 +202,9 @@ impl CustomOp2 for ActivationGrad {
         if dims2(l2, op)? != (n, m) {
             candle_core::bail!("{op}: dy {:?} and y {:?} differ", l1.shape(), l2.shape())
         }
-        // Every value of dz is written below, so the buffer starts uninitialised (`MaybeUninit`)
-        // instead of paying a zero fill over the layer's largest array.
         let mut out: Vec<f32> = Vec::with_capacity((n + 1) * m);
-        let dz = &mut out.spare_capacity_mut()[..n * m];
-        let block = ROW_BLOCK * m.max(1);
-        let relu = self.relu;
-        let partial: Vec<Vec<f32>> = dz
-            .par_chunks_mut(block)
-            .zip(dy.par_chunks(block).zip(y.par_chunks(block)))
-            .map(|(dz, (dy, y))| {
-                let mut sum = vec![0.0f32; m];
-                // Iterators, not indices, and a select, not a branch: the loop vectorises.
-                for ((dz, dy), y) in dz.chunks_exact_mut(m).zip(dy.chunks_exact(m)).zip(y.chunks_exact(m)) {
-                    for (((d, &g), &yv), s) in dz.iter_mut().zip(dy).zip(y).zip(sum.iter_mut()) {
-                        let g = if !relu || yv > 0.0 { g } else { 0.0 };
-                        d.write(g);
-                        *s += g;
-                    }
-                }
-                sum
-            })
-            .collect();
-        // SAFETY: the loop above wrote all n × m values of dz (the chunks cover it exactly).
-        unsafe { out.set_len(n * m) };
-        let mut db = vec![0.0f32; m];
-        for p in &partial {
-            for (d, s) in db.iter_mut().zip(p) {
-                *d += s;
-            }
-        }
+        out.extend_from_slice(dy);
+        let db = act_grad_colsum(&mut out, y, m, self.relu);
         out.extend_from_slice(&db);
         Ok((CpuStorage::F32(out), Shape::from((n + 1, m))))
     }
@@ -262,9 +270,5 @@ pub(super) fn weight_grad_into(dw: &mut [f32], a: &[f32], k: usize, dz: &[f32], 
             out
         })
         .collect();
-    for p in &partial {
-        for (d, v) in dw.iter_mut().zip(p) {
-            *d += v;
-        }
-    }
+    add_in_order(dw, &partial);
 }

@@ -74,27 +74,22 @@ impl Mlp {
     /// layer (or the last activation for a trunk with `n_out = 0`).
     pub fn forward(&self, x: &Tensor, ones: &Tensor) -> Result<Tensor> {
         let hidden = self.desc.hidden as usize;
+        // The layer that reads `[h, x]`: `S` when it is a hidden layer after the first and the
+        // network has an input to re-read.
         let skip = self.desc.skip as usize;
+        let skip = (skip >= 1 && skip < hidden && self.desc.n_in > 0).then_some(skip);
         if super::network::whole_network() && self.desc.n_in > 0 && !self.layers.is_empty() {
             // One op for the whole network (network::network); its weights as two concatenated
             // vectors, whose `cat` hands each layer's gradient back to its own variables.
             let flat = |v: &Var| v.as_tensor().flatten_all();
             let w = Tensor::cat(&self.layers.iter().map(|l| flat(&l.weight)).collect::<Result<Vec<_>>>()?, 0)?;
             let b = Tensor::cat(&self.layers.iter().map(|l| flat(&l.bias)).collect::<Result<Vec<_>>>()?, 0)?;
-            let shape = super::network::NetShape {
-                layers: layers(&self.desc),
-                hidden,
-                skip: (skip >= 1 && skip < hidden && self.layers.len() > skip).then_some(skip),
-            };
+            let shape = super::network::NetShape { layers: layers(&self.desc), hidden, skip };
             return super::network::network(x, &w, &b, shape);
         }
         let mut h = x.clone();
         for (l, layer) in self.layers.iter().enumerate() {
-            let input = if l > 0 && l < hidden && skip >= 1 && l == skip && self.desc.n_in > 0 {
-                Tensor::cat(&[&h, x], 1)?
-            } else {
-                h
-            };
+            let input = if skip == Some(l) { Tensor::cat(&[&h, x], 1)? } else { h };
             h = layer.forward(&input, ones, l < hidden)?;
         }
         Ok(h)

@@ -9,7 +9,7 @@
 use candle_core::{CpuStorage, CustomOp3, Layout, Result, Shape, Tensor};
 use rayon::prelude::*;
 
-use super::fused::{data, dims2, parallelism, weight_grad_into, ROW_BLOCK};
+use super::fused::{act_grad_colsum, add_bias_act, data, dims2, gemm_into, gemm_new, parallelism, weight_grad_into, ROW_BLOCK};
 
 /// What [`network`] needs to know of a network: layer sizes, which layers end in a ReLU, and the skip.
 #[derive(Clone, Debug)]
@@ -70,20 +70,6 @@ fn offsets(shape: &NetShape) -> Vec<(usize, usize)> {
         .collect()
 }
 
-/// `dst [m, n] (+)= lhs [m, k] · rhs`, with `rhs` read as `[k, n]` through strides `(rs, cs)`.
-///
-/// # Safety
-/// `dst` must hold `m × n` values (initialised when `accumulate`), `lhs` `m × k` row-major values,
-/// and `rhs` every element `r·rs + c·cs` for `r < k`, `c < n`.
-#[allow(clippy::too_many_arguments)]
-unsafe fn gemm_into(dst: *mut f32, accumulate: bool, m: usize, n: usize, k: usize, lhs: &[f32], rhs: *const f32, rs: isize, cs: isize, par: gemm::Parallelism) {
-    // SAFETY: forwarded from the caller; dst row-major with row stride n, lhs row-major with row
-    // stride k.
-    unsafe {
-        gemm::gemm(m, n, k, dst, 1, n as isize, accumulate, lhs.as_ptr(), 1, k as isize, rhs, cs, rs, 1.0, 1.0, false, false, false, par)
-    }
-}
-
 impl NetShape {
     /// Inputs of layer `l` split as (activation part, network-input part): `(h, x)` widths.
     fn split(&self, l: usize, n_x: usize) -> (usize, usize) {
@@ -139,24 +125,8 @@ impl CustomOp3 for Network {
                 }
             };
             let k = n_h + n_xl;
-            let mut y: Vec<f32> = Vec::with_capacity(n * m);
-            // SAFETY: y has room for n × m values, which the GEMM writes without reading; input is
-            // n × k row-major (k ≥ 1: every layer has inputs) and the layer's matrix is the k × m
-            // row-major block at w[ow..].
-            unsafe {
-                gemm_into(y.as_mut_ptr(), false, n, m, k, input, w[ow..].as_ptr(), m as isize, 1, parallelism());
-                y.set_len(n * m);
-            }
-            let relu = l < self.shape.hidden;
-            let bl = &b[ob..ob + m];
-            y.par_chunks_mut(ROW_BLOCK * m.max(1)).for_each(|c| {
-                for row in c.chunks_exact_mut(m) {
-                    for (v, &bj) in row.iter_mut().zip(bl) {
-                        let z = *v + bj;
-                        *v = if relu { z.max(0.0) } else { z };
-                    }
-                }
-            });
+            let mut y = gemm_new(n, m, k, input, &w[ow..ow + k * m]);
+            add_bias_act(&mut y, &b[ob..ob + m], l < self.shape.hidden);
             if l > 0 {
                 saved.push(std::mem::take(&mut h));
             }
@@ -221,30 +191,10 @@ impl CustomOp3 for NetworkGrad {
             let (_, m) = layers[l];
             let (n_h, n_xl) = self.shape.split(l, n_x);
             let (ow, ob) = off[l];
-            // dz = g ⊙ [out > 0] in place, and db = Σ_rows dz over fixed blocks in order.
+            // dz = g ⊙ [out > 0] in place, and db = Σ_rows dz.
             let act: &[f32] = if l + 1 == layers.len() { y } else { &saved[l] };
-            let relu = l < self.shape.hidden;
-            let block = ROW_BLOCK * m.max(1);
-            let partial: Vec<Vec<f32>> = g
-                .par_chunks_mut(block)
-                .zip(act.par_chunks(block))
-                .map(|(g, a)| {
-                    let mut sum = vec![0.0f32; m];
-                    for (g, a) in g.chunks_exact_mut(m).zip(a.chunks_exact(m)) {
-                        for ((d, &av), s) in g.iter_mut().zip(a).zip(sum.iter_mut()) {
-                            let v = if !relu || av > 0.0 { *d } else { 0.0 };
-                            *d = v;
-                            *s += v;
-                        }
-                    }
-                    sum
-                })
-                .collect();
-            for p in &partial {
-                for (d, s) in db_all[ob..ob + m].iter_mut().zip(p) {
-                    *d += s;
-                }
-            }
+            let db = act_grad_colsum(&mut g, act, m, l < self.shape.hidden);
+            db_all[ob..ob + m].copy_from_slice(&db);
             // dW = [h, x]ᵀ dz, each part split over the batch (see WeightGrad).
             let h: &[f32] = if l == 0 { &[] } else { &saved[l - 1] };
             weight_grad_into(&mut dw_all[ow..ow + n_h * m], h, n_h, &g, m, n);
