@@ -23,7 +23,12 @@ pub struct Outputs {
 impl Outputs {
     /// The files of `config` in `dir`.
     pub fn in_dir(dir: &Path, config: &Config) -> Outputs {
-        let name = config.name().replace('+', "_");
+        Outputs::named(dir, &config.name())
+    }
+
+    /// The files of the variant named `name` ([`Config::name`]) in `dir`.
+    pub fn named(dir: &Path, name: &str) -> Outputs {
+        let name = name.replace('+', "_");
         Outputs {
             checkpoint: dir.join(format!("{name}.ckpt.json")),
             log: dir.join(format!("{name}.log.json")),

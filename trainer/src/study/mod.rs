@@ -274,8 +274,7 @@ pub fn comparisons(config: &StudyConfig, roots: &[PathBuf], out: &Path, results:
         };
         let mut ds = None;
         for r in [best(true), best(false)].into_iter().flatten() {
-            let file = format!("{}.nbrdf", r.model.replace('+', "_"));
-            let Some(model_path) = roots.iter().map(|root| job_dir(root, scene, &r.model).join(&file)).find(|p| p.exists()) else {
+            let Some(model_path) = roots.iter().map(|root| fit::Outputs::named(&job_dir(root, scene, &r.model), &r.model).model).find(|p| p.exists()) else {
                 continue;
             };
             if ds.is_none() {
