@@ -124,15 +124,33 @@ pub fn read_exr(path: impl AsRef<Path>) -> Result<RgbImage, crate::Error> {
     Ok(image.layer_data.channel_data.pixels)
 }
 
+/// The 8-bit sRGB code of a linear value (clamped to `[0, 1]`, NaN as 0).
+///
+/// ```
+/// use nbrdf::image::srgb8;
+/// assert_eq!((srgb8(0.0), srgb8(1.0), srgb8(2.0), srgb8(f32::NAN)), (0, 255, 255, 0));
+/// assert_eq!(srgb8(0.216), 128); // linear 0.216 is mid-grey in sRGB
+/// ```
+#[inline]
+pub fn srgb8(x: f32) -> u8 {
+    (srgb_encode(x) * 255.0).round() as u8
+}
+
 /// Writes an 8-bit sRGB PNG of a linear image scaled by `exposure` (values clamped to `[0, 1]`).
 pub fn write_png_srgb(path: impl AsRef<Path>, img: &RgbImage, exposure: f32) -> Result<(), Error> {
     img.check()?;
-    let bytes: Vec<u8> = img
-        .data
-        .iter()
-        .flat_map(|p| p.map(|c| (srgb_encode(c * exposure) * 255.0).round() as u8))
-        .collect();
+    let bytes: Vec<u8> = img.data.iter().flat_map(|p| p.map(|c| srgb8(c * exposure))).collect();
     write_png(path.as_ref(), img.width, img.height, ::image::ExtendedColorType::Rgb8, &bytes)
+}
+
+/// Writes an 8-bit RGB PNG from code values (`width × height` pixels, 3 bytes each, row-major),
+/// atomically: figures and colour maps that are already 8-bit.
+pub fn write_png_rgb8(path: impl AsRef<Path>, width: u32, height: u32, rgb: &[u8]) -> Result<(), Error> {
+    let expected = width as usize * height as usize * 3;
+    if rgb.len() != expected {
+        return Err(Error::SizeMismatch { what: "RGB8 byte count", expected, found: rgb.len() });
+    }
+    write_png(path.as_ref(), width, height, ::image::ExtendedColorType::Rgb8, rgb)
 }
 
 /// Writes an 8-bit grey PNG (masks: 255 inside, 0 outside).

@@ -334,6 +334,8 @@ fn exr_and_png_malformed_variants() {
         Error::SizeMismatch { what: "mask pixel count", expected: 4, found: 3 });
     assert_err!("png16 size", nbrdf::image::write_png16(dir.path("m.png"), 2, 2, &[[0; 3]; 5]),
         Error::SizeMismatch { what: "image pixel count", expected: 4, found: 5 });
+    assert_err!("rgb8 size", nbrdf::image::write_png_rgb8(dir.path("m.png"), 2, 2, &[0; 11]),
+        Error::SizeMismatch { what: "RGB8 byte count", expected: 12, found: 11 });
     // RgbImage's fields are public, so an inconsistent image can reach the writers.
     let broken = RgbImage { width: 4, height: 4, data: vec![[0.0; 3]; 3] };
     assert_err!("EXR of an inconsistent image", nbrdf::image::write_exr(dir.path("b.exr"), &broken),
@@ -439,7 +441,7 @@ fn a_failed_write_leaves_the_existing_file_intact_for_every_writer() {
     let dir = scratch.path("out");
     std::fs::create_dir(&dir).unwrap();
     let old = b"the previous, complete contents";
-    let names = ["m.nbrdf", "t.binary", "i.exr", "i.png", "mask.png", "i16.png", "raw.bin", "fill.bin"];
+    let names = ["m.nbrdf", "t.binary", "i.exr", "i.png", "mask.png", "i16.png", "i8.png", "raw.bin", "fill.bin"];
     for n in names {
         std::fs::write(dir.join(n), old).unwrap();
     }
@@ -456,6 +458,7 @@ fn a_failed_write_leaves_the_existing_file_intact_for_every_writer() {
         ("write_png_srgb", Box::new(|| nbrdf::image::write_png_srgb(dir.join("i.png"), &img, 1.0))),
         ("write_png_mask", Box::new(|| nbrdf::image::write_png_mask(dir.join("mask.png"), 1, 1, &[true]))),
         ("write_png16", Box::new(|| nbrdf::image::write_png16(dir.join("i16.png"), 1, 1, &[[1, 2, 3]]))),
+        ("write_png_rgb8", Box::new(|| nbrdf::image::write_png_rgb8(dir.join("i8.png"), 1, 1, &[1, 2, 3]))),
         ("io::write_atomic", Box::new(|| nbrdf::io::write_atomic(&dir.join("raw.bin"), b"new"))),
         ("io::write_atomic_with", Box::new(|| nbrdf::io::write_atomic_with(&dir.join("fill.bin"), |w| w.write_all(b"new")))),
     ];

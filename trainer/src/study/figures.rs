@@ -1,13 +1,13 @@
 //! The study's figures (PNG): the accuracy-versus-cost Pareto plots, and for a few jobs the reference
 //! next to the model's rendering with the HDR-FLIP error map.
 //!
-//! Plots are drawn by `plotters` into an in-memory RGB buffer and encoded with `image`; every file is
-//! written atomically (`crate::train::write_atomic`), like the study's other outputs.
+//! Plots are drawn by `plotters` into an in-memory RGB buffer and written as PNG by the core's atomic
+//! writer (`nbrdf::image::write_png_rgb8`), like the study's other outputs.
 
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
-use nbrdf::image::{srgb_encode, RgbImage};
+use nbrdf::image::{srgb8, write_png_rgb8, RgbImage};
 use plotters::prelude::*;
 use serde::Serialize;
 
@@ -55,22 +55,12 @@ pub fn pareto_front(points: &[CostPoint]) -> Vec<usize> {
     front
 }
 
-/// Encodes 8-bit RGB as PNG bytes.
-fn png_bytes(width: u32, height: u32, rgb: &[u8]) -> Result<Vec<u8>> {
-    use image::ImageEncoder;
-    let mut out = Vec::new();
-    image::codecs::png::PngEncoder::new(&mut out)
-        .write_image(rgb, width, height, image::ExtendedColorType::Rgb8)
-        .map_err(|e| Error::Invalid(format!("PNG encoding of a {width}×{height} figure: {e}")))?;
-    Ok(out)
-}
-
-/// Writes 8-bit RGB as a PNG, atomically.
+/// Writes 8-bit RGB as a PNG, atomically (the core's writer), creating its folder.
 fn write_png(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result<()> {
     if let Some(dir) = path.parent() {
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
     }
-    crate::train::write_atomic(path, &png_bytes(width, height, rgb)?)
+    write_png_rgb8(path, width, height, rgb).map_err(Error::Core)
 }
 
 /// Axis range of positive values on a log axis, padded by a quarter decade on both sides.
@@ -157,11 +147,6 @@ pub fn pareto_plot(path: &Path, title: &str, cost_label: &str, accuracy_label: &
         root.present().map_err(|e| plot_err(&e))?;
     }
     write_png(path, width, height, &rgb)
-}
-
-/// 8-bit sRGB of a linear value (exposure 1, clamped: the space PSNR and DSSIM are computed in).
-fn srgb8(x: f32) -> u8 {
-    (srgb_encode(x) * 255.0).round() as u8
 }
 
 /// Enlargement of the comparison images: the study renders small (64²), too small to inspect.
