@@ -185,7 +185,8 @@ impl CustomOp3 for Linear {
 }
 
 /// `(dy [N, m], y [N, m]) → [N + 1, m]`: rows `0..N` are `dz = dy ⊙ act'(y)`, row `N` is `Σ_rows dz`
-/// (both outputs of one pass in one buffer, split by `narrow` without a copy).
+/// (one buffer, split by `narrow` without a copy): `dy` is copied in, then [`act_grad_colsum`], the
+/// pass the whole-network op runs in place, masks it and sums its columns.
 struct ActivationGrad {
     relu: bool,
 }
