@@ -222,7 +222,7 @@ impl CustomOp3 for NetworkGrad {
     }
 }
 
-/// The whole network `x → y` as one op (see [`Network`]); `w` and `b` are the layers' matrices and
+/// The whole network `x → y` as one op (the `Network` op above); `w` and `b` are the layers' matrices and
 /// biases flattened and concatenated in file order.
 pub fn network(x: &Tensor, w: &Tensor, b: &Tensor, shape: NetShape) -> Result<Tensor> {
     x.contiguous()?.apply_op3(&w.contiguous()?, &b.contiguous()?, Network { shape, saved: Saved::default() })
