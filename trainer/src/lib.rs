@@ -5,7 +5,8 @@
 //! - [`dataset`]: the semi-synthetic renderer (`synth`), dataset loading, DiLiGenT-MV.
 //! - [`models`]: candle twins of every core model (docs/models.md).
 //! - [`observations`]: the training pixels, [`toy`]: an analytic stand-in for tests and benchmarks.
-//! - [`loss`], [`adam`], [`train`]: Eq. 9 and 10, the optimiser, the fitting loop with checkpoints.
+//! - [`loss`], [`objective`], [`adam`], [`train`]: Eq. 9 and 10 (composed, and fused with the output
+//!   head into one op), the optimiser, the fitting loop with checkpoints.
 //! - [`intrinsic`]: Laplace–Beltrami eigenfunctions for the intrinsic position encoding.
 //! - [`metrics`]: PSNR, DSSIM, LPIPS, HDR-FLIP, BRDF-space RMSE, reciprocity and energy (Sec. 6).
 //! - [`commands`]: the bodies of the `fit`, `models` and `bench-step` subcommands.
@@ -20,6 +21,7 @@ pub mod intrinsic;
 pub mod loss;
 pub mod metrics;
 pub mod models;
+pub mod objective;
 pub mod observations;
 pub mod study;
 pub mod toy;

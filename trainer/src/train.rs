@@ -192,20 +192,7 @@ fn draw_batch(config: &Config, obs: &Observations, targets: &Targets, opts: &Tra
     Ok(Batch { inputs, incident: Tensor::from_vec(inc, (b, 3), device)?, target: Tensor::from_vec(tgt, (b, 3), device)? })
 }
 
-/// The objective of one batch: Eq. 10, plus the Sec. 4.4 regularisers for enhanced models.
-pub fn objective(model: &Model, batch: &Batch, opts: &TrainOptions) -> Result<Tensor> {
-    let out = model.forward(&batch.inputs)?;
-    let radiance = loss::render(&out.f, &batch.incident)?;
-    let mut total = loss::tone_mapped_mse(&radiance, &batch.target)?;
-    if model.config.has_xi() {
-        if let (Some(d), Some(s)) = (&out.diffuse, &out.specular) {
-            let rd = loss::diffuse_l1(&d.broadcast_mul(&batch.inputs.valid)?, &batch.incident, &batch.target)?;
-            let rs = loss::specular_l1(s, &batch.incident)?;
-            total = ((total + (rd * opts.lambda_diffuse as f64)?)? + (rs * opts.lambda_specular as f64)?)?;
-        }
-    }
-    Ok(total)
-}
+pub use crate::objective::objective;
 
 /// Tells mimalloc (the binary's allocator) never to return freed memory to the OS.
 ///

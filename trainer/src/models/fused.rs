@@ -23,10 +23,10 @@ use rayon::prelude::*;
 /// Rows per block of the elementwise passes: large enough to amortise rayon's task cost, small enough
 /// that 2 threads get many blocks; fixed (not per thread count) so that the column sums round the same
 /// way on any machine.
-pub(super) const ROW_BLOCK: usize = 1024;
+pub(crate) const ROW_BLOCK: usize = 1024;
 
 /// The contiguous f32 data of a candle CPU tensor.
-pub(super) fn data<'a>(s: &'a CpuStorage, l: &Layout, op: &str) -> Result<&'a [f32]> {
+pub(crate) fn data<'a>(s: &'a CpuStorage, l: &Layout, op: &str) -> Result<&'a [f32]> {
     let CpuStorage::F32(d) = s else { candle_core::bail!("{op}: f32 only") };
     let Some((a, b)) = l.contiguous_offsets() else { candle_core::bail!("{op}: contiguous tensors only") };
     Ok(&d[a..b])

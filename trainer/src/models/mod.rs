@@ -28,6 +28,17 @@ pub struct Output {
     pub specular: Option<Tensor>,
 }
 
+/// What a model's networks output, before the nonlinearities of its head ([`Model::raw`]).
+pub enum Raw {
+    /// `[N, 3]`: the BRDF itself (a parametric model's formula is part of its networks' op).
+    Brdf(Tensor),
+    /// `[N, 3]`: the Single MLP's pre-activation; `f = softplus(out)`.
+    Softplus(Tensor),
+    /// The additive models' diffuse `d` (`[N, 3]`) and specular `s` (`[N, 3]`, enhanced `[N, 6]` with
+    /// the Eq. 8 weight's pre-activation in the last three columns).
+    Additive { d: Tensor, s: Tensor },
+}
+
 /// Start of the specular (and Single MLP) output logit: `softplus(-4) = 0.018`/sr.
 ///
 /// With PyTorch's default initialisation the outputs start near 0, i.e. `f_s = softplus(0) = 0.69`/sr
@@ -105,34 +116,37 @@ impl Model {
         mlp::read_into(&self.vars(), values).map(|_| ())
     }
 
-    /// The forward pass of docs/models.md "Models".
-    pub fn forward(&self, x: &Inputs) -> Result<Output> {
+    /// The networks' outputs before the head, wired as docs/models.md "Models" says.
+    pub fn raw(&self, x: &Inputs) -> Result<Raw> {
         let n = &self.nets;
-        let (f, diffuse, specular) = match self.config.kind {
+        Ok(match self.config.kind {
             Kind::Parametric(kind) => {
                 let raw = n[0].forward(&x.position, &x.ones)?;
-                (parametric::eval(kind, &raw, self.object.as_ref().map(Var::as_tensor), x)?, None, None)
+                Raw::Brdf(parametric::eval(kind, &raw, self.object.as_ref().map(Var::as_tensor), x)?)
             }
+            Kind::SingleMlp if n.len() == 1 => Raw::Softplus(n[0].forward(&x.joint, &x.ones)?),
             Kind::SingleMlp => {
-                let out = if n.len() == 1 {
-                    n[0].forward(&x.joint, &x.ones)?
-                } else {
-                    let trunk = n[0].forward(&x.position, &x.ones)?;
-                    n[1].forward(&Tensor::cat(&[&trunk, &x.angles], 1)?, &x.ones)?
-                };
-                (activation::softplus(&out)?, None, None)
+                let trunk = n[0].forward(&x.position, &x.ones)?;
+                Raw::Softplus(n[1].forward(&Tensor::cat(&[&trunk, &x.angles], 1)?, &x.ones)?)
             }
             Kind::AdditiveSeparate => {
-                let d = n[0].forward(&x.position, &x.ones)?;
-                let s = n[1].forward(&x.joint, &x.ones)?;
-                self.additive(&d, &s)?
+                Raw::Additive { d: n[0].forward(&x.position, &x.ones)?, s: n[1].forward(&x.joint, &x.ones)? }
             }
             Kind::AdditiveShared => {
                 let trunk = n[0].forward(&x.position, &x.ones)?;
                 let d = n[1].forward(&trunk, &x.ones)?;
                 let s = n[2].forward(&Tensor::cat(&[&trunk, &x.angles], 1)?, &x.ones)?;
-                self.additive(&d, &s)?
+                Raw::Additive { d, s }
             }
+        })
+    }
+
+    /// The forward pass of docs/models.md "Models": [`Model::raw`], then the head.
+    pub fn forward(&self, x: &Inputs) -> Result<Output> {
+        let (f, diffuse, specular) = match self.raw(x)? {
+            Raw::Brdf(f) => (f, None, None),
+            Raw::Softplus(out) => (activation::softplus(&out)?, None, None),
+            Raw::Additive { d, s } => self.additive(&d, &s)?,
         };
         // Invalid pairs are black in the core; multiplying keeps their gradient at zero too.
         let f = f.broadcast_mul(&x.valid)?;
