@@ -70,23 +70,35 @@ impl Mlp {
         last.bias.set(&Tensor::from_vec(v, bias.shape(), bias.device())?)
     }
 
+    /// The layer that reads `[h, x]`: `S` when it is a hidden layer after the first and the network has
+    /// an input to re-read.
+    fn skip(&self) -> Option<usize> {
+        let skip = self.desc.skip as usize;
+        (skip >= 1 && skip < self.desc.hidden as usize && self.desc.n_in > 0).then_some(skip)
+    }
+
+    /// What the whole-network ops need to know of this network.
+    pub fn net_shape(&self) -> super::network::NetShape {
+        super::network::NetShape { layers: layers(&self.desc), hidden: self.desc.hidden as usize, skip: self.skip() }
+    }
+
+    /// The weights as the whole-network ops take them: the matrices and the biases, each flattened and
+    /// concatenated in file order (their `cat` hands each layer's gradient back to its own variables).
+    pub fn flat(&self) -> Result<(Tensor, Tensor)> {
+        let flat = |v: &Var| v.as_tensor().flatten_all();
+        let w = Tensor::cat(&self.layers.iter().map(|l| flat(&l.weight)).collect::<Result<Vec<_>>>()?, 0)?;
+        let b = Tensor::cat(&self.layers.iter().map(|l| flat(&l.bias)).collect::<Result<Vec<_>>>()?, 0)?;
+        Ok((w, b))
+    }
+
     /// The network output: ReLU hidden layers, the skip input `[h, x]` at layer `S`, a linear output
     /// layer (or the last activation for a trunk with `n_out = 0`).
     pub fn forward(&self, x: &Tensor, ones: &Tensor) -> Result<Tensor> {
-        let hidden = self.desc.hidden as usize;
-        // The layer that reads `[h, x]`: `S` when it is a hidden layer after the first and the
-        // network has an input to re-read.
-        let skip = self.desc.skip as usize;
-        let skip = (skip >= 1 && skip < hidden && self.desc.n_in > 0).then_some(skip);
         if super::network::whole_network() && self.desc.n_in > 0 && !self.layers.is_empty() {
-            // One op for the whole network (network::network); its weights as two concatenated
-            // vectors, whose `cat` hands each layer's gradient back to its own variables.
-            let flat = |v: &Var| v.as_tensor().flatten_all();
-            let w = Tensor::cat(&self.layers.iter().map(|l| flat(&l.weight)).collect::<Result<Vec<_>>>()?, 0)?;
-            let b = Tensor::cat(&self.layers.iter().map(|l| flat(&l.bias)).collect::<Result<Vec<_>>>()?, 0)?;
-            let shape = super::network::NetShape { layers: layers(&self.desc), hidden, skip };
-            return super::network::network(x, &w, &b, shape);
+            let (w, b) = self.flat()?;
+            return super::network::network(x, &w, &b, self.net_shape());
         }
+        let (hidden, skip) = (self.desc.hidden as usize, self.skip());
         let mut h = x.clone();
         for (l, layer) in self.layers.iter().enumerate() {
             let input = if skip == Some(l) { Tensor::cat(&[&h, x], 1)? } else { h };

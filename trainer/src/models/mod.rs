@@ -5,6 +5,7 @@ pub mod activation;
 pub mod arch;
 pub mod features;
 pub mod fused;
+pub mod heads;
 pub mod network;
 pub mod mlp;
 pub mod export;
@@ -134,9 +135,15 @@ impl Model {
             }
             Kind::AdditiveShared => {
                 let trunk = n[0].forward(&x.position, &x.ones)?;
-                let d = n[1].forward(&trunk, &x.ones)?;
-                let s = n[2].forward(&Tensor::cat(&[&trunk, &x.angles], 1)?, &x.ones)?;
-                Raw::Additive { d, s }
+                if network::whole_network() && n[1].desc.n_in > 0 {
+                    let both = heads::heads(&trunk, &x.angles, &n[1], &n[2])?;
+                    let m_d = n[1].desc.n_out as usize;
+                    Raw::Additive { d: both.narrow(1, 0, m_d)?, s: both.narrow(1, m_d, both.dim(1)? - m_d)? }
+                } else {
+                    let d = n[1].forward(&trunk, &x.ones)?;
+                    let s = n[2].forward(&Tensor::cat(&[&trunk, &x.angles], 1)?, &x.ones)?;
+                    Raw::Additive { d, s }
+                }
             }
         })
     }

@@ -82,6 +82,112 @@ impl NetShape {
     }
 }
 
+/// `[h, x]` row by row: the input of a layer that reads an activation and a network input side by side.
+pub(super) fn join(h: &[f32], n_h: usize, x: &[f32], n_x: usize, n: usize) -> Vec<f32> {
+    let k = n_h + n_x;
+    let mut c = vec![0.0f32; n * k];
+    c.par_chunks_mut(ROW_BLOCK * k).zip(h.par_chunks(ROW_BLOCK * n_h).zip(x.par_chunks(ROW_BLOCK * n_x))).for_each(|(c, (h, x))| {
+        for (row, (hr, xr)) in c.chunks_exact_mut(k).zip(h.chunks_exact(n_h).zip(x.chunks_exact(n_x))) {
+            row[..n_h].copy_from_slice(hr);
+            row[n_h..].copy_from_slice(xr);
+        }
+    });
+    c
+}
+
+/// The layers of `shape` over `x [n, n_x]` with the concatenated weights `w` and biases `b`: the output
+/// `[n, m]` and each hidden layer's activation, which the backward pass reads.
+pub(super) fn forward_pass(shape: &NetShape, x: &[f32], n: usize, n_x: usize, w: &[f32], b: &[f32], op: &str) -> Result<(Vec<f32>, Vec<Vec<f32>>)> {
+    let off = offsets(shape);
+    let n_w: usize = shape.layers.iter().map(|&(i, o)| i * o).sum();
+    let n_b: usize = shape.layers.iter().map(|&(_, o)| o).sum();
+    if w.len() != n_w || b.len() != n_b || x.len() != n * n_x || shape.layers.first().is_none_or(|&(i, _)| i != n_x) {
+        candle_core::bail!("{op}: x [{n}, {n_x}], {} weights, {} biases do not fit {:?}", w.len(), b.len(), shape.layers)
+    }
+    let mut saved = Vec::with_capacity(shape.layers.len());
+    let mut h: Vec<f32> = Vec::new();
+    for (l, &(_, m)) in shape.layers.iter().enumerate() {
+        let (n_h, n_xl) = shape.split(l, n_x);
+        let (ow, ob) = off[l];
+        // The skip layer reads `[h, x]` copied side by side, not as two GEMMs into one output: the same
+        // sums in the same order as the layer-by-layer path, so the two agree to the last bit (a
+        // rounding difference flips ReLUs at the kink and shows in the gradients).
+        let joined: Vec<f32>;
+        let input: &[f32] = match (n_h, n_xl) {
+            (0, _) => x,
+            (_, 0) => &h,
+            _ => {
+                joined = join(&h, n_h, x, n_xl, n);
+                &joined
+            }
+        };
+        let k = n_h + n_xl;
+        let mut y = gemm_new(n, m, k, input, &w[ow..ow + k * m]);
+        add_bias_act(&mut y, &b[ob..ob + m], l < shape.hidden);
+        if l > 0 {
+            saved.push(std::mem::take(&mut h));
+        }
+        h = y;
+    }
+    Ok((h, saved))
+}
+
+/// The backward pass of [`forward_pass`] for the output gradient `dy`: writes `dW` and `db` (file
+/// order) into `dw_all` and `db_all` and, when `dx = Some((buffer, cols))`, adds the gradient of the
+/// input's first `cols` columns into `buffer` (`[n, cols]`): the columns of the Additive Shared
+/// specular head's input that come from the trunk, which two heads add into one buffer.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn backward_pass(
+    shape: &NetShape,
+    saved: &[Vec<f32>],
+    x: &[f32],
+    n: usize,
+    n_x: usize,
+    w: &[f32],
+    y: &[f32],
+    dy: &[f32],
+    dw_all: &mut [f32],
+    db_all: &mut [f32],
+    mut dx: Option<(&mut [f32], usize)>,
+) {
+    let layers = &shape.layers;
+    let off = offsets(shape);
+    let mut g: Vec<f32> = dy.to_vec();
+    for l in (0..layers.len()).rev() {
+        let (_, m) = layers[l];
+        let (n_h, n_xl) = shape.split(l, n_x);
+        let (ow, ob) = off[l];
+        // dz = g ⊙ [out > 0] in place, and db = Σ_rows dz.
+        let act: &[f32] = if l + 1 == layers.len() { y } else { &saved[l] };
+        let db = act_grad_colsum(&mut g, act, m, l < shape.hidden);
+        db_all[ob..ob + m].copy_from_slice(&db);
+        // dW = [h, x]ᵀ dz, each part split over the batch (see WeightGrad).
+        let h: &[f32] = if l == 0 { &[] } else { &saved[l - 1] };
+        weight_grad_into(&mut dw_all[ow..ow + n_h * m], h, n_h, &g, m, n);
+        weight_grad_into(&mut dw_all[ow + n_h * m..ow + (n_h + n_xl) * m], x, n_xl, &g, m, n);
+        // dx += dz W_xᵀ where the layer reads x and x needs a gradient.
+        if let (Some((dx, cols)), true) = (dx.as_mut(), n_xl > 0) {
+            let cols = (*cols).min(n_xl);
+            assert!(dx.len() >= n * cols, "input gradient buffer too small");
+            // SAFETY: dx holds n × cols initialised values (checked); g is n × m; the first `cols`
+            // rows of W_x, the n_x × m block at ow + n_h m, are read transposed (row stride 1,
+            // column stride m).
+            unsafe { gemm_into(dx.as_mut_ptr(), true, n, cols, m, &g, w[ow + n_h * m..].as_ptr(), 1, m as isize, parallelism()) };
+        }
+        // g ← dz W_hᵀ for the layer below.
+        if l > 0 {
+            let mut below: Vec<f32> = Vec::with_capacity(n * n_h);
+            // SAFETY: below has room for n × n_h values, written without being read; W_h is the
+            // n_h × m block at ow, read transposed.
+            unsafe {
+                gemm_into(below.as_mut_ptr(), false, n, n_h, m, &g, w[ow..].as_ptr(), 1, m as isize, parallelism());
+                below.set_len(n * n_h);
+            }
+            g = below;
+        }
+    }
+}
+
 impl CustomOp3 for Network {
     fn name(&self) -> &'static str {
         "mlp"
@@ -91,50 +197,10 @@ impl CustomOp3 for Network {
         let op = self.name();
         let (x, w, b) = (data(s1, l1, op)?, data(s2, l2, op)?, data(s3, l3, op)?);
         let (n, n_x) = dims2(l1, op)?;
-        let off = offsets(&self.shape);
-        let n_w: usize = self.shape.layers.iter().map(|&(i, o)| i * o).sum();
-        let n_b: usize = self.shape.layers.iter().map(|&(_, o)| o).sum();
-        if w.len() != n_w || b.len() != n_b || self.shape.layers.first().is_none_or(|&(i, _)| i != n_x) {
-            candle_core::bail!("{op}: x [{n}, {n_x}], {} weights, {} biases do not fit {:?}", w.len(), b.len(), self.shape.layers)
-        }
-        let mut saved = Vec::with_capacity(self.shape.layers.len());
-        let mut h: Vec<f32> = Vec::new();
-        for (l, &(_, m)) in self.shape.layers.iter().enumerate() {
-            let (n_h, n_xl) = self.shape.split(l, n_x);
-            let (ow, ob) = off[l];
-            // The skip layer reads `[h, x]` copied side by side, not as two GEMMs into one output:
-            // the same sums in the same order as the layer-by-layer path, so the two agree to the
-            // last bit (a rounding difference flips ReLUs at the kink and shows in the gradients).
-            let joined: Vec<f32>;
-            let input: &[f32] = match (n_h, n_xl) {
-                (0, _) => x,
-                (_, 0) => &h,
-                _ => {
-                    let k = n_h + n_xl;
-                    let mut c = vec![0.0f32; n * k];
-                    c.par_chunks_mut(ROW_BLOCK * k).zip(h.par_chunks(ROW_BLOCK * n_h).zip(x.par_chunks(ROW_BLOCK * n_xl))).for_each(
-                        |(c, (h, x))| {
-                            for (row, (hr, xr)) in c.chunks_exact_mut(k).zip(h.chunks_exact(n_h).zip(x.chunks_exact(n_xl))) {
-                                row[..n_h].copy_from_slice(hr);
-                                row[n_h..].copy_from_slice(xr);
-                            }
-                        },
-                    );
-                    joined = c;
-                    &joined
-                }
-            };
-            let k = n_h + n_xl;
-            let mut y = gemm_new(n, m, k, input, &w[ow..ow + k * m]);
-            add_bias_act(&mut y, &b[ob..ob + m], l < self.shape.hidden);
-            if l > 0 {
-                saved.push(std::mem::take(&mut h));
-            }
-            h = y;
-        }
+        let (y, saved) = forward_pass(&self.shape, x, n, n_x, w, b, op)?;
         let m = self.shape.layers.last().map_or(0, |&(_, o)| o);
         *self.saved.lock().map_err(|_| candle_core::Error::Msg(format!("{op}: poisoned activations")))? = saved;
-        Ok((CpuStorage::F32(h), Shape::from((n, m))))
+        Ok((CpuStorage::F32(y), Shape::from((n, m))))
     }
 
     fn bwd(&self, x: &Tensor, w: &Tensor, _b: &Tensor, y: &Tensor, dy: &Tensor) -> Result<(Option<Tensor>, Option<Tensor>, Option<Tensor>)> {
@@ -180,43 +246,13 @@ impl CustomOp3 for NetworkGrad {
         if saved.len() + 1 != layers.len() {
             candle_core::bail!("{op}: backward without its forward pass")
         }
-        let off = offsets(&self.shape);
         let n_w: usize = layers.iter().map(|&(i, o)| i * o).sum();
         let n_b: usize = layers.iter().map(|&(_, o)| o).sum();
         let mut out = vec![0.0f32; n_w + n_b + if self.want_dx { n * n_x } else { 0 }];
         let (dw_all, rest) = out.split_at_mut(n_w);
         let (db_all, dx) = rest.split_at_mut(n_b);
-        let mut g: Vec<f32> = dy.to_vec();
-        for l in (0..layers.len()).rev() {
-            let (_, m) = layers[l];
-            let (n_h, n_xl) = self.shape.split(l, n_x);
-            let (ow, ob) = off[l];
-            // dz = g ⊙ [out > 0] in place, and db = Σ_rows dz.
-            let act: &[f32] = if l + 1 == layers.len() { y } else { &saved[l] };
-            let db = act_grad_colsum(&mut g, act, m, l < self.shape.hidden);
-            db_all[ob..ob + m].copy_from_slice(&db);
-            // dW = [h, x]ᵀ dz, each part split over the batch (see WeightGrad).
-            let h: &[f32] = if l == 0 { &[] } else { &saved[l - 1] };
-            weight_grad_into(&mut dw_all[ow..ow + n_h * m], h, n_h, &g, m, n);
-            weight_grad_into(&mut dw_all[ow + n_h * m..ow + (n_h + n_xl) * m], x, n_xl, &g, m, n);
-            // dx += dz W_xᵀ where the layer reads x and x needs a gradient.
-            if self.want_dx && n_xl > 0 {
-                // SAFETY: dx holds n × n_x initialised values; g is n × m; W_x is the n_x × m block
-                // at ow + n_h m, read transposed (row stride 1, column stride m).
-                unsafe { gemm_into(dx.as_mut_ptr(), true, n, n_x, m, &g, w[ow + n_h * m..].as_ptr(), 1, m as isize, parallelism()) };
-            }
-            // g ← dz W_hᵀ for the layer below.
-            if l > 0 {
-                let mut below: Vec<f32> = Vec::with_capacity(n * n_h);
-                // SAFETY: below has room for n × n_h values, written without being read; W_h is the
-                // n_h × m block at ow, read transposed.
-                unsafe {
-                    gemm_into(below.as_mut_ptr(), false, n, n_h, m, &g, w[ow..].as_ptr(), 1, m as isize, parallelism());
-                    below.set_len(n * n_h);
-                }
-                g = below;
-            }
-        }
+        let dx = self.want_dx.then_some((dx, n_x));
+        backward_pass(&self.shape, &saved, x, n, n_x, w, y, dy, dw_all, db_all, dx);
         let len = out.len();
         Ok((CpuStorage::F32(out), Shape::from(len)))
     }
