@@ -4,6 +4,7 @@
 
 use candle_core::{Device, Result, Tensor};
 use nbrdf::{angles, Vec3};
+use rayon::prelude::*;
 
 use super::arch::{Config, PositionEncoding, Reciprocity};
 
@@ -54,6 +55,15 @@ pub struct RawBatch<'a> {
     pub swap: Option<&'a [bool]>,
 }
 
+/// One block of encoded samples (see [`Inputs::build`]).
+struct Encoded {
+    pos: Vec<f32>,
+    ang: Vec<f32>,
+    joint: Vec<f32>,
+    valid: Vec<f32>,
+    pairs: Vec<[Vec3; 2]>,
+}
+
 impl Inputs {
     /// Encodes a batch for `config`.
     pub fn build(config: &Config, raw: &RawBatch, device: &Device) -> Result<Inputs> {
@@ -70,27 +80,52 @@ impl Inputs {
         }
         let p = config.position.encoded_len();
         let a = config.n_angle_features();
+        // Blocks of samples encoded in parallel (the angle map and the sines of PE are ~300 ns a
+        // sample: 10 ms of a 2^15 batch on one core), then joined in order.
+        const BLOCK: usize = 2048;
+        let blocks: Vec<Encoded> = (0..n.div_ceil(BLOCK))
+            .into_par_iter()
+            .map(|b| {
+                let samples = b * BLOCK..((b + 1) * BLOCK).min(n);
+                let m = samples.len();
+                let mut e = Encoded {
+                    pos: Vec::with_capacity(m * p),
+                    ang: Vec::with_capacity(m * a),
+                    joint: Vec::with_capacity(m * (p + a)),
+                    valid: Vec::with_capacity(m),
+                    pairs: Vec::with_capacity(m),
+                };
+                let zeros = vec![0.0f32; config.n_angles()];
+                for s in samples {
+                    let row = &raw.position[s * n_raw..(s + 1) * n_raw];
+                    let start = e.pos.len();
+                    match config.position {
+                        PositionEncoding::Extrinsic { frequencies } => positional_encoding(row, frequencies, &mut e.pos),
+                        _ => e.pos.extend_from_slice(row),
+                    }
+                    let swap = config.reciprocity == Reciprocity::Swap && raw.swap.is_some_and(|m| m[s]);
+                    let (wi, wo) = if swap { (raw.wo[s], raw.wi[s]) } else { (raw.wi[s], raw.wo[s]) };
+                    let input = angle_input(config.reciprocity, wi, wo);
+                    e.valid.push(if input.is_some() { 1.0f32 } else { 0.0 });
+                    let start_a = e.ang.len();
+                    positional_encoding(input.as_deref().unwrap_or(&zeros), config.angle_frequencies, &mut e.ang);
+                    e.joint.extend_from_slice(&e.pos[start..]);
+                    e.joint.extend_from_slice(&e.ang[start_a..]);
+                    e.pairs.push([wi, wo]);
+                }
+                e
+            })
+            .collect();
         let (mut pos, mut ang, mut joint) =
             (Vec::with_capacity(n * p), Vec::with_capacity(n * a), Vec::with_capacity(n * (p + a)));
         let mut valid = Vec::with_capacity(n);
         let mut pairs = Vec::with_capacity(n);
-        let zeros = vec![0.0f32; config.n_angles()];
-        for s in 0..n {
-            let row = &raw.position[s * n_raw..(s + 1) * n_raw];
-            let start = pos.len();
-            match config.position {
-                PositionEncoding::Extrinsic { frequencies } => positional_encoding(row, frequencies, &mut pos),
-                _ => pos.extend_from_slice(row),
-            }
-            let swap = config.reciprocity == Reciprocity::Swap && raw.swap.is_some_and(|m| m[s]);
-            let (wi, wo) = if swap { (raw.wo[s], raw.wi[s]) } else { (raw.wi[s], raw.wo[s]) };
-            let input = angle_input(config.reciprocity, wi, wo);
-            valid.push(if input.is_some() { 1.0f32 } else { 0.0 });
-            let start_a = ang.len();
-            positional_encoding(input.as_deref().unwrap_or(&zeros), config.angle_frequencies, &mut ang);
-            joint.extend_from_slice(&pos[start..]);
-            joint.extend_from_slice(&ang[start_a..]);
-            pairs.push([wi, wo]);
+        for e in blocks {
+            pos.extend(e.pos);
+            ang.extend(e.ang);
+            joint.extend(e.joint);
+            valid.extend(e.valid);
+            pairs.extend(e.pairs);
         }
         Ok(Inputs {
             position: Tensor::from_vec(pos, (n, p), device)?,
