@@ -183,7 +183,7 @@ impl CustomOp1 for Objective {
     }
 
     fn bwd(&self, u: &Tensor, _loss: &Tensor, grad_loss: &Tensor) -> Result<Option<Tensor>> {
-        let g = std::mem::take(&mut *self.grad.lock().map_err(|_| candle_core::Error::Msg("objective: poisoned gradient".into()))?);
+        let g = self.grad.lock().map_err(|_| candle_core::Error::Msg("objective: poisoned gradient".into()))?.clone();
         if g.len() != u.elem_count() {
             candle_core::bail!("objective: backward without its forward pass")
         }

@@ -90,7 +90,7 @@ impl CustomOp3 for Heads {
         let op = self.name();
         let ((n, n_t), n_a) = (t.dims2()?, a.dims2()?.1);
         let (m_d, m_s) = self.widths();
-        let kept = std::mem::take(&mut *self.kept.lock().map_err(|_| poisoned(op))?);
+        let kept = self.kept.lock().map_err(|_| poisoned(op))?;
         if kept.d.1.len() != n * m_d || kept.s.1.len() != n * m_s {
             candle_core::bail!("{op}: backward without its forward pass")
         }
