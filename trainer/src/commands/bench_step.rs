@@ -379,3 +379,48 @@ pub fn print_table(t: &[StepTiming]) {
         println!();
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::models::Reciprocity;
+
+    /// The PyTorch twin's transcription of every parametric model reproduces the core's values
+    /// (`torch_reference.py SPEC --check`), and a value it does not reproduce fails the check, named.
+    /// One script run, since importing torch dominates the time; skipped without python3 or torch.
+    #[test]
+    fn torch_transcription_matches_the_core() {
+        let configs: Vec<Config> = ParametricKind::ALL
+            .into_iter()
+            .map(|k| Config::paper(Kind::Parametric(k), false, Reciprocity::None, PositionEncoding::Uniform))
+            .collect();
+        let mut spec = bench_spec(&configs, 1024, 1);
+        let mut drifted = spec.archs.iter().find(|a| a.parametric == Some("disney")).unwrap().clone();
+        drifted.model = "drifted".into();
+        drifted.checks[3].f[1] *= 1.001;
+        spec.archs.push(drifted);
+
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("spec.json");
+        std::fs::write(&path, serde_json::to_vec(&spec).unwrap()).unwrap();
+        let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../benches/torch_reference.py");
+        let Ok(out) = Command::new("python3").arg(&script).arg(&path).arg("--check").output() else {
+            eprintln!("skipped: needs python3 with torch (`pip install torch`)");
+            return;
+        };
+        let text = String::from_utf8_lossy(&out.stdout);
+        if text.contains("cannot import torch") {
+            eprintln!("skipped: {}", text.trim());
+            return;
+        }
+        let v: serde_json::Value = serde_json::from_str(text.trim())
+            .unwrap_or_else(|_| panic!("{text}{}", String::from_utf8_lossy(&out.stderr)));
+        for a in &spec.archs[..configs.len()] {
+            assert!(v["checked"][&a.model].is_number(), "{} not checked: {text}", a.model);
+        }
+        let errors = v["errors"].as_array().unwrap_or_else(|| panic!("the drifted value passed: {text}"));
+        assert_eq!(errors.len(), 1, "{text}");
+        assert!(errors[0].as_str().unwrap().starts_with("drifted: ") && text.contains("sample 3 of"), "{text}");
+        assert!(!out.status.success());
+    }
+}
