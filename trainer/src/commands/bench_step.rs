@@ -7,6 +7,12 @@
 //! two sides cannot diverge. The script runs as one long-lived process answering one architecture at a
 //! time, and each architecture is timed ours-then-PyTorch, so a load change on a shared machine hits
 //! both sides of a ratio alike.
+//!
+//! The parametric models' formulas cannot travel in a spec, so the script transcribes them into torch
+//! ops (the real `from_raw` activations and `eval`, as a PyTorch user would write them). To keep that
+//! transcription from drifting, each parametric [`ArchSpec`] carries [`CheckSample`]s evaluated by the
+//! core, and the script refuses to time a model whose transcription disagrees with them
+//! (`python3 benches/torch_reference.py SPEC --check` runs that check alone).
 
 use std::io::{BufRead, BufReader, Write};
 use std::path::Path;
@@ -15,8 +21,11 @@ use std::time::Instant;
 
 use candle_core::Device;
 
+use nbrdf::parametric::{Parametric, ParametricKind};
+use nbrdf::Vec3;
+
 use crate::adam::{Adam, AdamParams};
-use crate::models::{arch::layers, Config, Inputs, Kind, Model, PositionEncoding, RawBatch};
+use crate::models::{arch::layers, parametric::initial_object, Config, Inputs, Kind, Model, PositionEncoding, RawBatch};
 use crate::train::{objective, Batch, TrainOptions};
 use crate::{toy, Error, Result};
 
@@ -126,11 +135,85 @@ pub struct ArchSpec {
     pub model: String,
     pub nets: Vec<NetSpec>,
     /// `"softplus"` (single MLP), `"additive"`, `"additive-enhanced"` (Eq. 8 with the Sec. 4.4
-    /// regularisers) or `"parametric"` (see benches/torch_reference.py for what stands in for the
-    /// BRDF formula).
+    /// regularisers) or `"parametric"` (the network's raw outputs through the model's formula).
     pub head: String,
     /// Widths of the batch inputs: `position`, `angles`, `joint`.
     pub widths: std::collections::BTreeMap<String, usize>,
+    /// Parametric models only: which formula ([`ParametricKind::id`]), the initial per-object raw
+    /// parameters ([`initial_object`]) and the core's values the script's transcription must reproduce.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub parametric: Option<&'static str>,
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub object: Vec<f32>,
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub checks: Vec<CheckSample>,
+}
+
+/// One point where the script's transcription of a parametric model must match the core:
+/// `f = Parametric::from_raw(kind, raw, object).eval(wi, wo)`.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct CheckSample {
+    pub raw: Vec<f32>,
+    pub object: Vec<f32>,
+    pub wi: [f32; 3],
+    pub wo: [f32; 3],
+    pub f: [f32; 3],
+}
+
+/// Check samples per parametric architecture.
+pub const N_CHECKS: usize = 16;
+
+/// The core's values of `kind` at [`N_CHECKS`] fixed points. The directions cover the special cases of
+/// the formulas (θh = 0 at and off the normal, grazing light and view down to cos θ = 1e-3, a pair below
+/// the horizon) and then spread over the hemisphere; the raw values spread over -3..3, where training
+/// lives, except two samples that saturate every activation: all -16 at a mirror pair, where the roughness
+/// floor (`ALPHA_MIN`) sets the peak of the lobe, and all +12.
+pub fn check_samples(config: &Config, kind: ParametricKind) -> Vec<CheckSample> {
+    // A low-discrepancy sequence instead of an rng: the samples are the same in every build.
+    let frac = |k: usize, g: f64| ((k as f64 + 1.0) * g).fract() as f32;
+    let dir = |z: f32, phi: f32| {
+        let s = (1.0 - z * z).max(0.0).sqrt();
+        Vec3::new(s * phi.cos(), s * phi.sin(), z)
+    };
+    // Negated tangent components: exactly θh = 0 in f32, whatever rounding `dir` did.
+    let mirror = |w: Vec3| Vec3::new(-w.x, -w.y, w.z);
+    let mut pairs = vec![
+        (Vec3::Z, Vec3::Z),
+        (dir(0.8, 0.4), mirror(dir(0.8, 0.4))),
+        (dir(1e-3, 0.3), dir(0.7, 2.0)),
+        (dir(0.6, 1.0), dir(1e-3, 4.0)),
+        (dir(0.01, 0.5), dir(0.02, 3.9)),
+        (dir(0.05, 1.2), mirror(dir(0.05, 1.2))),
+        (dir(0.5, 0.0), dir(-0.3, 1.0)),
+    ];
+    let tau = std::f32::consts::TAU;
+    while pairs.len() < N_CHECKS - 2 {
+        let k = pairs.len();
+        pairs.push((
+            dir(0.05 + 0.95 * frac(k, 0.754_877_7), tau * frac(k, 0.569_840_3)),
+            dir(0.05 + 0.95 * frac(k, 0.430_159_7), tau * frac(k, 0.245_122_3)),
+        ));
+    }
+    // The two saturated samples below.
+    pairs.push((dir(0.8, 2.5), mirror(dir(0.8, 2.5))));
+    pairs.push((dir(0.4, 0.7), dir(0.9, 3.0)));
+    let object0 = initial_object(config);
+    pairs
+        .into_iter()
+        .enumerate()
+        .map(|(s, (wi, wo))| {
+            let raw: Vec<f32> = match s {
+                s if s == N_CHECKS - 2 => vec![-16.0; kind.n_raw()],
+                s if s == N_CHECKS - 1 => vec![12.0; kind.n_raw()],
+                _ => (0..kind.n_raw()).map(|j| -3.0 + 6.0 * frac(s * kind.n_raw() + j, 0.618_034)).collect(),
+            };
+            // Training moves the object parameter off its initial value: ±2 (a factor e² on FMBRDF's N).
+            let object: Vec<f32> =
+                object0.iter().enumerate().map(|(j, &o)| o - 2.0 + 4.0 * frac(s + j, 0.414_213_6)).collect();
+            let f = Parametric::from_raw(kind, &raw, &object).eval(wi, wo);
+            CheckSample { raw, object, wi: wi.to_array(), wo: wo.to_array(), f }
+        })
+        .collect()
 }
 
 /// Everything the PyTorch twin needs: the batch, the threads and the architectures.
@@ -163,6 +246,10 @@ pub fn arch_spec(config: &Config) -> ArchSpec {
         _ => "additive",
     };
     let (p, a) = (config.position.encoded_len(), config.n_angle_features());
+    let kind = match config.kind {
+        Kind::Parametric(k) => Some(k),
+        _ => None,
+    };
     ArchSpec {
         model: config.name(),
         nets: nets
@@ -177,6 +264,9 @@ pub fn arch_spec(config: &Config) -> ArchSpec {
             .collect(),
         head: head.into(),
         widths: [("position", p), ("angles", a), ("joint", p + a)].into_iter().map(|(k, v)| (k.to_string(), v)).collect(),
+        parametric: kind.map(ParametricKind::id),
+        object: if kind.is_some() { initial_object(config) } else { Vec::new() },
+        checks: kind.map(|k| check_samples(config, k)).unwrap_or_default(),
     }
 }
 
@@ -236,6 +326,9 @@ impl Torch {
         let mut line = String::new();
         self.stdout.read_line(&mut line).map_err(|e| e.to_string())?;
         let v: serde_json::Value = serde_json::from_str(&line).map_err(|_| format!("unexpected reply {line:?}"))?;
+        if let Some(e) = v.get("error") {
+            return Err(e.as_str().unwrap_or("error").to_string());
+        }
         v["ms_per_step"].as_f64().ok_or_else(|| format!("no timing in {line:?}"))
     }
 }
@@ -284,5 +377,50 @@ pub fn print_table(t: &[StepTiming]) {
             print!(" {ms:>10.1} {ratio:>7.2} {TARGET_RATIO:>4} {mark}");
         }
         println!();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::models::Reciprocity;
+
+    /// The PyTorch twin's transcription of every parametric model reproduces the core's values
+    /// (`torch_reference.py SPEC --check`), and a value it does not reproduce fails the check, named.
+    /// One script run, since importing torch dominates the time; skipped without python3 or torch.
+    #[test]
+    fn torch_transcription_matches_the_core() {
+        let configs: Vec<Config> = ParametricKind::ALL
+            .into_iter()
+            .map(|k| Config::paper(Kind::Parametric(k), false, Reciprocity::None, PositionEncoding::Uniform))
+            .collect();
+        let mut spec = bench_spec(&configs, 1024, 1);
+        let mut drifted = spec.archs.iter().find(|a| a.parametric == Some("disney")).unwrap().clone();
+        drifted.model = "drifted".into();
+        drifted.checks[3].f[1] *= 1.001;
+        spec.archs.push(drifted);
+
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("spec.json");
+        std::fs::write(&path, serde_json::to_vec(&spec).unwrap()).unwrap();
+        let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../benches/torch_reference.py");
+        let Ok(out) = Command::new("python3").arg(&script).arg(&path).arg("--check").output() else {
+            eprintln!("skipped: needs python3 with torch (`pip install torch`)");
+            return;
+        };
+        let text = String::from_utf8_lossy(&out.stdout);
+        if text.contains("cannot import torch") {
+            eprintln!("skipped: {}", text.trim());
+            return;
+        }
+        let v: serde_json::Value = serde_json::from_str(text.trim())
+            .unwrap_or_else(|_| panic!("{text}{}", String::from_utf8_lossy(&out.stderr)));
+        for a in &spec.archs[..configs.len()] {
+            assert!(v["checked"][&a.model].is_number(), "{} not checked: {text}", a.model);
+        }
+        let errors = v["errors"].as_array().unwrap_or_else(|| panic!("the drifted value passed: {text}"));
+        assert_eq!(errors.len(), 1, "{text}");
+        assert!(errors[0].as_str().unwrap().starts_with("drifted: ") && text.contains("sample 3 of"), "{text}");
+        assert!(!out.status.success());
     }
 }
