@@ -29,6 +29,25 @@ pub fn sigmoid(x: f32) -> f32 {
     }
 }
 
+/// [`sigmoid`] and its slope `σ'(x) = σ(x) σ(-x) = e^-|x| / (1 + e^-|x|)²`, from one exponential: the
+/// activation's forward-mode derivative ([`crate::parametric::dual`]). The value is [`sigmoid`]'s bit for
+/// bit (the same exponential `e^-|x|` and the same branch), and the slope is accurate at both tails,
+/// unlike `σ (1 - σ)`, which is 0 once `σ` rounds to 1.
+///
+/// ```
+/// use nbrdf::math::{sigmoid, sigmoid_and_slope};
+/// let (s, ds) = sigmoid_and_slope(20.0);
+/// assert_eq!(s, sigmoid(20.0));
+/// assert!((ds - (-20.0f32).exp()).abs() < 1e-15 && s * (1.0 - s) == 0.0);
+/// ```
+#[inline]
+pub fn sigmoid_and_slope(x: f32) -> (f32, f32) {
+    let e = libm::expf(-x.abs());
+    let one_e = 1.0 + e;
+    let s = if x >= 0.0 { 1.0 / one_e } else { e / one_e };
+    (s, e / (one_e * one_e))
+}
+
 /// Softplus `ln(1 + e^x)`, computed as `max(x, 0) + ln(1 + e^-|x|)` so it never overflows.
 #[inline]
 pub fn softplus(x: f32) -> f32 {
@@ -75,6 +94,26 @@ mod tests {
         assert_eq!(softplus(1e4), 1e4);
         assert_eq!(softplus(-1e4), 0.0);
         assert!((softplus(softplus_inv(0.37)) - 0.37).abs() < 1e-6);
+    }
+
+    #[test]
+    fn sigmoid_and_slope_has_sigmoids_bits_and_its_derivative() {
+        // Every 997th f32 in [-120, 120] (both branches, the tails where e^-|x| underflows, ±0).
+        let mut checked = 0;
+        for bits in (0u32..=u32::MAX).step_by(997) {
+            let x = f32::from_bits(bits);
+            if x.is_nan() || x.abs() > 120.0 {
+                continue;
+            }
+            let (s, ds) = sigmoid_and_slope(x);
+            assert_eq!(s.to_bits(), sigmoid(x).to_bits(), "x = {x}");
+            let (s64, x64) = (1.0 / (1.0 + (-(x as f64)).exp()), x as f64);
+            let want = s64 * (1.0 / (1.0 + x64.exp()));
+            assert!((ds as f64 - want).abs() <= 1e-6 * want + 3e-45, "x = {x}: {ds} vs {want}");
+            checked += 1;
+        }
+        assert!(checked > 1_000_000);
+        assert_eq!(sigmoid_and_slope(-0.0).0.to_bits(), sigmoid(-0.0).to_bits());
     }
 
     #[test]

@@ -3,7 +3,7 @@
 //! published formulas written out independently (in f64) at hand-picked points.
 
 use nbrdf::builtin::Builtin;
-use nbrdf::parametric::{Disney, Lambert, Parametric, ParametricKind, Phong, TorranceSparrow, MAX_RAW};
+use nbrdf::parametric::{Disney, EvalGrad, Lambert, Parametric, ParametricKind, Phong, TorranceSparrow, MAX_RAW};
 use nbrdf::{Rgb, Vec3};
 use proptest::prelude::*;
 use std::f64::consts::PI;
@@ -375,5 +375,46 @@ proptest! {
             prop_assert!((back_obj[0] - obj).abs() < 1e-4);
         }
         prop_assert_eq!(Parametric::from_raw(kind, &back, &back_obj).kind(), kind);
+    }
+}
+
+// ---------------------------------------------------------------------------------------------------
+// Gradients: `eval_grad` is `eval` with exact derivatives. Their agreement with independent (f64) derivatives
+// is checked in `src/parametric/grad_check.rs`, next to the crate-private generic formulas it evaluates.
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 3000, ..ProptestConfig::default() })]
+
+    #[test]
+    fn eval_grad_is_finite_everywhere(kind in kind_strategy(),
+                                      raw in prop::collection::vec(prop_oneof![
+                                          3 => -50.0f32..50.0,
+                                          1 => prop::sample::select(vec![-50.0f32, 50.0, 0.0, -1e4, 1e4, f32::NAN,
+                                                                         f32::INFINITY, f32::NEG_INFINITY])],
+                                          0..=MAX_RAW),
+                                      obj in prop_oneof![-100.0f32..100.0, prop::sample::select(vec![f32::NAN, 80.0, -80.0])],
+                                      wi in any_direction(), wo in any_direction()) {
+        let g = Parametric::eval_grad(kind, &raw, &[obj], wi, wo);
+        prop_assert_eq!(g.value.map(f32::to_bits), Parametric::from_raw(kind, &raw, &[obj]).eval(wi, wo).map(f32::to_bits));
+        let all = g.d_raw.iter().chain(&g.d_object).flatten();
+        prop_assert!(all.clone().all(|d| d.is_finite()), "{kind:?} {raw:?} {obj} {wi} {wo}: {g:?}");
+        // Missing or non-finite raw values are constants; so is everything below the horizon.
+        for j in 0..MAX_RAW {
+            if !raw.get(j).is_some_and(|x| x.is_finite()) {
+                prop_assert_eq!(g.d_raw[j], [0.0; 3]);
+            }
+        }
+        if !obj.is_finite() {
+            prop_assert_eq!(g.d_object[0], [0.0; 3]);
+        }
+        if wi.z <= 0.0 || wo.z <= 0.0 {
+            prop_assert_eq!(g, EvalGrad { value: [0.0; 3], d_raw: [[0.0; 3]; MAX_RAW], d_object: [[0.0; 3]; 1] });
+        }
+        // A channel clamped to 0 by eval's guard has no derivative.
+        for c in 0..3 {
+            if g.value[c] == 0.0 {
+                prop_assert!(all.clone().skip(c).step_by(3).all(|d| *d == 0.0));
+            }
+        }
     }
 }

@@ -36,8 +36,9 @@
 
 use super::microfacet::{self, HalfGeometry, ALPHA_MIN};
 use super::raw_at;
-use crate::math::{lerp, logit, sanitize, sigmoid, INV_PI};
-use crate::{Rgb, Vec3, BLACK};
+use super::real::{lerp, Real};
+use crate::math::{self, logit, INV_PI};
+use crate::{Rgb, Vec3};
 
 /// Isotropic Disney BRDF parameters (all in [0, 1]).
 ///
@@ -79,19 +80,7 @@ impl Disney {
     /// values count as 0.
     #[inline]
     pub fn from_raw(raw: &[f32]) -> Self {
-        let s = |i: usize| sigmoid(raw_at(raw, i));
-        Self {
-            base_color: [s(0), s(1), s(2)],
-            subsurface: s(3),
-            metallic: s(4),
-            specular: s(5),
-            specular_tint: s(6),
-            roughness: sigmoid(0.5 * raw_at(raw, 7)),
-            sheen: s(8),
-            sheen_tint: s(9),
-            clearcoat: s(10),
-            clearcoat_gloss: s(11),
-        }
+        Params::from_raw(&core::array::from_fn(|i| raw_at(raw, i))).into()
     }
 
     /// Raw outputs that [`Disney::from_raw`] maps back to these parameters (the inverse of the table;
@@ -118,12 +107,54 @@ impl Disney {
     /// The formula at the top of the file (BRDF Explorer `disney.brdf`, `BRDF(L, V, N, X, Y)`).
     #[inline]
     pub fn eval(&self, wi: Vec3, wo: Vec3) -> Rgb {
+        Params::from(*self).eval(wi, wo)
+    }
+}
+
+/// [`Disney`]'s parameters in any [`Real`]: the one place its activations and formula are written.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Params<T> {
+    pub base_color: [T; 3],
+    pub subsurface: T,
+    pub metallic: T,
+    pub specular: T,
+    pub specular_tint: T,
+    pub roughness: T,
+    pub sheen: T,
+    pub sheen_tint: T,
+    pub clearcoat: T,
+    pub clearcoat_gloss: T,
+}
+
+impl<T: Real> Params<T> {
+    /// The table at the top of the file.
+    #[inline]
+    pub fn from_raw(raw: &[T; Disney::N_RAW]) -> Self {
+        Self {
+            base_color: [raw[0].sigmoid(), raw[1].sigmoid(), raw[2].sigmoid()],
+            subsurface: raw[3].sigmoid(),
+            metallic: raw[4].sigmoid(),
+            specular: raw[5].sigmoid(),
+            specular_tint: raw[6].sigmoid(),
+            roughness: (raw[7] * 0.5).sigmoid(),
+            sheen: raw[8].sigmoid(),
+            sheen_tint: raw[9].sigmoid(),
+            clearcoat: raw[10].sigmoid(),
+            clearcoat_gloss: raw[11].sigmoid(),
+        }
+    }
+
+    /// [`Disney::eval`]. Constants enter the generic [`lerp`] through `T::from_f32` (`k`), so each
+    /// `lerp` below is BRDF Explorer's `mix` with its arguments in its order.
+    #[inline]
+    pub fn eval(&self, wi: Vec3, wo: Vec3) -> [T; 3] {
+        let k = T::from_f32;
         let Some(g) = HalfGeometry::new(wi, wo) else {
-            return BLACK;
+            return [k(0.0); 3];
         };
         let c = self.base_color;
-        let lum = 0.3 * c[0] + 0.6 * c[1] + 0.1 * c[2];
-        let tint = if lum > 0.0 { c.map(|x| x / lum) } else { [1.0; 3] };
+        let lum = c[0] * 0.3 + c[1] * 0.6 + c[2] * 0.1;
+        let tint = if lum.value() > 0.0 { c.map(|x| x / lum) } else { [k(1.0); 3] };
 
         let fl = microfacet::schlick_weight(g.cos_i);
         let fv = microfacet::schlick_weight(g.cos_o);
@@ -132,32 +163,68 @@ impl Disney {
         let cd2 = g.cos_d * g.cos_d;
 
         // Burley diffuse and the Hanrahan-Krueger-like subsurface shape.
-        let fd90 = 0.5 + 2.0 * cd2 * r;
-        let fd = lerp(1.0, fd90, fl) * lerp(1.0, fd90, fv);
-        let fss90 = cd2 * r;
-        let fss = lerp(1.0, fss90, fl) * lerp(1.0, fss90, fv);
-        let ss = 1.25 * (fss * (1.0 / (g.cos_i + g.cos_o) - 0.5) + 0.5);
+        let fd90 = r * (2.0 * cd2) + 0.5;
+        let fd = lerp(k(1.0), fd90, k(fl)) * lerp(k(1.0), fd90, k(fv));
+        let fss90 = r * cd2;
+        let fss = lerp(k(1.0), fss90, k(fl)) * lerp(k(1.0), fss90, k(fv));
+        let ss = (fss * (1.0 / (g.cos_i + g.cos_o) - 0.5) + 0.5) * 1.25;
         let diffuse = lerp(fd, ss, self.subsurface) * INV_PI;
 
         // Primary specular: GTR2, separable Smith GGX (the product is G / (4 cos θl cos θv)).
-        let alpha = (r * r).max(ALPHA_MIN);
-        let ds = microfacet::ggx_d(g.cos_h, g.sin2_h, alpha);
-        let gs = microfacet::smith_ggx_g1_over_2cos(g.cos_i, alpha)
-            * microfacet::smith_ggx_g1_over_2cos(g.cos_o, alpha);
+        let alpha = (r * r).max(k(ALPHA_MIN));
+        let ds = microfacet::ggx_d_generic(g.cos_h, g.sin2_h, alpha);
+        let gs = microfacet::smith_ggx_g1_over_2cos_generic(g.cos_i, alpha)
+            * microfacet::smith_ggx_g1_over_2cos_generic(g.cos_o, alpha);
 
         // Clearcoat: GTR1, fixed-roughness masking, F0 = 0.04.
-        let dr = microfacet::gtr1_d(g.cos_h, g.sin2_h, lerp(0.1, 0.001, self.clearcoat_gloss));
-        let fr = lerp(0.04, 1.0, fh);
+        let dr = microfacet::gtr1_d_generic(g.cos_h, g.sin2_h, lerp(k(0.1), k(0.001), self.clearcoat_gloss));
+        let fr = math::lerp(0.04, 1.0, fh);
         let gr = microfacet::smith_ggx_g1_over_2cos(g.cos_i, 0.25)
             * microfacet::smith_ggx_g1_over_2cos(g.cos_o, 0.25);
-        let coat = 0.25 * self.clearcoat * gr * fr * dr;
+        let coat = self.clearcoat * 0.25 * gr * fr * dr;
 
         let m = self.metallic;
-        sanitize([0, 1, 2].map(|k| {
-            let spec0 = lerp(self.specular * 0.08 * lerp(1.0, tint[k], self.specular_tint), c[k], m);
-            let fs = lerp(spec0, 1.0, fh);
-            let sheen = fh * self.sheen * lerp(1.0, tint[k], self.sheen_tint);
-            (diffuse * c[k] + sheen) * (1.0 - m) + gs * fs * ds + coat
+        T::sanitize([0, 1, 2].map(|i| {
+            let spec0 = lerp(self.specular * 0.08 * lerp(k(1.0), tint[i], self.specular_tint), c[i], m);
+            let fs = lerp(spec0, k(1.0), k(fh));
+            let sheen = self.sheen * fh * lerp(k(1.0), tint[i], self.sheen_tint);
+            (diffuse * c[i] + sheen) * (k(1.0) - m) + gs * fs * ds + coat
         }))
+    }
+}
+
+impl From<Disney> for Params<f32> {
+    #[inline]
+    fn from(m: Disney) -> Self {
+        Self {
+            base_color: m.base_color,
+            subsurface: m.subsurface,
+            metallic: m.metallic,
+            specular: m.specular,
+            specular_tint: m.specular_tint,
+            roughness: m.roughness,
+            sheen: m.sheen,
+            sheen_tint: m.sheen_tint,
+            clearcoat: m.clearcoat,
+            clearcoat_gloss: m.clearcoat_gloss,
+        }
+    }
+}
+
+impl From<Params<f32>> for Disney {
+    #[inline]
+    fn from(p: Params<f32>) -> Self {
+        Self {
+            base_color: p.base_color,
+            subsurface: p.subsurface,
+            metallic: p.metallic,
+            specular: p.specular,
+            specular_tint: p.specular_tint,
+            roughness: p.roughness,
+            sheen: p.sheen,
+            sheen_tint: p.sheen_tint,
+            clearcoat: p.clearcoat,
+            clearcoat_gloss: p.clearcoat_gloss,
+        }
     }
 }

@@ -34,10 +34,11 @@
 //! in log space because it spans 1/π (α = 1, β = 2) to ~3e5 (α = 1e-3). It is exact for a uniform material
 //! when set from [`ndf_normalization`] ([`FresnelMicrofacet::new`], [`log_norm_raw`]).
 
-use super::microfacet::{self, clamp_alpha, HalfGeometry};
+use super::microfacet::{self, clamp_alpha, clamp_alpha_generic, HalfGeometry};
 use super::raw_at;
-use crate::math::{logit, sanitize, sigmoid, INV_PI};
-use crate::{Rgb, Vec3, BLACK};
+use super::real::Real;
+use crate::math::{logit, INV_PI};
+use crate::{Rgb, Vec3};
 
 /// Smallest and largest shape exponent β.
 pub const BETA_RANGE: (f32, f32) = (0.5, 4.0);
@@ -122,16 +123,7 @@ impl FresnelMicrofacet {
     /// file); missing or non-finite raw values count as 0.
     #[inline]
     pub fn from_raw(raw: &[f32], object_raw: &[f32]) -> Self {
-        let (b0, b1) = BETA_RANGE;
-        let (e0, e1) = ETA_RANGE;
-        Self {
-            rho: [0, 1, 2].map(|c| sigmoid(raw_at(raw, c))),
-            ks: sigmoid(raw_at(raw, 3)),
-            alpha: clamp_alpha(sigmoid(0.5 * raw_at(raw, 4))),
-            beta: b0 + (b1 - b0) * sigmoid(raw_at(raw, 5)),
-            eta: e0 + (e1 - e0) * sigmoid(raw_at(raw, 6)),
-            norm: libm::expf(raw_at(object_raw, 0).clamp(-80.0, 80.0)),
-        }
+        Params::from_raw(&core::array::from_fn(|i| raw_at(raw, i)), &[raw_at(object_raw, 0)]).into()
     }
 
     /// Raw outputs and the raw object parameter that [`FresnelMicrofacet::from_raw`] maps back to these
@@ -156,25 +148,81 @@ impl FresnelMicrofacet {
     /// The generalised Gaussian NDF `N exp(-(θh/α)^β)` at a half-vector angle.
     #[inline]
     pub fn ndf(&self, theta_h: f32) -> f32 {
-        let alpha = clamp_alpha(self.alpha);
-        self.norm * libm::expf(-libm::powf(theta_h / alpha, self.beta))
+        Params::from(*self).ndf(theta_h)
     }
 
     /// The formula at the top of the file.
     #[inline]
     pub fn eval(&self, wi: Vec3, wo: Vec3) -> Rgb {
+        Params::from(*self).eval(wi, wo)
+    }
+}
+
+/// [`FresnelMicrofacet`]'s parameters in any [`Real`]: the one place its activations and formula are
+/// written.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Params<T> {
+    pub rho: [T; 3],
+    pub ks: T,
+    pub alpha: T,
+    pub beta: T,
+    pub eta: T,
+    pub norm: T,
+}
+
+impl<T: Real> Params<T> {
+    /// The table at the top of the file.
+    #[inline]
+    pub fn from_raw(raw: &[T; FresnelMicrofacet::N_RAW], object_raw: &[T; FresnelMicrofacet::N_OBJECT]) -> Self {
+        let (b0, b1) = BETA_RANGE;
+        let (e0, e1) = ETA_RANGE;
+        Self {
+            rho: [raw[0].sigmoid(), raw[1].sigmoid(), raw[2].sigmoid()],
+            ks: raw[3].sigmoid(),
+            alpha: clamp_alpha_generic((raw[4] * 0.5).sigmoid()),
+            beta: raw[5].sigmoid() * (b1 - b0) + b0,
+            eta: raw[6].sigmoid() * (e1 - e0) + e0,
+            norm: object_raw[0].clamp(-80.0, 80.0).exp(),
+        }
+    }
+
+    /// [`FresnelMicrofacet::ndf`].
+    #[inline]
+    pub fn ndf(&self, theta_h: f32) -> T {
+        let alpha = clamp_alpha_generic(self.alpha);
+        self.norm * (-(T::from_f32(theta_h) / alpha).powf(self.beta)).exp()
+    }
+
+    /// [`FresnelMicrofacet::eval`].
+    #[inline]
+    pub fn eval(&self, wi: Vec3, wo: Vec3) -> [T; 3] {
         let Some(g) = HalfGeometry::new(wi, wo) else {
-            return BLACK;
+            return [T::from_f32(0.0); 3];
         };
         let theta_h = libm::atan2f(libm::sqrtf(g.sin2_h), g.cos_h);
         let surface = self.ks
             * self.ndf(theta_h)
             * microfacet::v_cavity_g_over_4cos(&g)
-            * microfacet::fresnel_dielectric(g.cos_d, self.eta);
-        let t_i = 1.0 - microfacet::fresnel_dielectric(g.cos_i, self.eta);
-        let t_o = 1.0 - microfacet::fresnel_dielectric(g.cos_o, self.eta);
-        let body = INV_PI * (t_i * t_o);
-        sanitize(self.rho.map(|r| surface + r * body))
+            * microfacet::fresnel_dielectric_generic(g.cos_d, self.eta);
+        let one = T::from_f32(1.0);
+        let t_i = one - microfacet::fresnel_dielectric_generic(g.cos_i, self.eta);
+        let t_o = one - microfacet::fresnel_dielectric_generic(g.cos_o, self.eta);
+        let body = (t_i * t_o) * INV_PI;
+        T::sanitize(self.rho.map(|r| surface + r * body))
+    }
+}
+
+impl From<FresnelMicrofacet> for Params<f32> {
+    #[inline]
+    fn from(m: FresnelMicrofacet) -> Self {
+        Self { rho: m.rho, ks: m.ks, alpha: m.alpha, beta: m.beta, eta: m.eta, norm: m.norm }
+    }
+}
+
+impl From<Params<f32>> for FresnelMicrofacet {
+    #[inline]
+    fn from(p: Params<f32>) -> Self {
+        Self { rho: p.rho, ks: p.ks, alpha: p.alpha, beta: p.beta, eta: p.eta, norm: p.norm }
     }
 }
 

@@ -5,9 +5,10 @@
 //! | 0, 1, 2 | `kd` (R, G, B albedo) | [0, 1] | `sigmoid(raw)` |
 
 use super::raw_at;
+use super::real::Real;
 use crate::angles::upper_hemisphere_pair;
-use crate::math::{logit, sanitize, sigmoid, INV_PI};
-use crate::{Rgb, Vec3, BLACK};
+use crate::math::{logit, INV_PI};
+use crate::{Rgb, Vec3};
 
 /// A Lambertian BRDF with albedo `kd`: the albedo is exactly `kd` at every incidence.
 ///
@@ -31,7 +32,7 @@ impl Lambert {
     /// values count as 0.
     #[inline]
     pub fn from_raw(raw: &[f32]) -> Self {
-        Self { kd: [0, 1, 2].map(|c| sigmoid(raw_at(raw, c))) }
+        Params::from_raw(&core::array::from_fn(|i| raw_at(raw, i))).into()
     }
 
     /// Raw outputs that [`Lambert::from_raw`] maps back to these parameters (values in the open range
@@ -44,9 +45,43 @@ impl Lambert {
     /// `kd / π` for a valid pair, 0 below the horizon or for degenerate input.
     #[inline]
     pub fn eval(&self, wi: Vec3, wo: Vec3) -> Rgb {
+        Params::from(*self).eval(wi, wo)
+    }
+}
+
+/// [`Lambert`]'s parameters in any [`Real`]: the one place its activations and formula are written.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Params<T> {
+    pub kd: [T; 3],
+}
+
+impl<T: Real> Params<T> {
+    /// The table at the top of the file.
+    #[inline]
+    pub fn from_raw(raw: &[T; Lambert::N_RAW]) -> Self {
+        Self { kd: [raw[0].sigmoid(), raw[1].sigmoid(), raw[2].sigmoid()] }
+    }
+
+    /// `kd / π` for a valid pair, 0 below the horizon or for degenerate input.
+    #[inline]
+    pub fn eval(&self, wi: Vec3, wo: Vec3) -> [T; 3] {
         if upper_hemisphere_pair(wi, wo).is_none() {
-            return BLACK;
+            return [T::from_f32(0.0); 3];
         }
-        sanitize(self.kd.map(|k| k * INV_PI))
+        T::sanitize(self.kd.map(|k| k * INV_PI))
+    }
+}
+
+impl From<Lambert> for Params<f32> {
+    #[inline]
+    fn from(m: Lambert) -> Self {
+        Self { kd: m.kd }
+    }
+}
+
+impl From<Params<f32>> for Lambert {
+    #[inline]
+    fn from(p: Params<f32>) -> Self {
+        Self { kd: p.kd }
     }
 }

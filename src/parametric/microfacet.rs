@@ -14,7 +14,14 @@
 //! Roughness is clamped to [`ALPHA_MIN`], and the distributions are written with `sin²θh` taken from the
 //! half vector's tangential components rather than `1 - cos²θh`, so a near-mirror lobe (α = 1e-3) does not
 //! lose its peak to cancellation.
+//!
+//! # Differentiable parameters
+//! The terms that take a material parameter (roughness, F0, η) are written once, generic over
+//! [`Real`] in that parameter (`*_generic`), so the parametric models' gradients
+//! ([`super::Parametric::eval_grad`]) differentiate the very formula they evaluate; the `f32` functions
+//! are that formula at `f32`, the same bits.
 
+use super::real::{self, Real};
 use crate::angles::upper_hemisphere_pair;
 use crate::math::{safe_sqrt, INV_PI};
 use crate::Vec3;
@@ -74,8 +81,14 @@ impl HalfGeometry {
 /// Clamps a roughness α into [[`ALPHA_MIN`], 1]; NaN becomes 1 (the most forgiving lobe).
 #[inline]
 pub fn clamp_alpha(alpha: f32) -> f32 {
-    if alpha.is_nan() {
-        1.0
+    clamp_alpha_generic(alpha)
+}
+
+/// [`clamp_alpha`] in any [`Real`] (derivative 0 where clamped).
+#[inline]
+pub(crate) fn clamp_alpha_generic<T: Real>(alpha: T) -> T {
+    if alpha.value().is_nan() {
+        T::from_f32(1.0)
     } else {
         alpha.clamp(ALPHA_MIN, 1.0)
     }
@@ -86,19 +99,31 @@ pub fn clamp_alpha(alpha: f32) -> f32 {
 /// `alpha` is the RMS slope `m`.
 #[inline]
 pub fn beckmann_d(cos_h: f32, sin2_h: f32, alpha: f32) -> f32 {
+    beckmann_d_generic(cos_h, sin2_h, alpha)
+}
+
+/// [`beckmann_d`] in any [`Real`] roughness.
+#[inline]
+pub(crate) fn beckmann_d_generic<T: Real>(cos_h: f32, sin2_h: f32, alpha: T) -> T {
     let c2 = cos_h * cos_h;
     let a2 = alpha * alpha;
     let c4 = c2 * c2;
     if c4 <= 0.0 {
-        return 0.0;
+        return T::from_f32(0.0);
     }
-    libm::expf(-sin2_h / (c2 * a2)) / (core::f32::consts::PI * a2 * c4)
+    (T::from_f32(-sin2_h) / (a2 * c2)).exp() / (a2 * core::f32::consts::PI * c4)
 }
 
 /// GGX / Trowbridge-Reitz NDF, Disney's GTR2 (Walter et al. 2007, Eq. 33; Burley 2012's GTR with γ = 2):
 /// `D(h) = α² / (π (α² cos²θh + sin²θh)²)`.
 #[inline]
 pub fn ggx_d(cos_h: f32, sin2_h: f32, alpha: f32) -> f32 {
+    ggx_d_generic(cos_h, sin2_h, alpha)
+}
+
+/// [`ggx_d`] in any [`Real`] roughness.
+#[inline]
+pub(crate) fn ggx_d_generic<T: Real>(cos_h: f32, sin2_h: f32, alpha: T) -> T {
     let a2 = alpha * alpha;
     let t = a2 * cos_h * cos_h + sin2_h;
     a2 * INV_PI / (t * t)
@@ -108,12 +133,18 @@ pub fn ggx_d(cos_h: f32, sin2_h: f32, alpha: f32) -> f32 {
 /// `disney.brdf`): `D(h) = (α² - 1) / (π ln(α²) (α² cos²θh + sin²θh))`, and `1/π` for α ≥ 1.
 #[inline]
 pub fn gtr1_d(cos_h: f32, sin2_h: f32, alpha: f32) -> f32 {
-    if alpha >= 1.0 {
-        return INV_PI;
+    gtr1_d_generic(cos_h, sin2_h, alpha)
+}
+
+/// [`gtr1_d`] in any [`Real`] roughness.
+#[inline]
+pub(crate) fn gtr1_d_generic<T: Real>(cos_h: f32, sin2_h: f32, alpha: T) -> T {
+    if alpha.value() >= 1.0 {
+        return T::from_f32(INV_PI);
     }
     let a2 = alpha * alpha;
     let t = a2 * cos_h * cos_h + sin2_h;
-    (a2 - 1.0) * INV_PI / (libm::logf(a2) * t)
+    (a2 - 1.0) * INV_PI / (a2.ln() * t)
 }
 
 /// Separable Smith masking for GGX divided by `2 cos θ` (Walter et al. 2007, Eq. 34; BRDF Explorer's
@@ -121,8 +152,14 @@ pub fn gtr1_d(cos_h: f32, sin2_h: f32, alpha: f32) -> f32 {
 /// factors is `G / (4 cos θi cos θo)`, the whole microfacet denominator, finite at grazing angles.
 #[inline]
 pub fn smith_ggx_g1_over_2cos(cos_v: f32, alpha: f32) -> f32 {
+    smith_ggx_g1_over_2cos_generic(cos_v, alpha)
+}
+
+/// [`smith_ggx_g1_over_2cos`] in any [`Real`] roughness.
+#[inline]
+pub(crate) fn smith_ggx_g1_over_2cos_generic<T: Real>(cos_v: f32, alpha: T) -> T {
     let c2 = cos_v * cos_v;
-    1.0 / (cos_v + safe_sqrt(alpha * alpha * (1.0 - c2) + c2))
+    T::from_f32(1.0) / (real::safe_sqrt(alpha * alpha * (1.0 - c2) + c2) + cos_v)
 }
 
 /// Smith masking `G1(v)` for GGX (Walter et al. 2007, Eq. 34): `2 cos θv / (cos θv + sqrt(α² sin²θv +
@@ -156,7 +193,13 @@ pub fn schlick_weight(cos: f32) -> f32 {
 /// Schlick's Fresnel approximation (Schlick 1994): `F = F0 + (1 - F0)(1 - cos θd)^5`.
 #[inline]
 pub fn fresnel_schlick(f0: f32, cos_d: f32) -> f32 {
-    f0 + (1.0 - f0) * schlick_weight(cos_d)
+    fresnel_schlick_generic(f0, cos_d)
+}
+
+/// [`fresnel_schlick`] in any [`Real`] `F0`.
+#[inline]
+pub(crate) fn fresnel_schlick_generic<T: Real>(f0: T, cos_d: f32) -> T {
+    f0 + (T::from_f32(1.0) - f0) * schlick_weight(cos_d)
 }
 
 /// Unpolarised Fresnel reflectance of a dielectric interface seen from the outside (relative index
@@ -173,19 +216,26 @@ pub fn fresnel_schlick(f0: f32, cos_d: f32) -> f32 {
 /// ```
 #[inline]
 pub fn fresnel_dielectric(cos_i: f32, eta: f32) -> f32 {
+    fresnel_dielectric_generic(cos_i, eta)
+}
+
+/// [`fresnel_dielectric`] in any [`Real`] index of refraction.
+#[inline]
+pub(crate) fn fresnel_dielectric_generic<T: Real>(cos_i: f32, eta: T) -> T {
     let c = cos_i.clamp(0.0, 1.0);
-    let sin2_t = (1.0 - c * c) / (eta * eta);
-    if sin2_t >= 1.0 {
-        return 1.0; // total internal reflection (only for η < 1)
+    let one = T::from_f32(1.0);
+    let sin2_t = T::from_f32(1.0 - c * c) / (eta * eta);
+    if sin2_t.value() >= 1.0 {
+        return one; // total internal reflection (only for η < 1)
     }
-    let cos_t = safe_sqrt(1.0 - sin2_t);
+    let cos_t = real::safe_sqrt(one - sin2_t);
     let r_par = (eta * c - cos_t) / (eta * c + cos_t);
-    let r_perp = (c - eta * cos_t) / (c + eta * cos_t);
-    let f = 0.5 * (r_par * r_par + r_perp * r_perp);
-    if f.is_finite() {
+    let r_perp = (T::from_f32(c) - eta * cos_t) / (eta * cos_t + c);
+    let f = (r_par * r_par + r_perp * r_perp) * 0.5;
+    if f.value().is_finite() {
         f.clamp(0.0, 1.0)
     } else {
-        1.0
+        one
     }
 }
 

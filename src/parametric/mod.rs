@@ -18,6 +18,13 @@
 //! Raw values that are missing (a slice shorter than `n_raw`) or not finite count as 0, so `from_raw`
 //! never panics; every `eval` returns finite, non-negative values and 0 below the horizon.
 //!
+//! # Gradients
+//! Each model's activations and formula are written once, generic over the scalar [`real::Real`], and
+//! instantiated twice: at `f32` for [`Parametric::from_raw`] and [`Parametric::eval`], and at the dual
+//! number [`dual::Dual`] for [`Parametric::eval_grad`], which returns the same value and its exact
+//! derivatives in the raw outputs and object parameters (forward-mode automatic differentiation). A
+//! trainer's backward pass calls it; there is no second, hand-differentiated copy of any formula.
+//!
 //! ```
 //! use nbrdf::parametric::{Parametric, ParametricKind};
 //! use nbrdf::Vec3;
@@ -30,11 +37,16 @@
 //! ```
 
 pub mod disney;
+pub mod dual;
 pub mod fresnel_microfacet;
 pub mod lambert;
 pub mod microfacet;
 pub mod phong;
+pub mod real;
 pub mod torrance_sparrow;
+
+#[cfg(test)]
+mod grad_check;
 
 pub use disney::Disney;
 pub use fresnel_microfacet::FresnelMicrofacet;
@@ -43,6 +55,7 @@ pub use phong::Phong;
 pub use torrance_sparrow::TorranceSparrow;
 
 use crate::{Rgb, Vec3};
+use dual::Dual;
 
 /// `raw[i]` if present and finite, else 0 (the documented fallback of every `from_raw`).
 #[inline]
@@ -236,4 +249,92 @@ impl Parametric {
             Parametric::Disney(m) => m.eval(wi, wo),
         }
     }
+
+    /// The model of `kind` at raw outputs `raw` and object parameters `object_raw` (as
+    /// [`Parametric::from_raw`]), evaluated at (`wi`, `wo`), with its exact derivatives in every raw
+    /// output and object parameter: the backward pass of a network that predicts `raw`.
+    ///
+    /// [`EvalGrad::value`] is `Parametric::from_raw(kind, raw, object_raw).eval(wi, wo)` bit for bit (the
+    /// same generic formula, see the module docs). The derivatives include the activations. A raw value
+    /// that is missing or not finite counts as 0, as in `from_raw`, and has derivative 0; so does every
+    /// channel below the horizon or clamped to 0 by `eval`'s final guard. Never allocates, never panics,
+    /// never returns NaN.
+    ///
+    /// ```
+    /// use nbrdf::parametric::{Parametric, ParametricKind};
+    /// use nbrdf::Vec3;
+    /// let kind = ParametricKind::TorranceSparrow;
+    /// let raw = [0.3, -0.2, 0.1, -1.0, -1.5, -2.0, -1.0];
+    /// let (wi, wo) = (Vec3::new(0.4, 0.1, 0.9).normalize(), Vec3::new(-0.3, 0.0, 0.95).normalize());
+    /// let g = Parametric::eval_grad(kind, &raw, &[], wi, wo);
+    /// assert_eq!(g.value, Parametric::from_raw(kind, &raw, &[]).eval(wi, wo));
+    /// // ∂f_red/∂raw[0] through kd_red = σ(raw[0]) and f = kd/π + ...: σ'(raw[0]) / π.
+    /// let s = 1.0 / (1.0 + (-0.3f32).exp());
+    /// assert!((g.d_raw[0][0] - s * (1.0 - s) / core::f32::consts::PI).abs() < 1e-6);
+    /// assert_eq!(g.d_raw[0][1], 0.0); // kd_red does not reach green
+    /// ```
+    #[inline]
+    pub fn eval_grad(kind: ParametricKind, raw: &[f32], object_raw: &[f32], wi: Vec3, wo: Vec3) -> EvalGrad {
+        const L: usize = Lambert::N_RAW;
+        const P: usize = Phong::N_RAW;
+        const T: usize = TorranceSparrow::N_RAW;
+        const F: usize = FresnelMicrofacet::N_RAW;
+        const FO: usize = FresnelMicrofacet::N_OBJECT;
+        const D: usize = Disney::N_RAW;
+        match kind {
+            ParametricKind::Lambert => {
+                let x = seeds::<L, 0, L>(raw, object_raw);
+                EvalGrad::new::<L, 0, L>(lambert::Params::from_raw(&x.0).eval(wi, wo))
+            }
+            ParametricKind::Phong => {
+                let x = seeds::<P, 0, P>(raw, object_raw);
+                EvalGrad::new::<P, 0, P>(phong::Params::from_raw(&x.0).eval(wi, wo))
+            }
+            ParametricKind::TorranceSparrow => {
+                let x = seeds::<T, 0, T>(raw, object_raw);
+                EvalGrad::new::<T, 0, T>(torrance_sparrow::Params::from_raw(&x.0).eval(wi, wo))
+            }
+            ParametricKind::FresnelMicrofacet => {
+                let x = seeds::<F, FO, { F + FO }>(raw, object_raw);
+                EvalGrad::new::<F, FO, { F + FO }>(fresnel_microfacet::Params::from_raw(&x.0, &x.1).eval(wi, wo))
+            }
+            ParametricKind::Disney => {
+                let x = seeds::<D, 0, D>(raw, object_raw);
+                EvalGrad::new::<D, 0, D>(disney::Params::from_raw(&x.0).eval(wi, wo))
+            }
+        }
+    }
+}
+
+/// A parametric BRDF value and its derivatives in the model's inputs, from [`Parametric::eval_grad`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EvalGrad {
+    /// The BRDF value, `Parametric::from_raw(..).eval(..)`.
+    pub value: Rgb,
+    /// `d_raw[j][c] = ∂value[c] / ∂raw[j]`, activations included; 0 for `j ≥ n_raw`.
+    pub d_raw: [Rgb; MAX_RAW],
+    /// `d_object[k][c] = ∂value[c] / ∂object_raw[k]`; 0 for `k ≥ n_object`.
+    pub d_object: [Rgb; MAX_OBJECT],
+}
+
+impl EvalGrad {
+    /// Unpacks a formula's three dual channels whose inputs are `R` raw outputs then `O` object
+    /// parameters (`N = R + O`).
+    #[inline]
+    fn new<const R: usize, const O: usize, const N: usize>(f: [Dual<N>; 3]) -> Self {
+        let d_raw = core::array::from_fn(|j| if j < R { f.map(|x| x.d[j]) } else { [0.0; 3] });
+        let d_object = core::array::from_fn(|k| if k < O { f.map(|x| x.d[R + k]) } else { [0.0; 3] });
+        Self { value: f.map(|x| x.v), d_raw, d_object }
+    }
+}
+
+/// The `R` raw outputs and `O` object parameters as the `N = R + O` independent variables of a dual
+/// evaluation, raw first; a missing or non-finite one is the constant 0 (as [`raw_at`] reads it).
+#[inline]
+fn seeds<const R: usize, const O: usize, const N: usize>(raw: &[f32], object_raw: &[f32]) -> ([Dual<N>; R], [Dual<N>; O]) {
+    let seed = |x: &[f32], i: usize, var: usize| match x.get(i) {
+        Some(&v) if v.is_finite() => Dual::variable(v, var),
+        _ => Dual::constant(0.0),
+    };
+    (core::array::from_fn(|j| seed(raw, j, j)), core::array::from_fn(|k| seed(object_raw, k, R + k)))
 }

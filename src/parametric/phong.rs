@@ -17,9 +17,10 @@
 //! | 6 | `n` (exponent) | [0, ∞) | `softplus(raw[6])` |
 
 use super::raw_at;
+use super::real::Real;
 use crate::angles::upper_hemisphere_pair;
-use crate::math::{logit, sanitize, sigmoid, softplus, softplus_inv, INV_PI};
-use crate::{Rgb, Vec3, BLACK};
+use crate::math::{logit, softplus_inv, INV_PI};
+use crate::{Rgb, Vec3};
 
 /// Energy-preserving modified Phong ("RP").
 ///
@@ -48,9 +49,7 @@ impl Phong {
     /// values count as 0. The result always satisfies `kd + ks ≤ 1` per channel.
     #[inline]
     pub fn from_raw(raw: &[f32]) -> Self {
-        let kd = [0, 1, 2].map(|c| sigmoid(raw_at(raw, c)));
-        let ks = [0, 1, 2].map(|c| (1.0 - kd[c]) * sigmoid(raw_at(raw, 3 + c)));
-        Self { kd, ks, n: softplus(raw_at(raw, 6)) }
+        Params::from_raw(&core::array::from_fn(|i| raw_at(raw, i))).into()
     }
 
     /// Raw outputs that [`Phong::from_raw`] maps back to these parameters (the inverse of the table).
@@ -76,13 +75,54 @@ impl Phong {
     /// Lafortune & Willems 1994, the modified Phong BRDF: `kd/π + ks (n+2)/(2π) max(0, cos α)^n`.
     #[inline]
     pub fn eval(&self, wi: Vec3, wo: Vec3) -> Rgb {
+        Params::from(*self).eval(wi, wo)
+    }
+}
+
+/// [`Phong`]'s parameters in any [`Real`]: the one place its activations and formula are written.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Params<T> {
+    pub kd: [T; 3],
+    pub ks: [T; 3],
+    pub n: T,
+}
+
+impl<T: Real> Params<T> {
+    /// The table at the top of the file.
+    #[inline]
+    pub fn from_raw(raw: &[T; Phong::N_RAW]) -> Self {
+        let kd = [raw[0].sigmoid(), raw[1].sigmoid(), raw[2].sigmoid()];
+        let ks = [0, 1, 2].map(|c| (T::from_f32(1.0) - kd[c]) * raw[3 + c].sigmoid());
+        Self { kd, ks, n: raw[6].softplus() }
+    }
+
+    /// [`Phong::eval`].
+    #[inline]
+    pub fn eval(&self, wi: Vec3, wo: Vec3) -> [T; 3] {
         let Some((wi, wo)) = upper_hemisphere_pair(wi, wo) else {
-            return BLACK;
+            return [T::from_f32(0.0); 3];
         };
-        let cos_a = Self::cos_alpha(wi, wo).min(1.0);
+        let cos_a = Phong::cos_alpha(wi, wo).min(1.0);
         // The lobe lives where cos α > 0 only (also for n = 0, where powf(0, 0) would give 1).
-        let lobe =
-            if cos_a > 0.0 { (self.n + 2.0) * (0.5 * INV_PI) * libm::powf(cos_a, self.n) } else { 0.0 };
-        sanitize([0, 1, 2].map(|c| self.kd[c] * INV_PI + self.ks[c] * lobe))
+        let lobe = if cos_a > 0.0 {
+            (self.n + 2.0) * (0.5 * INV_PI) * T::powf_base(cos_a, self.n)
+        } else {
+            T::from_f32(0.0)
+        };
+        T::sanitize([0, 1, 2].map(|c| self.kd[c] * INV_PI + self.ks[c] * lobe))
+    }
+}
+
+impl From<Phong> for Params<f32> {
+    #[inline]
+    fn from(m: Phong) -> Self {
+        Self { kd: m.kd, ks: m.ks, n: m.n }
+    }
+}
+
+impl From<Params<f32>> for Phong {
+    #[inline]
+    fn from(p: Params<f32>) -> Self {
+        Self { kd: p.kd, ks: p.ks, n: p.n }
     }
 }

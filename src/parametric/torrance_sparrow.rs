@@ -19,10 +19,11 @@
 //!
 //! The ×0.5 on the roughness pre-activation is Sec. 4.1.1's stabilisation of training.
 
-use super::microfacet::{self, clamp_alpha, HalfGeometry};
+use super::microfacet::{self, clamp_alpha_generic, HalfGeometry};
 use super::raw_at;
-use crate::math::{logit, sanitize, sigmoid, INV_PI};
-use crate::{Rgb, Vec3, BLACK};
+use super::real::Real;
+use crate::math::{logit, INV_PI};
+use crate::{Rgb, Vec3};
 
 /// Torrance-Sparrow (Beckmann, V-cavity, Schlick) with a Lambertian base.
 ///
@@ -51,11 +52,7 @@ impl TorranceSparrow {
     /// values count as 0.
     #[inline]
     pub fn from_raw(raw: &[f32]) -> Self {
-        Self {
-            kd: [0, 1, 2].map(|c| sigmoid(raw_at(raw, c))),
-            ks: [3, 4, 5].map(|c| sigmoid(raw_at(raw, c))),
-            alpha: clamp_alpha(sigmoid(0.5 * raw_at(raw, 6))),
-        }
+        Params::from_raw(&core::array::from_fn(|i| raw_at(raw, i))).into()
     }
 
     /// Raw outputs that [`TorranceSparrow::from_raw`] maps back to these parameters (the inverse of the
@@ -70,13 +67,56 @@ impl TorranceSparrow {
     /// Walter et al. 2007, Eq. 20 with the terms above, plus the Lambertian term.
     #[inline]
     pub fn eval(&self, wi: Vec3, wo: Vec3) -> Rgb {
+        Params::from(*self).eval(wi, wo)
+    }
+}
+
+/// [`TorranceSparrow`]'s parameters in any [`Real`]: the one place its activations and formula are
+/// written.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Params<T> {
+    pub kd: [T; 3],
+    pub ks: [T; 3],
+    pub alpha: T,
+}
+
+impl<T: Real> Params<T> {
+    /// The table at the top of the file.
+    #[inline]
+    pub fn from_raw(raw: &[T; TorranceSparrow::N_RAW]) -> Self {
+        Self {
+            kd: [raw[0].sigmoid(), raw[1].sigmoid(), raw[2].sigmoid()],
+            ks: [raw[3].sigmoid(), raw[4].sigmoid(), raw[5].sigmoid()],
+            alpha: clamp_alpha_generic((raw[6] * 0.5).sigmoid()),
+        }
+    }
+
+    /// [`TorranceSparrow::eval`].
+    #[inline]
+    pub fn eval(&self, wi: Vec3, wo: Vec3) -> [T; 3] {
         let Some(g) = HalfGeometry::new(wi, wo) else {
-            return BLACK;
+            return [T::from_f32(0.0); 3];
         };
-        let alpha = clamp_alpha(self.alpha);
-        let dg = microfacet::beckmann_d(g.cos_h, g.sin2_h, alpha) * microfacet::v_cavity_g_over_4cos(&g);
-        sanitize(
-            [0, 1, 2].map(|c| self.kd[c] * INV_PI + dg * microfacet::fresnel_schlick(self.ks[c], g.cos_d)),
+        let alpha = clamp_alpha_generic(self.alpha);
+        let dg = microfacet::beckmann_d_generic(g.cos_h, g.sin2_h, alpha) * microfacet::v_cavity_g_over_4cos(&g);
+        T::sanitize(
+            [0, 1, 2].map(|c| {
+                self.kd[c] * INV_PI + dg * microfacet::fresnel_schlick_generic(self.ks[c], g.cos_d)
+            }),
         )
+    }
+}
+
+impl From<TorranceSparrow> for Params<f32> {
+    #[inline]
+    fn from(m: TorranceSparrow) -> Self {
+        Self { kd: m.kd, ks: m.ks, alpha: m.alpha }
+    }
+}
+
+impl From<Params<f32>> for TorranceSparrow {
+    #[inline]
+    fn from(p: Params<f32>) -> Self {
+        Self { kd: p.kd, ks: p.ks, alpha: p.alpha }
     }
 }
