@@ -20,6 +20,8 @@
 use candle_core::{CpuStorage, CustomOp2, CustomOp3, Layout, Result, Shape, Tensor};
 use rayon::prelude::*;
 
+use super::dense::{self, Epilogue, Mat};
+
 /// Rows per block of the elementwise passes: large enough to amortise rayon's task cost, small enough
 /// that 2 threads get many blocks; fixed (not per thread count) so that the column sums round the same
 /// way on any machine.
@@ -40,46 +42,47 @@ pub(super) fn dims2(l: &Layout, op: &str) -> Result<(usize, usize)> {
     }
 }
 
-/// The threads gemm may use: candle's own count (RAYON_NUM_THREADS or the cores), so a fused layer
-/// and a candle matmul run on the same threads.
-pub(super) fn parallelism() -> gemm::Parallelism {
-    match candle_core::utils::get_num_threads() {
-        0 | 1 => gemm::Parallelism::None,
-        n => gemm::Parallelism::Rayon(n),
-    }
-}
-
-/// `dst [m, n] (+)= lhs [m, k] · rhs`, with `rhs` read as `[k, n]` through strides `(rs, cs)`: the
-/// one place this module calls `gemm` on a row-major left-hand side.
-///
-/// # Safety
-/// `dst` must hold `m × n` values (initialised when `accumulate`), `lhs` `m × k` row-major values,
-/// and `rhs` every element `r·rs + c·cs` for `r < k`, `c < n`.
-#[allow(clippy::too_many_arguments)]
-pub(super) unsafe fn gemm_into(dst: *mut f32, accumulate: bool, m: usize, n: usize, k: usize, lhs: &[f32], rhs: *const f32, rs: isize, cs: isize, par: gemm::Parallelism) {
-    // SAFETY: forwarded from the caller; dst row-major with row stride n, lhs row-major with row
-    // stride k.
-    unsafe {
-        gemm::gemm(m, n, k, dst, 1, n as isize, accumulate, lhs.as_ptr(), 1, k as isize, rhs, cs, rs, 1.0, 1.0, false, false, false, par)
-    }
-}
-
-/// `lhs[m, k] · rhs[k, n]` (row-major, contiguous) as a new `m × n` row-major buffer.
+/// `lhs[m, k] · rhs[k, n]` (row-major, contiguous) as a new `m × n` row-major buffer: blocks of rows in
+/// parallel, the products of [`super::dense`] (the same sums as the whole-network op's).
 pub(super) fn gemm_new(m: usize, n: usize, k: usize, lhs: &[f32], rhs: &[f32]) -> Vec<f32> {
     assert!(lhs.len() == m * k && rhs.len() == k * n, "gemm_new: shapes");
-    if k == 0 {
-        return vec![0.0; m * n];
-    }
     let mut dst: Vec<f32> = Vec::with_capacity(m * n);
-    // SAFETY: lhs and rhs hold exactly the m×k and k×n row-major matrices (checked above); dst has
-    // room for m×n values, which gemm writes without reading before `set_len` exposes them. Skipping
-    // the zero fill saves a pass over the largest buffer of the layer; candle's own matmul allocates
-    // the same way.
-    unsafe {
-        gemm_into(dst.as_mut_ptr(), false, m, n, k, lhs, rhs.as_ptr(), n as isize, 1, parallelism());
-        dst.set_len(m * n);
+    let out = Shared(dst.as_mut_ptr());
+    (0..m.div_ceil(ROW_BLOCK)).into_par_iter().for_each(|t| {
+        let (r0, rows) = (t * ROW_BLOCK, ROW_BLOCK.min(m - t * ROW_BLOCK));
+        let a = Mat::new(lhs, k);
+        // SAFETY: lhs and rhs hold exactly the m×k and k×n row-major matrices (checked above); this
+        // task alone writes rows r0..r0 + rows of dst, which has room for m×n values. Skipping the
+        // zero fill saves a pass over the largest buffer of the layer (`set_len` below exposes the
+        // values once every task has written its rows).
+        unsafe { dense::product(rows, n, a.at(r0, 0), k, a, 0, Mat::new(rhs, n), out.add(r0 * n), n, Epilogue::STORE) };
+    });
+    if k == 0 {
+        dst.resize(m * n, 0.0);
     }
+    // SAFETY: every row was written above (a product over k = 0 terms writes zeros).
+    unsafe { dst.set_len(m * n) };
     dst
+}
+
+/// A buffer that the tasks of a row-block loop write in disjoint row ranges.
+#[derive(Clone, Copy)]
+struct Shared(*mut f32);
+// SAFETY: each task writes only its own rows.
+unsafe impl Send for Shared {}
+unsafe impl Sync for Shared {}
+
+impl Shared {
+    /// The address `i` values in. A method, so that a closure captures the whole `Shared` (which is
+    /// `Sync`), not its raw pointer field.
+    ///
+    /// # Safety
+    /// `i` must be within the buffer.
+    #[inline]
+    unsafe fn add(self, i: usize) -> *mut f32 {
+        // SAFETY: forwarded from the caller.
+        unsafe { self.0.add(i) }
+    }
 }
 
 /// `y ← act(y + b)` row by row (`y [N, m]`, `b [m]`), in parallel: the pass after a layer's GEMM.
@@ -218,7 +221,7 @@ pub fn linear(x: &Tensor, w: &Tensor, b: &Tensor, relu: bool) -> Result<Tensor> 
 
 /// Rows per partial product of the weight gradient: fixed, so that the partial sums round the same way
 /// for any thread count.
-pub(super) const K_BLOCK: usize = 4096;
+pub(super) const K_BLOCK: usize = 1024;
 
 /// `(x [N, in], dz [N, out]) → xᵀ dz [in, out]`, split over the batch.
 ///
@@ -246,8 +249,8 @@ impl CustomOp2 for WeightGrad {
     }
 }
 
-/// `dw [k, m] = aᵀ dz` for `a [n, k]`, `dz [n, m]`: single-threaded GEMMs over `K_BLOCK`-row blocks in
-/// parallel, added in block order (deterministic for any thread count).
+/// `dw [k, m] = aᵀ dz` for `a [n, k]`, `dz [n, m]`: the products of `K_BLOCK`-row blocks in parallel,
+/// added in block order (deterministic for any thread count, and the sums of the whole-network op).
 pub(super) fn weight_grad_into(dw: &mut [f32], a: &[f32], k: usize, dz: &[f32], m: usize, n: usize) {
     if k == 0 || m == 0 {
         return;
@@ -256,18 +259,9 @@ pub(super) fn weight_grad_into(dw: &mut [f32], a: &[f32], k: usize, dz: &[f32], 
         .into_par_iter()
         .map(|blk| {
             let (r0, r1) = (blk * K_BLOCK, ((blk + 1) * K_BLOCK).min(n));
-            let mut out: Vec<f32> = Vec::with_capacity(k * m);
-            // SAFETY: a[r0 k..r1 k] is the block of a, read as its transpose (row stride 1, column
-            // stride k); dz[r0 m..] the block of dz; out has room for k × m values, written unread.
-            unsafe {
-                gemm::gemm(
-                    k, m, r1 - r0, out.as_mut_ptr(), 1, m as isize, false,
-                    a[r0 * k..r1 * k].as_ptr(), k as isize, 1,
-                    dz[r0 * m..r1 * m].as_ptr(), 1, m as isize,
-                    0.0, 1.0, false, false, false, gemm::Parallelism::None,
-                );
-                out.set_len(k * m);
-            }
+            let mut out = vec![0.0f32; k * m];
+            // SAFETY: rows r0..r1 of a [n, k] and dz [n, m]; out holds k × m values.
+            unsafe { dense::weight_product(r1 - r0, k, m, Mat::new(a, k).at(r0, 0), Mat::new(dz, m).at(r0, 0), out.as_mut_ptr()) };
             out
         })
         .collect();

@@ -4,6 +4,7 @@
 pub mod activation;
 pub mod arch;
 pub mod features;
+pub mod dense;
 pub mod fused;
 pub mod heads;
 pub mod network;

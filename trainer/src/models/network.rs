@@ -9,7 +9,8 @@
 use candle_core::{CpuStorage, CustomOp3, Layout, Result, Shape, Tensor};
 use rayon::prelude::*;
 
-use super::fused::{act_grad_colsum, add_bias_act, data, dims2, gemm_into, gemm_new, parallelism, weight_grad_into, ROW_BLOCK};
+use super::dense::{self, Epilogue, Mat};
+use super::fused::{data, dims2, ROW_BLOCK};
 
 /// What [`network`] needs to know of a network: layer sizes, which layers end in a ReLU, and the skip.
 #[derive(Clone, Debug)]
@@ -95,8 +96,45 @@ pub(super) fn join(h: &[f32], n_h: usize, x: &[f32], n_x: usize, n: usize) -> Ve
     c
 }
 
+/// Rows per task of the forward pass: each task runs every layer on its block, so that a layer reads
+/// its input from L2, where the layer below has just written it (2 × 128 KiB at 128 columns).
+const FORWARD_ROWS: usize = 256;
+
+/// Rows per task of the backward pass, each task's weight and bias gradients a partial sum of its own
+/// rows, added in task order: fixed (not per thread count), so that a step rounds the same way on any
+/// machine, and the blocks of the per-layer path ([`super::fused::K_BLOCK`]), so that both agree.
+const BACKWARD_ROWS: usize = super::fused::K_BLOCK;
+
+/// Rows per sweep through the layers within a backward task: the gradient flows from layer to layer in
+/// two buffers of this many rows that stay in L2.
+const SWEEP_ROWS: usize = 256;
+
+/// A buffer that the tasks of a row-block loop write in disjoint row ranges.
+#[derive(Clone, Copy)]
+struct Shared(*mut f32);
+// SAFETY: each task writes only its own rows (see the loops below).
+unsafe impl Send for Shared {}
+unsafe impl Sync for Shared {}
+
+impl Shared {
+    /// The address `i` values in. A method, so that a closure captures the whole `Shared` (which is
+    /// `Sync`), not its raw pointer field.
+    ///
+    /// # Safety
+    /// `i` must be within the buffer.
+    #[inline]
+    unsafe fn add(self, i: usize) -> *mut f32 {
+        // SAFETY: forwarded from the caller.
+        unsafe { self.0.add(i) }
+    }
+}
+
 /// The layers of `shape` over `x [n, n_x]` with the concatenated weights `w` and biases `b`: the output
 /// `[n, m]` and each hidden layer's activation, which the backward pass reads.
+///
+/// Blocks of [`FORWARD_ROWS`] rows run through all layers in parallel; each layer's GEMM applies its
+/// bias and ReLU before storing ([`dense::product`]), and the skip layer reads `[h, x]` from the two
+/// matrices in place, its sums in the order of the joined input.
 pub(super) fn forward_pass(shape: &NetShape, x: &[f32], n: usize, n_x: usize, w: &[f32], b: &[f32], op: &str) -> Result<(Vec<f32>, Vec<Vec<f32>>)> {
     let off = offsets(shape);
     let n_w: usize = shape.layers.iter().map(|&(i, o)| i * o).sum();
@@ -104,38 +142,61 @@ pub(super) fn forward_pass(shape: &NetShape, x: &[f32], n: usize, n_x: usize, w:
     if w.len() != n_w || b.len() != n_b || x.len() != n * n_x || shape.layers.first().is_none_or(|&(i, _)| i != n_x) {
         candle_core::bail!("{op}: x [{n}, {n_x}], {} weights, {} biases do not fit {:?}", w.len(), b.len(), shape.layers)
     }
-    let mut saved = Vec::with_capacity(shape.layers.len());
-    let mut h: Vec<f32> = Vec::new();
-    for (l, &(_, m)) in shape.layers.iter().enumerate() {
-        let (n_h, n_xl) = shape.split(l, n_x);
-        let (ow, ob) = off[l];
-        // The skip layer reads `[h, x]` copied side by side, not as two GEMMs into one output: the same
-        // sums in the same order as the layer-by-layer path, so the two agree to the last bit (a
-        // rounding difference flips ReLUs at the kink and shows in the gradients).
-        let joined: Vec<f32>;
-        let input: &[f32] = match (n_h, n_xl) {
-            (0, _) => x,
-            (_, 0) => &h,
-            _ => {
-                joined = join(&h, n_h, x, n_xl, n);
-                &joined
-            }
-        };
-        let k = n_h + n_xl;
-        let mut y = gemm_new(n, m, k, input, &w[ow..ow + k * m]);
-        add_bias_act(&mut y, &b[ob..ob + m], l < shape.hidden);
-        if l > 0 {
-            saved.push(std::mem::take(&mut h));
-        }
-        h = y;
+    if let Some(l) = (1..shape.layers.len()).find(|&l| shape.split(l, n_x).0 != shape.layers[l - 1].1) {
+        candle_core::bail!("{op}: layer {l} does not read the {} outputs of the layer below: {:?}", shape.layers[l - 1].1, shape.layers)
     }
-    Ok((h, saved))
+    let mut outs: Vec<Vec<f32>> = shape.layers.iter().map(|&(_, m)| Vec::with_capacity(n * m)).collect();
+    let dst: Vec<Shared> = outs.iter_mut().map(|o| Shared(o.as_mut_ptr())).collect();
+    (0..n.div_ceil(FORWARD_ROWS)).into_par_iter().for_each(|t| {
+        let (r0, rows) = (t * FORWARD_ROWS, FORWARD_ROWS.min(n - t * FORWARD_ROWS));
+        for (l, &(_, m)) in shape.layers.iter().enumerate() {
+            let (n_h, n_xl) = shape.split(l, n_x);
+            let (ow, ob) = off[l];
+            // SAFETY: x holds n × n_x values (checked); layer l - 1's output holds n × n_h values
+            // (checked: it is what layer l reads), of which this task wrote rows r0..r0 + rows above;
+            // this task alone writes the same rows of layer l's output, which has room for n × m
+            // values; the weights and biases are the layer's (offsets from the checked shape).
+            unsafe {
+                let xm = Mat::new(x, n_x).at(r0, 0);
+                let hm = if l > 0 { Mat { ptr: dst[l - 1].add(r0 * n_h), ld: n_h } } else { xm };
+                let (a1, p1, a2, p2) = match (n_h, n_xl) {
+                    (0, _) => (xm, n_xl, xm, 0),
+                    (_, 0) => (hm, n_h, hm, 0),
+                    _ => (hm, n_h, xm, n_xl),
+                };
+                let epi = Epilogue { bias: Some(b[ob..].as_ptr()), relu: l < shape.hidden, ..Epilogue::STORE };
+                dense::product(rows, m, a1, p1, a2, p2, Mat::new(&w[ow..], m), dst[l].add(r0 * m), m, epi);
+            }
+        }
+    });
+    for (o, &(_, m)) in outs.iter_mut().zip(&shape.layers) {
+        // SAFETY: the tasks above wrote all n rows of every layer's output.
+        unsafe { o.set_len(n * m) };
+    }
+    let y = outs.pop().unwrap_or_default();
+    Ok((y, outs))
+}
+
+/// `W [k, m]` as `Wᵀ [m, k]`, row-major.
+fn transpose(w: &[f32], k: usize, m: usize) -> Vec<f32> {
+    let mut t = vec![0.0f32; k * m];
+    for (i, row) in w.chunks_exact(m).enumerate() {
+        for (j, &v) in row.iter().enumerate() {
+            t[j * k + i] = v;
+        }
+    }
+    t
 }
 
 /// The backward pass of [`forward_pass`] for the output gradient `dy`: writes `dW` and `db` (file
-/// order) into `dw_all` and `db_all` and, when `dx = Some((buffer, cols))`, adds the gradient of the
-/// input's first `cols` columns into `buffer` (`[n, cols]`): the columns of the Additive Shared
-/// specular head's input that come from the trunk, which two heads add into one buffer.
+/// order) into `dw_all` and `db_all` (which start at zero) and, when `dx = Some((buffer, cols))`, adds
+/// the gradient of the input's first `cols` columns into `buffer` (`[n, cols]`): the columns of the
+/// Additive Shared specular head's input that come from the trunk, which two heads add into one buffer.
+///
+/// Tasks of [`BACKWARD_ROWS`] rows run in parallel, each sweeping [`SWEEP_ROWS`] rows at a time down
+/// through all layers: the gradient `g` of a layer's output is masked by its ReLU, summed into the
+/// bias gradient, multiplied into the weight gradient, and carried to the layer below as
+/// `(g Wᵀ) ⊙ [h > 0]` in one GEMM with a masking epilogue, without leaving L2.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn backward_pass(
     shape: &NetShape,
@@ -148,43 +209,88 @@ pub(super) fn backward_pass(
     dy: &[f32],
     dw_all: &mut [f32],
     db_all: &mut [f32],
-    mut dx: Option<(&mut [f32], usize)>,
+    dx: Option<(&mut [f32], usize)>,
 ) {
     let layers = &shape.layers;
+    let n_layers = layers.len();
     let off = offsets(shape);
-    let mut g: Vec<f32> = dy.to_vec();
-    for l in (0..layers.len()).rev() {
-        let (_, m) = layers[l];
-        let (n_h, n_xl) = shape.split(l, n_x);
-        let (ow, ob) = off[l];
-        // dz = g ⊙ [out > 0] in place, and db = Σ_rows dz.
-        let act: &[f32] = if l + 1 == layers.len() { y } else { &saved[l] };
-        let db = act_grad_colsum(&mut g, act, m, l < shape.hidden);
-        db_all[ob..ob + m].copy_from_slice(&db);
-        // dW = [h, x]ᵀ dz, each part split over the batch (see WeightGrad).
-        let h: &[f32] = if l == 0 { &[] } else { &saved[l - 1] };
-        weight_grad_into(&mut dw_all[ow..ow + n_h * m], h, n_h, &g, m, n);
-        weight_grad_into(&mut dw_all[ow + n_h * m..ow + (n_h + n_xl) * m], x, n_xl, &g, m, n);
-        // dx += dz W_xᵀ where the layer reads x and x needs a gradient.
-        if let (Some((dx, cols)), true) = (dx.as_mut(), n_xl > 0) {
-            let cols = (*cols).min(n_xl);
-            assert!(dx.len() >= n * cols, "input gradient buffer too small");
-            // SAFETY: dx holds n × cols initialised values (checked); g is n × m; the first `cols`
-            // rows of W_x, the n_x × m block at ow + n_h m, are read transposed (row stride 1,
-            // column stride m).
-            unsafe { gemm_into(dx.as_mut_ptr(), true, n, cols, m, &g, w[ow + n_h * m..].as_ptr(), 1, m as isize, parallelism()) };
+    let m_top = layers.last().map_or(0, |&(_, o)| o);
+    assert!(saved.len() + 1 == n_layers && x.len() == n * n_x && y.len() == n * m_top && dy.len() == n * m_top, "backward_pass: shapes");
+    let wt: Vec<Vec<f32>> = layers.iter().zip(&off).map(|(&(k, m), &(ow, _))| transpose(&w[ow..ow + k * m], k, m)).collect();
+    let (dx, dx_cols) = match dx {
+        Some((buf, cols)) => {
+            assert!(buf.len() >= n * cols, "input gradient buffer too small");
+            (Some(Shared(buf.as_mut_ptr())), cols)
         }
-        // g ← dz W_hᵀ for the layer below.
-        if l > 0 {
-            let mut below: Vec<f32> = Vec::with_capacity(n * n_h);
-            // SAFETY: below has room for n × n_h values, written without being read; W_h is the
-            // n_h × m block at ow, read transposed.
-            unsafe {
-                gemm_into(below.as_mut_ptr(), false, n, n_h, m, &g, w[ow..].as_ptr(), 1, m as isize, parallelism());
-                below.set_len(n * n_h);
+        None => (None, 0),
+    };
+    let width = layers.iter().map(|&(k, m)| k.max(m)).max().unwrap_or(0);
+    let partial: Vec<(Vec<f32>, Vec<f32>)> = (0..n.div_ceil(BACKWARD_ROWS))
+        .into_par_iter()
+        .map(|t| {
+            let mut dw = vec![0.0f32; dw_all.len()];
+            let mut db = vec![0.0f32; db_all.len()];
+            let mut g = vec![0.0f32; SWEEP_ROWS * width];
+            let mut below = vec![0.0f32; SWEEP_ROWS * width];
+            let end = ((t + 1) * BACKWARD_ROWS).min(n);
+            for s0 in (t * BACKWARD_ROWS..end).step_by(SWEEP_ROWS) {
+                let rows = SWEEP_ROWS.min(end - s0);
+                // The output's gradient, through the output layer's ReLU where it has one.
+                let top_relu = n_layers <= shape.hidden;
+                for ((gr, dr), yr) in g.chunks_exact_mut(m_top).zip(dy[s0 * m_top..].chunks_exact(m_top)).zip(y[s0 * m_top..].chunks_exact(m_top)).take(rows) {
+                    for ((gv, &dv), &yv) in gr.iter_mut().zip(dr).zip(yr) {
+                        *gv = if !top_relu || yv > 0.0 { dv } else { 0.0 };
+                    }
+                }
+                for l in (0..n_layers).rev() {
+                    let (k, m) = layers[l];
+                    let (n_h, n_xl) = shape.split(l, n_x);
+                    let (ow, ob) = off[l];
+                    // db += Σ_rows g, row by row.
+                    for gr in g[..rows * m].chunks_exact(m) {
+                        for (d, v) in db[ob..ob + m].iter_mut().zip(gr) {
+                            *d += v;
+                        }
+                    }
+                    // SAFETY: g holds rows × m values of this sweep; saved[l - 1] and x hold n rows of
+                    // n_h and n_x values, read from row s0; dw's layer blocks are k × m; Wᵀ is m × k;
+                    // this task alone writes rows s0..s0 + rows of dx, which holds n × dx_cols values
+                    // (checked); `below` has room for rows × n_h values.
+                    unsafe {
+                        let gm = Mat::new(&g, m);
+                        let xm = Mat::new(x, n_x).at(s0, 0);
+                        if n_h > 0 {
+                            dense::weight_product(rows, n_h, m, Mat::new(&saved[l - 1], n_h).at(s0, 0), gm, dw[ow..].as_mut_ptr());
+                        }
+                        dense::weight_product(rows, n_xl, m, xm, gm, dw[ow + n_h * m..].as_mut_ptr());
+                        let wl = Mat::new(&wt[l], k);
+                        if let (Some(dx), true) = (dx, n_xl > 0) {
+                            let cols = dx_cols.min(n_xl);
+                            dense::product(rows, cols, gm, m, gm, 0, wl.at(0, n_h), dx.add(s0 * dx_cols), dx_cols, Epilogue::ADD);
+                        }
+                        if l > 0 {
+                            let mask = (l - 1 < shape.hidden).then(|| Mat::new(&saved[l - 1], n_h).at(s0, 0));
+                            dense::product(rows, n_h, gm, m, gm, 0, wl, below.as_mut_ptr(), n_h, Epilogue { mask, ..Epilogue::STORE });
+                        }
+                    }
+                    if l > 0 {
+                        std::mem::swap(&mut g, &mut below);
+                    }
+                }
             }
-            g = below;
-        }
+            (dw, db)
+        })
+        .collect();
+    for (pw, pb) in &partial {
+        add_into(dw_all, pw);
+        add_into(db_all, pb);
+    }
+}
+
+/// `dst += src`.
+fn add_into(dst: &mut [f32], src: &[f32]) {
+    for (d, s) in dst.iter_mut().zip(src) {
+        *d += s;
     }
 }
 
