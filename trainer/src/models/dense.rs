@@ -110,25 +110,34 @@ pub(crate) unsafe fn product(rows: usize, cols: usize, a1: Mat, p1: usize, a2: M
     unsafe { portable_product(rows, cols, a1, p1, a2, p2, b, c, ldc, epi) }
 }
 
-/// `W [k × m] += Aᵀ G` over one block of rows (`A [rows × k]`, `G [rows × m]`), `W` row-major with row
-/// stride `m`: a layer's weight gradient, one thread.
+/// `W [k × m] += Aᵀ G` (`accumulate`) or `W = Aᵀ G` over one block of rows (`A [rows × k]`,
+/// `G [rows × m]`), `W` row-major with row stride `m`: a layer's weight gradient, one thread. Without
+/// `accumulate` the sums start from the first row's product, as they would from a zeroed `W`, and `W`
+/// need not be initialised.
 ///
 /// # Safety
-/// `a` and `g` must address `rows` rows of `k` and `m` values, `w` `k × m` initialised values that
-/// overlap neither.
-pub(crate) unsafe fn weight_product(rows: usize, k: usize, m: usize, a: Mat, g: Mat, w: *mut f32) {
-    if rows == 0 || k == 0 || m == 0 {
+/// `a` and `g` must address `rows` rows of `k` and `m` values, `w` `k × m` values (initialised when
+/// `accumulate`) that overlap neither.
+pub(crate) unsafe fn weight_product(rows: usize, k: usize, m: usize, a: Mat, g: Mat, w: *mut f32, accumulate: bool) {
+    if k == 0 || m == 0 {
+        return;
+    }
+    if rows == 0 {
+        if !accumulate {
+            // SAFETY: w holds k × m values (the caller's contract).
+            unsafe { std::ptr::write_bytes(w, 0, k * m) };
+        }
         return;
     }
     #[cfg(target_arch = "x86_64")]
     if avx512() {
         // SAFETY: the CPU has AVX-512F (checked); the memory contract is the caller's.
-        unsafe { x86::weight_product(rows, k, m, a, g, w) };
+        unsafe { x86::weight_product(rows, k, m, a, g, w, accumulate) };
         return;
     }
     // SAFETY: forwarded from the caller; gemm reads A transposed (row stride 1, column stride lda).
     unsafe {
-        gemm::gemm(k, m, rows, w, 1, m as isize, true, a.ptr, a.ld as isize, 1, g.ptr, 1, g.ld as isize, 1.0, 1.0, false, false, false, gemm::Parallelism::None)
+        gemm::gemm(k, m, rows, w, 1, m as isize, accumulate, a.ptr, a.ld as isize, 1, g.ptr, 1, g.ld as isize, 1.0, 1.0, false, false, false, gemm::Parallelism::None)
     }
 }
 
@@ -283,11 +292,11 @@ mod x86 {
 
     /// One tile of a weight gradient: `W[R × V·16] += Σ_rows a[row, 0..R]ᵀ g[row, ..]`.
     #[target_feature(enable = "avx512f")]
-    unsafe fn weight_tile<const R: usize, const V: usize>(rows: usize, a: Mat, g: Mat, w: *mut f32, ldw: usize, m: [u16; 4]) {
+    unsafe fn weight_tile<const R: usize, const V: usize>(rows: usize, a: Mat, g: Mat, w: *mut f32, ldw: usize, m: [u16; 4], accumulate: bool) {
         // SAFETY (whole body): within the tile the caller names; masked lanes untouched.
         unsafe {
             let mut acc = [[_mm512_setzero_ps(); V]; R];
-            for (r, acc) in acc.iter_mut().enumerate() {
+            for (r, acc) in acc.iter_mut().enumerate().filter(|_| accumulate) {
                 for (j, v) in acc.iter_mut().enumerate() {
                     *v = _mm512_maskz_loadu_ps(m[j], w.add(r * ldw + 16 * j));
                 }
@@ -319,7 +328,7 @@ mod x86 {
 
     /// [`super::weight_product`] on AVX-512.
     #[target_feature(enable = "avx512f")]
-    pub(super) unsafe fn weight_product(rows: usize, k: usize, m: usize, a: Mat, g: Mat, w: *mut f32) {
+    pub(super) unsafe fn weight_product(rows: usize, k: usize, m: usize, a: Mat, g: Mat, w: *mut f32, accumulate: bool) {
         // SAFETY: every tile lies within the matrices the caller names.
         unsafe {
             for i0 in (0..rows).step_by(W_ROWS) {
@@ -328,8 +337,8 @@ mod x86 {
                     for c0 in (0..m).step_by(NR) {
                         let mask = masks(m - c0);
                         let vecs = (m - c0).min(NR).div_ceil(16);
-                        let args = (n, a.at(i0, k0), g.at(i0, c0), w.add(k0 * m + c0), m, mask);
-                        dispatch!(weight_tile, k - k0, vecs, (args.0, args.1, args.2, args.3, args.4, args.5));
+                        let args = (n, a.at(i0, k0), g.at(i0, c0), w.add(k0 * m + c0), m, mask, accumulate || i0 > 0);
+                        dispatch!(weight_tile, k - k0, vecs, (args.0, args.1, args.2, args.3, args.4, args.5, args.6));
                     }
                 }
             }
@@ -443,13 +452,17 @@ mod tests {
         // leave partial tiles.
         let (rows, k, m) = (300, 13, 70);
         let (a, g, w0) = (values(rows * k, 9), values(rows * m, 10), values(k * m, 11));
-        let mut w = w0.clone();
-        // SAFETY: a is rows × k, g rows × m, w k × m.
-        unsafe { weight_product(rows, k, m, Mat::new(&a, k), Mat::new(&g, m), w.as_mut_ptr()) };
-        for i in 0..k {
-            for j in 0..m {
-                let want = w0[i * m + j] as f64 + (0..rows).map(|r| a[r * k + i] as f64 * g[r * m + j] as f64).sum::<f64>();
-                assert!((w[i * m + j] as f64 - want).abs() < 1e-4, "[{i}, {j}] {} vs {want}", w[i * m + j]);
+        for accumulate in [true, false] {
+            // Without `accumulate` the old values must not matter: start from NaN.
+            let mut w = if accumulate { w0.clone() } else { vec![f32::NAN; k * m] };
+            // SAFETY: a is rows × k, g rows × m, w k × m.
+            unsafe { weight_product(rows, k, m, Mat::new(&a, k), Mat::new(&g, m), w.as_mut_ptr(), accumulate) };
+            for i in 0..k {
+                for j in 0..m {
+                    let start = if accumulate { w0[i * m + j] as f64 } else { 0.0 };
+                    let want = start + (0..rows).map(|r| a[r * k + i] as f64 * g[r * m + j] as f64).sum::<f64>();
+                    assert!((w[i * m + j] as f64 - want).abs() < 1e-4, "accumulate {accumulate} [{i}, {j}] {} vs {want}", w[i * m + j]);
+                }
             }
         }
     }

@@ -259,9 +259,13 @@ pub(super) fn weight_grad_into(dw: &mut [f32], a: &[f32], k: usize, dz: &[f32], 
         .into_par_iter()
         .map(|blk| {
             let (r0, r1) = (blk * K_BLOCK, ((blk + 1) * K_BLOCK).min(n));
-            let mut out = vec![0.0f32; k * m];
-            // SAFETY: rows r0..r1 of a [n, k] and dz [n, m]; out holds k × m values.
-            unsafe { dense::weight_product(r1 - r0, k, m, Mat::new(a, k).at(r0, 0), Mat::new(dz, m).at(r0, 0), out.as_mut_ptr()) };
+            let mut out: Vec<f32> = Vec::with_capacity(k * m);
+            // SAFETY: rows r0..r1 of a [n, k] and dz [n, m]; out has room for k × m values, which the
+            // product writes without reading (`accumulate = false`) before `set_len` exposes them.
+            unsafe {
+                dense::weight_product(r1 - r0, k, m, Mat::new(a, k).at(r0, 0), Mat::new(dz, m).at(r0, 0), out.as_mut_ptr(), false);
+                out.set_len(k * m);
+            }
             out
         })
         .collect();

@@ -228,13 +228,17 @@ pub(super) fn backward_pass(
     let partial: Vec<(Vec<f32>, Vec<f32>)> = (0..n.div_ceil(BACKWARD_ROWS))
         .into_par_iter()
         .map(|t| {
-            let mut dw = vec![0.0f32; dw_all.len()];
+            // Written by the first sweep's products (which start their sums from the product, as from
+            // zero), accumulated by the later ones: no zero fill of a copy of every weight.
+            let mut dw: Vec<f32> = Vec::with_capacity(dw_all.len());
             let mut db = vec![0.0f32; db_all.len()];
             let mut g = vec![0.0f32; SWEEP_ROWS * width];
             let mut below = vec![0.0f32; SWEEP_ROWS * width];
             let end = ((t + 1) * BACKWARD_ROWS).min(n);
-            for s0 in (t * BACKWARD_ROWS..end).step_by(SWEEP_ROWS) {
+            let start = t * BACKWARD_ROWS;
+            for s0 in (start..end).step_by(SWEEP_ROWS) {
                 let rows = SWEEP_ROWS.min(end - s0);
+                let first = s0 == start;
                 // The output's gradient, through the output layer's ReLU where it has one.
                 let top_relu = n_layers <= shape.hidden;
                 for ((gr, dr), yr) in g.chunks_exact_mut(m_top).zip(dy[s0 * m_top..].chunks_exact(m_top)).zip(y[s0 * m_top..].chunks_exact(m_top)).take(rows) {
@@ -253,16 +257,16 @@ pub(super) fn backward_pass(
                         }
                     }
                     // SAFETY: g holds rows × m values of this sweep; saved[l - 1] and x hold n rows of
-                    // n_h and n_x values, read from row s0; dw's layer blocks are k × m; Wᵀ is m × k;
+                    // n_h and n_x values, read from row s0; dw has room for every layer's k × m block; Wᵀ is m × k;
                     // this task alone writes rows s0..s0 + rows of dx, which holds n × dx_cols values
                     // (checked); `below` has room for rows × n_h values.
                     unsafe {
                         let gm = Mat::new(&g, m);
                         let xm = Mat::new(x, n_x).at(s0, 0);
                         if n_h > 0 {
-                            dense::weight_product(rows, n_h, m, Mat::new(&saved[l - 1], n_h).at(s0, 0), gm, dw[ow..].as_mut_ptr());
+                            dense::weight_product(rows, n_h, m, Mat::new(&saved[l - 1], n_h).at(s0, 0), gm, dw.as_mut_ptr().add(ow), !first);
                         }
-                        dense::weight_product(rows, n_xl, m, xm, gm, dw[ow + n_h * m..].as_mut_ptr());
+                        dense::weight_product(rows, n_xl, m, xm, gm, dw.as_mut_ptr().add(ow + n_h * m), !first);
                         let wl = Mat::new(&wt[l], k);
                         if let (Some(dx), true) = (dx, n_xl > 0) {
                             let cols = dx_cols.min(n_xl);
@@ -278,6 +282,9 @@ pub(super) fn backward_pass(
                     }
                 }
             }
+            // SAFETY: the first sweep wrote every layer's k × m block (its `split` covers all k inputs),
+            // i.e. all of dw's capacity; a task has at least one row.
+            unsafe { dw.set_len(dw_all.len()) };
             (dw, db)
         })
         .collect();
