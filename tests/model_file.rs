@@ -273,6 +273,36 @@ fn f16_files_are_half_the_size_and_evaluate_like_rounded_f32() {
 }
 
 #[test]
+fn model_buf_puts_the_per_query_network_on_a_cache_line_and_evaluates_as_in_place() {
+    // The one-query kernels load rows of 128 weights as vectors; ModelBuf aligns the network that runs
+    // per query (the last one), in every clone, and the values do not depend on where the bytes lie.
+    for kind in [ModelKind::SingleMlp, ModelKind::AdditiveSeparate, ModelKind::AdditiveShared] {
+        let h = ModelHeader::paper(kind, true, Reciprocity::Exact, PositionEncoding::Uniform, 2);
+        let bytes = encode(&h, &weights(h.n_weights(), 5, 0.2), None).unwrap();
+        let at = Model::query_weights_offset_of(&bytes).unwrap();
+        let buf = ModelBuf::from_bytes(&bytes).unwrap();
+        let copy = buf.clone();
+        for b in [&buf, &copy] {
+            assert_eq!((b.as_bytes().as_ptr() as usize + at) % 64, 0, "{kind:?}");
+            assert_eq!(b.as_bytes(), &bytes[..]);
+        }
+        // The same file 4 bytes off a cache line, borrowed in place.
+        let mut words = vec![0u32; bytes.len().div_ceil(4) + 32];
+        let base = words.as_ptr() as usize;
+        let skew = ((64 - (base + at) % 64) % 64 + 4) % 64;
+        // SAFETY: words has room for skew + bytes.len() bytes (skew < 64 < 32 words); u8 view of u32s.
+        let raw = unsafe { std::slice::from_raw_parts_mut(words.as_mut_ptr().cast::<u8>(), words.len() * 4) };
+        raw[skew..skew + bytes.len()].copy_from_slice(&bytes);
+        let in_place = Model::from_bytes(&raw[skew..skew + bytes.len()]).unwrap();
+        let (m, p, q) = (buf.model(), buf.model().prepare(&[0.3, 0.5, 0.2]), in_place.prepare(&[0.3, 0.5, 0.2]));
+        for (wi, wo) in [(dir(0.2, 0.1, 1.0), dir(-0.4, 0.3, 0.8)), (dir(0.7, 0.0, 0.3), dir(0.0, -0.6, 0.5))] {
+            let (a, b) = (m.eval(&p, wi, wo), in_place.eval(&q, wi, wo));
+            assert_eq!(a.map(f32::to_bits), b.map(f32::to_bits), "{kind:?}");
+        }
+    }
+}
+
+#[test]
 fn position_table_interpolates_per_vertex_features() {
     let h = ModelHeader::paper(ModelKind::AdditiveSeparate, false, Reciprocity::Exact, PositionEncoding::Intrinsic { k: 2 }, 1);
     let table = [0.0f32, 1.0, 10.0, 20.0, 100.0, 200.0]; // 3 vertices x k = 2
