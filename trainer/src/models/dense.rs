@@ -48,6 +48,26 @@ impl Mat {
     }
 }
 
+/// An output buffer that the tasks of a row-block loop write in disjoint row ranges.
+#[derive(Clone, Copy)]
+pub(crate) struct Shared(pub *mut f32);
+// SAFETY: the loops that share one write only their own rows (their callers' SAFETY comments).
+unsafe impl Send for Shared {}
+unsafe impl Sync for Shared {}
+
+impl Shared {
+    /// The address `i` values in. A method, so that a closure captures the whole `Shared` (which is
+    /// `Sync`), not its raw pointer field.
+    ///
+    /// # Safety
+    /// `i` must be within the buffer.
+    #[inline]
+    pub unsafe fn add(self, i: usize) -> *mut f32 {
+        // SAFETY: forwarded from the caller.
+        unsafe { self.0.add(i) }
+    }
+}
+
 /// What happens to a block's product `P` before it is stored in `C`:
 /// `C ← mask(act(P [+ C] [+ bias]))`.
 #[derive(Clone, Copy, Debug)]
@@ -165,7 +185,9 @@ unsafe fn portable_product(rows: usize, cols: usize, a1: Mat, p1: usize, a2: Mat
                     z = z.max(0.0);
                 }
                 if let Some(m) = epi.mask {
-                    if !(*m.ptr.add(r * m.ld + j) > 0.0) {
+                    // Not `> 0`, NaN included, as the vector compare.
+                    let mv = *m.ptr.add(r * m.ld + j);
+                    if mv.is_nan() || mv <= 0.0 {
                         z = 0.0;
                     }
                 }
@@ -358,7 +380,7 @@ mod tests {
                 s ^= s << 13;
                 s ^= s >> 17;
                 s ^= s << 5;
-                if s % 4 == 0 {
+                if s.is_multiple_of(4) {
                     0.0
                 } else {
                     (s >> 8) as f32 / (1u32 << 23) as f32 - 1.0

@@ -20,7 +20,7 @@
 use candle_core::{CpuStorage, CustomOp2, CustomOp3, Layout, Result, Shape, Tensor};
 use rayon::prelude::*;
 
-use super::dense::{self, Epilogue, Mat};
+use super::dense::{self, Epilogue, Mat, Shared};
 
 /// Rows per block of the elementwise passes: large enough to amortise rayon's task cost, small enough
 /// that 2 threads get many blocks; fixed (not per thread count) so that the column sums round the same
@@ -63,26 +63,6 @@ pub(super) fn gemm_new(m: usize, n: usize, k: usize, lhs: &[f32], rhs: &[f32]) -
     // SAFETY: every row was written above (a product over k = 0 terms writes zeros).
     unsafe { dst.set_len(m * n) };
     dst
-}
-
-/// A buffer that the tasks of a row-block loop write in disjoint row ranges.
-#[derive(Clone, Copy)]
-struct Shared(*mut f32);
-// SAFETY: each task writes only its own rows.
-unsafe impl Send for Shared {}
-unsafe impl Sync for Shared {}
-
-impl Shared {
-    /// The address `i` values in. A method, so that a closure captures the whole `Shared` (which is
-    /// `Sync`), not its raw pointer field.
-    ///
-    /// # Safety
-    /// `i` must be within the buffer.
-    #[inline]
-    unsafe fn add(self, i: usize) -> *mut f32 {
-        // SAFETY: forwarded from the caller.
-        unsafe { self.0.add(i) }
-    }
 }
 
 /// `y ← act(y + b)` row by row (`y [N, m]`, `b [m]`), in parallel: the pass after a layer's GEMM.

@@ -9,7 +9,7 @@
 use candle_core::{CpuStorage, CustomOp3, Layout, Result, Shape, Tensor};
 use rayon::prelude::*;
 
-use super::dense::{self, Epilogue, Mat};
+use super::dense::{self, Epilogue, Mat, Shared};
 use super::fused::{data, dims2, ROW_BLOCK};
 
 /// What [`network`] needs to know of a network: layer sizes, which layers end in a ReLU, and the skip.
@@ -108,26 +108,6 @@ const BACKWARD_ROWS: usize = super::fused::K_BLOCK;
 /// Rows per sweep through the layers within a backward task: the gradient flows from layer to layer in
 /// two buffers of this many rows that stay in L2.
 const SWEEP_ROWS: usize = 256;
-
-/// A buffer that the tasks of a row-block loop write in disjoint row ranges.
-#[derive(Clone, Copy)]
-struct Shared(*mut f32);
-// SAFETY: each task writes only its own rows (see the loops below).
-unsafe impl Send for Shared {}
-unsafe impl Sync for Shared {}
-
-impl Shared {
-    /// The address `i` values in. A method, so that a closure captures the whole `Shared` (which is
-    /// `Sync`), not its raw pointer field.
-    ///
-    /// # Safety
-    /// `i` must be within the buffer.
-    #[inline]
-    unsafe fn add(self, i: usize) -> *mut f32 {
-        // SAFETY: forwarded from the caller.
-        unsafe { self.0.add(i) }
-    }
-}
 
 /// The layers of `shape` over `x [n, n_x]` with the concatenated weights `w` and biases `b`: the output
 /// `[n, m]` and each hidden layer's activation, which the backward pass reads.
