@@ -57,9 +57,6 @@ pub(super) fn gemm_new(m: usize, n: usize, k: usize, lhs: &[f32], rhs: &[f32]) -
         // values once every task has written its rows).
         unsafe { dense::product(rows, n, a.at(r0, 0), k, a, 0, Mat::new(rhs, n), out.add(r0 * n), n, Epilogue::STORE) };
     });
-    if k == 0 {
-        dst.resize(m * n, 0.0);
-    }
     // SAFETY: every row was written above (a product over k = 0 terms writes zeros).
     unsafe { dst.set_len(m * n) };
     dst
@@ -106,7 +103,7 @@ pub(super) fn act_grad_colsum(g: &mut [f32], out: &[f32], m: usize, relu: bool) 
 
 /// `dst += Σ partial`, the partial results added in their order (the same rounding for any number of
 /// threads).
-fn add_in_order(dst: &mut [f32], partial: &[Vec<f32>]) {
+pub(super) fn add_in_order(dst: &mut [f32], partial: &[Vec<f32>]) {
     for p in partial {
         for (d, v) in dst.iter_mut().zip(p) {
             *d += v;

@@ -10,7 +10,7 @@ use candle_core::{CpuStorage, CustomOp3, Layout, Result, Shape, Tensor};
 use rayon::prelude::*;
 
 use super::dense::{self, Epilogue, Mat, Shared};
-use super::fused::{data, dims2, ROW_BLOCK};
+use super::fused::{add_in_order, data, dims2, ROW_BLOCK};
 
 /// What [`network`] needs to know of a network: layer sizes, which layers end in a ReLU, and the skip.
 #[derive(Clone, Debug)]
@@ -205,7 +205,9 @@ pub(super) fn backward_pass(
         None => (None, 0),
     };
     let width = layers.iter().map(|&(k, m)| k.max(m)).max().unwrap_or(0);
-    let partial: Vec<(Vec<f32>, Vec<f32>)> = (0..n.div_ceil(BACKWARD_ROWS))
+    // The output's gradient goes through the output layer's ReLU where it has one (a trunk).
+    let top_relu = n_layers <= shape.hidden;
+    let (partial_w, partial_b): (Vec<Vec<f32>>, Vec<Vec<f32>>) = (0..n.div_ceil(BACKWARD_ROWS))
         .into_par_iter()
         .map(|t| {
             // Written by the first sweep's products (which start their sums from the product, as from
@@ -219,8 +221,6 @@ pub(super) fn backward_pass(
             for s0 in (start..end).step_by(SWEEP_ROWS) {
                 let rows = SWEEP_ROWS.min(end - s0);
                 let first = s0 == start;
-                // The output's gradient, through the output layer's ReLU where it has one.
-                let top_relu = n_layers <= shape.hidden;
                 for ((gr, dr), yr) in g.chunks_exact_mut(m_top).zip(dy[s0 * m_top..].chunks_exact(m_top)).zip(y[s0 * m_top..].chunks_exact(m_top)).take(rows) {
                     for ((gv, &dv), &yv) in gr.iter_mut().zip(dr).zip(yr) {
                         *gv = if !top_relu || yv > 0.0 { dv } else { 0.0 };
@@ -267,18 +267,9 @@ pub(super) fn backward_pass(
             unsafe { dw.set_len(dw_all.len()) };
             (dw, db)
         })
-        .collect();
-    for (pw, pb) in &partial {
-        add_into(dw_all, pw);
-        add_into(db_all, pb);
-    }
-}
-
-/// `dst += src`.
-fn add_into(dst: &mut [f32], src: &[f32]) {
-    for (d, s) in dst.iter_mut().zip(src) {
-        *d += s;
-    }
+        .unzip();
+    add_in_order(dw_all, &partial_w);
+    add_in_order(db_all, &partial_b);
 }
 
 impl CustomOp3 for Network {
