@@ -134,11 +134,7 @@ impl<'a> Model<'a> {
     pub(crate) fn query_weights_offset(header: &ModelHeader, sections: &Sections) -> usize {
         let nets = header.nets();
         let before: usize = nets[..nets.len().saturating_sub(1)].iter().map(crate::mlp::NetDesc::n_weights).sum();
-        let size = match header.precision {
-            Precision::F32 => 4,
-            Precision::F16 => 2,
-        };
-        sections.weights.0 + before * size
+        sections.weights.0 + before * header.precision.size()
     }
 
     #[cfg(target_endian = "little")]
@@ -457,7 +453,7 @@ impl<'a> Model<'a> {
 /// Single MLP, the additive models' specular network or head) start on a 64-byte boundary (a cache
 /// line, one AVX-512 vector), whatever the file's own layout: the one-query kernels load whole rows of
 /// 128 weights as vectors, and a row that straddles cache lines costs each of its loads two lines (on
-/// this project's Zen 4 machine ~15% of a single Single MLP query). The file format only promises
+/// this project's Zen 4 machine ~12% of a single Single MLP query). The file format only promises
 /// 4-byte alignment (`file` module docs); `Model::from_bytes` on a caller's buffer gets the same speed
 /// when the caller aligns the same offset ([`Model::query_weights_offset_of`]).
 #[cfg(feature = "alloc")]
@@ -486,7 +482,7 @@ impl ModelBuf {
         let (header, sections) = crate::file::parse(bytes)?;
         let shift = (64 - Model::query_weights_offset(&header, &sections) % 64) % 64;
         // Shifts are whole words, keeping the 4-byte alignment that `Model` needs for every section
-        // (an f16 network that starts mid-word ends up 2 bytes past a line).
+        // (an f16 network that starts mid-word ends up 2 bytes short of a line).
         let shift = shift & !3;
         let mut lines = alloc::vec![CacheLine([0; 64]); (shift + bytes.len()).div_ceil(64)];
         // SAFETY: `lines` is one allocation of `64 × lines.len() ≥ shift + bytes.len()` bytes of plain

@@ -280,6 +280,8 @@ fn model_buf_puts_the_per_query_network_on_a_cache_line_and_evaluates_as_in_plac
         let h = ModelHeader::paper(kind, true, Reciprocity::Exact, PositionEncoding::Uniform, 2);
         let bytes = encode(&h, &weights(h.n_weights(), 5, 0.2), None).unwrap();
         let at = Model::query_weights_offset_of(&bytes).unwrap();
+        // A truncated file has no such offset: the loader's own error.
+        assert!(matches!(Model::query_weights_offset_of(&bytes[..bytes.len() - 8]), Err(Error::Truncated { .. })));
         let buf = ModelBuf::from_bytes(&bytes).unwrap();
         let copy = buf.clone();
         for b in [&buf, &copy] {
