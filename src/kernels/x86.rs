@@ -7,7 +7,9 @@
 //! - a packet: `QT` queries × `K` vectors of outputs; per input row, `K` weight loads are shared by
 //!   `QT` broadcast inputs. AVX-512: all 16 queries × 1 vector = 16 accumulators of 32 registers, so
 //!   one weight load (and, for f16, one `vcvtph2ps`) serves 16 FMAs; AVX2: 4 queries × 2 vectors =
-//!   8 of 16 registers, the packet run as four quarters.
+//!   8 of 16 registers, the packet run as four quarters;
+//! - a chain (AVX-512 only): one query through every layer of a 128-wide network, its 128
+//!   activations held in 8 registers from one layer to the next and compressed from there.
 //!
 //! Partial vectors at the end of a row (odd widths, the 3 or 6 outputs of the last layer) use masked
 //! loads and stores, which never touch memory outside the mask.
@@ -18,7 +20,7 @@
 
 use core::arch::x86_64::*;
 
-use super::{Dense, PACKET};
+use super::{Chain, Dense, Init, CHAIN_TAIL_MAX, CHAIN_WIDTH, PACKET};
 
 /// Loads 16 weights widened to f32, lanes outside `m` zero (AVX-512).
 macro_rules! load16 {
@@ -335,6 +337,134 @@ macro_rules! avx512 {
                         for v in o {
                             // As `_mm512_max_ps(v, 0)`: +0 for either zero, 0 for NaN.
                             *v = if *v > 0.0 { *v } else { 0.0 };
+                        }
+                    }
+                }
+            }
+
+            /// `acc += Σ_j x_j row_j` over a compressed list of inputs, for all 128 outputs.
+            ///
+            /// # Safety
+            /// Each listed offset from `base` starts a row of at least 128 weights; `g.len` entries.
+            #[inline]
+            #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
+            unsafe fn accumulate8(acc: &mut [__m512; 8], g: &Compressed) {
+                // SAFETY: see the contract.
+                unsafe {
+                    for j in 0..g.len {
+                        let xb = _mm512_set1_ps(*g.x.add(j));
+                        let r = g.base.add(*g.off.add(j) as usize).cast::<$w>();
+                        for k in 0..8 {
+                            acc[k] = _mm512_fmadd_ps(xb, load16!($tag, r.add(16 * k), 0xffff, false), acc[k]);
+                        }
+                    }
+                }
+            }
+
+            /// 128 starting accumulators.
+            ///
+            /// # Safety
+            /// `init` holds at least 128 values (`Chain::check`).
+            #[inline]
+            #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
+            unsafe fn init8(init: &Init<'_, $w>) -> [__m512; 8] {
+                // SAFETY: see the contract.
+                unsafe {
+                    match init {
+                        Init::F32(s) => core::array::from_fn(|k| _mm512_loadu_ps(s.as_ptr().add(16 * k))),
+                        Init::Bias(s) => core::array::from_fn(|k| load16!($tag, s.as_ptr().add(16 * k), 0xffff, false)),
+                    }
+                }
+            }
+
+            /// ReLU of 128 activations (as `max(v, 0)`: +0 for either zero and for NaN).
+            #[inline]
+            #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
+            fn relu8(acc: &mut [__m512; 8]) {
+                let zero = _mm512_setzero_ps();
+                for a in acc.iter_mut() {
+                    *a = _mm512_max_ps(*a, zero);
+                }
+            }
+
+            /// Writes the nonzero activations of `h` (NaN counts) to `xs` and the byte offsets
+            /// `i * row_bytes` of their rows to `offs`, in order, and returns their number: `compress`
+            /// from registers, so the next layer does not wait for the activations to be stored.
+            ///
+            /// # Safety
+            /// `xs` and `offs` have room for 128 entries.
+            #[inline]
+            #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
+            unsafe fn compress8(h: &[__m512; 8], row_bytes: u32, xs: *mut f32, offs: *mut u32) -> usize {
+                // SAFETY: whole vectors are stored at `len ≤ 16 k`, within the 128 entries.
+                unsafe {
+                    let zero = _mm512_setzero_ps();
+                    let mut off = _mm512_mullo_epi32(
+                        _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15),
+                        _mm512_set1_epi32(row_bytes as i32),
+                    );
+                    let step = _mm512_set1_epi32((16 * row_bytes) as i32);
+                    let mut len = 0;
+                    for v in h {
+                        let nz = _mm512_cmp_ps_mask::<_CMP_NEQ_UQ>(*v, zero);
+                        _mm512_storeu_ps(xs.add(len), _mm512_maskz_compress_ps(nz, *v));
+                        _mm512_storeu_si512(offs.add(len).cast(), _mm512_maskz_compress_epi32(nz, off));
+                        len += nz.count_ones() as usize;
+                        off = _mm512_add_epi32(off, step);
+                    }
+                    len
+                }
+            }
+
+            /// One query through a whole [`Chain`] (see there).
+            ///
+            /// # Safety
+            /// See the module docs; the chain passed `Chain::check` for `out`.
+            #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
+            pub(in crate::kernels) unsafe fn chain(c: &Chain<'_, $w>, out: *mut f32) {
+                const { assert!(CHAIN_WIDTH == 128) };
+                let row_bytes = (CHAIN_WIDTH * core::mem::size_of::<$w>()) as u32;
+                let mut txs = [core::mem::MaybeUninit::<f32>::uninit(); CHAIN_TAIL_MAX + 16];
+                let mut toffs = [core::mem::MaybeUninit::<u32>::uninit(); CHAIN_TAIL_MAX + 16];
+                let mut xs = [core::mem::MaybeUninit::<f32>::uninit(); CHAIN_WIDTH];
+                let mut offs = [core::mem::MaybeUninit::<u32>::uninit(); CHAIN_WIDTH];
+                let (tx, to) = (txs.as_mut_ptr().cast::<f32>(), toffs.as_mut_ptr().cast::<u32>());
+                let (xp, op) = (xs.as_mut_ptr().cast::<f32>(), offs.as_mut_ptr().cast::<u32>());
+                // SAFETY: `check` verified every extent: 128 starting values per layer, `tail.len()`
+                // (≤ CHAIN_TAIL_MAX, the lists' room less the rounding) rows of 128 for layer 0 and
+                // the skip rows, 128 rows of 128 per hidden layer, 128 rows of `n_out` for the output.
+                unsafe {
+                    let tlen = compress(c.tail.as_ptr(), c.tail.len(), row_bytes, tx, to);
+                    let tail = |base: *const $w| Compressed { x: tx, off: to, base: base.cast(), len: tlen };
+                    let mut h = init8(&Init::F32(c.first_init));
+                    accumulate8(&mut h, &tail(c.first_rows.as_ptr()));
+                    relu8(&mut h);
+                    for l in c.hidden {
+                        let len = compress8(&h, row_bytes, xp, op);
+                        let mut acc = init8(&l.init);
+                        accumulate8(&mut acc, &Compressed { x: xp, off: op, base: l.rows.as_ptr().cast(), len });
+                        if let Some(t) = l.tail_rows {
+                            accumulate8(&mut acc, &tail(t.as_ptr()));
+                        }
+                        relu8(&mut acc);
+                        h = acc;
+                    }
+                    match c.out {
+                        None => {
+                            for (k, v) in h.iter().enumerate() {
+                                _mm512_storeu_ps(out.add(16 * k), *v);
+                            }
+                        }
+                        Some((bias, rows, n)) => {
+                            let m = mask16(n);
+                            let len = compress8(&h, (n * core::mem::size_of::<$w>()) as u32, xp, op);
+                            let mut acc = load16!($tag, bias.as_ptr(), m, true);
+                            let base = rows.as_ptr().cast::<u8>();
+                            for j in 0..len {
+                                let r = base.add(*op.add(j) as usize).cast::<$w>();
+                                acc = _mm512_fmadd_ps(_mm512_set1_ps(*xp.add(j)), load16!($tag, r, m, true), acc);
+                            }
+                            _mm512_mask_storeu_ps(out, m, acc);
                         }
                     }
                 }
