@@ -2,7 +2,8 @@
 //! `prepare` (one shading point), f32 and f16 weights, single queries and batches of many directions
 //! at one point, at every kernel level this CPU has (`portable` is the pre-SIMD scalar path, the
 //! "before" of issue 8), plus the NBRDF-json networks, plus the neural models' batched throughput with
-//! one thread per core (`eval-f32-N-threads`, wall time). Run: `cargo bench --bench eval`, or e.g.
+//! one thread per core (`eval-f32-N-threads`, wall time), and the floor that L2 bandwidth puts under a
+//! single Single MLP query (`eval-floor`). Run: `cargo bench --bench eval`, or e.g.
 //! `cargo bench --bench eval -- 'eval-f32/.*single-mlp'` for one model.
 //!
 //! On Linux the clock is the thread's CPU time (`CLOCK_THREAD_CPUTIME_ID`), not wall time: the
@@ -247,6 +248,92 @@ fn bench_all_cores(c: &mut Criterion<WallTime>) {
     g.finish();
 }
 
+/// The weight rows one Single MLP query reads, as byte offsets into its network's f32 weights: per
+/// layer the rows of the nonzero inputs (the encoded angles of layer 0 and the skip layer, the nonzero
+/// activations of the hidden layers, found by running the network's prefixes through `nbrdf::mlp`),
+/// in the order the kernels read them. The output layer's rows (3 weights each) count one vector.
+fn single_query_rows(h: &ModelHeader, w: &[f32], pos: &[f32], wi: Vec3, wo: Vec3) -> Vec<(usize, bool)> {
+    use nbrdf::mlp::{forward, partial, Net, NetDesc};
+    let d = h.nets[0];
+    let (width, n_in) = (d.width as usize, d.n_in as usize);
+    let angles = nbrdf::angles::theta_map(wi, wo).unwrap();
+    let mut tail = vec![0.0f32; n_in - pos.len()];
+    nbrdf::encoding::positional_encoding(&angles, h.angle_frequencies as usize, &mut tail);
+    let net = |hidden: u8| Net { desc: NetDesc { hidden, n_out: 0, skip: if d.skip < hidden { d.skip } else { 0 }, ..d }, weights: w };
+    let mut rows = Vec::new();
+    let tail_rows = |rows: &mut Vec<(usize, bool)>, first_row: usize| {
+        rows.extend(tail.iter().enumerate().filter(|(_, v)| **v != 0.0).map(|(i, _)| ((first_row + i) * width * 4, true)));
+    };
+    tail_rows(&mut rows, pos.len());
+    for l in 1..=d.hidden as usize {
+        let off = d.layer_offset(l);
+        let mut act = [0.0f32; 256];
+        let prefix = net(l as u8);
+        forward(&prefix, &partial(&prefix, pos), &tail, &mut act);
+        let row = if l < d.hidden as usize { width } else { d.n_out as usize } * 4;
+        rows.extend(act[..width].iter().enumerate().filter(|(_, v)| **v != 0.0).map(|(i, _)| (off * 4 + i * row, l < d.hidden as usize)));
+        if l == d.skip as usize {
+            tail_rows(&mut rows, off / width + width + pos.len());
+        }
+    }
+    rows
+}
+
+/// Streams the listed rows (8 vectors of 16 f32, or 1 where `false`) into FMAs with no dependence
+/// between rows: what the weight reads of a query cost with nothing else in the way.
+///
+/// # Safety
+/// The CPU has AVX-512F; every row lies in `w`.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+unsafe fn stream_rows(w: &[f32], rows: &[(usize, bool)]) -> f32 {
+    use std::arch::x86_64::*;
+    let mut acc = [_mm512_setzero_ps(); 8];
+    let x = _mm512_set1_ps(0.5);
+    let base = w.as_ptr().cast::<u8>();
+    for &(off, full) in rows {
+        // SAFETY: the row lies in `w` (contract).
+        let r = unsafe { base.add(off).cast::<f32>() };
+        for k in 0..if full { 8 } else { 1 } {
+            acc[k] = _mm512_fmadd_ps(x, unsafe { _mm512_loadu_ps(r.add(16 * k)) }, acc[k]);
+        }
+    }
+    let s = acc.iter().fold(_mm512_setzero_ps(), |s, a| _mm512_add_ps(s, *a));
+    _mm512_reduce_add_ps(s)
+}
+
+/// The L2 floor of a single Single MLP query: the same model as `eval-f32/single/*/single-mlp`, its
+/// weights in a 64-byte-aligned copy, and only the weight rows that a query reads streamed through
+/// FMAs (`single_query_rows`), ~200 KB of the 360 KB. A single query cannot be faster than this plus
+/// its angle map, encoding and output map; the ratio of the two is how close the kernel is.
+fn bench_l2_floor(c: &mut Criterion<Clock>) {
+    #[cfg(target_arch = "x86_64")]
+    if std::is_x86_feature_detected!("avx512f") {
+        let (_, h) = variants().into_iter().find(|(n, _)| n == "single-mlp").unwrap();
+        let w = weights(h.n_weights());
+        let p: Vec<f32> = (0..64).map(|i| (i as f32 * 0.1).sin()).collect();
+        let (wi, wo) = directions(16);
+        // An aligned copy, as `ModelBuf` places the per-query network.
+        let mut aligned = vec![0.0f32; w.len() + 16];
+        let shift = aligned.as_ptr().align_offset(64);
+        aligned[shift..shift + w.len()].copy_from_slice(&w);
+        let a = &aligned[shift..shift + w.len()];
+        let queries: Vec<Vec<(usize, bool)>> = (0..16).map(|i| single_query_rows(&h, &w, &p, wi[i], wo[i])).collect();
+        let kb = queries.iter().map(|q| q.iter().map(|r| if r.1 { 512 } else { 64 }).sum::<usize>()).sum::<usize>() / 16 / 1024;
+        let mut g = c.benchmark_group("eval-floor");
+        g.throughput(Throughput::Elements(1));
+        g.bench_function(BenchmarkId::new("l2-rows", format!("single-mlp-{kb}KB")), |b| {
+            let mut i = 0;
+            // SAFETY: AVX-512F was detected; the rows come from the network's own layout.
+            b.iter(|| {
+                i = (i + 1) & 15;
+                black_box(unsafe { stream_rows(a, &queries[i]) })
+            })
+        });
+        g.finish();
+    }
+}
+
 criterion_group! {
     name = all_cores;
     config = Criterion::default().sample_size(20).warm_up_time(std::time::Duration::from_millis(300)).measurement_time(std::time::Duration::from_secs(2));
@@ -256,6 +343,6 @@ criterion_group! {
 criterion_group! {
     name = benches;
     config = Criterion::default().with_measurement(Clock::new()).sample_size(20).warm_up_time(std::time::Duration::from_millis(300)).measurement_time(std::time::Duration::from_secs(1));
-    targets = bench_models, bench_nbrdf_json
+    targets = bench_models, bench_nbrdf_json, bench_l2_floor
 }
 criterion_main!(benches, all_cores);
