@@ -305,7 +305,7 @@ impl<'a> Model<'a> {
     /// for the common length of the three slices, bit for bit.
     ///
     /// The valid pairs are gathered into packets of [`crate::mlp::PACKET`] that run through each layer
-    /// together (every weight row read once per packet): for the paper-size Single MLP about 1.5-1.9x
+    /// together (every weight row read once per packet): for the paper-size Single MLP about 1.2-1.3x
     /// faster per pair than [`Model::eval`] on an AVX-512 CPU, where single queries are bound by
     /// streaming the weights from L2 and packets by the FMA rate (see `benches/eval.rs`).
     pub fn eval_many(&self, prepared: &Prepared, wi: &[Vec3], wo: &[Vec3], out: &mut [Rgb]) {
