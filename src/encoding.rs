@@ -22,7 +22,8 @@ pub const fn encoded_len(n: usize, frequencies: usize) -> usize {
 /// panic) and the count written is returned, so callers check it against `encoded_len`.
 ///
 /// Each octave is evaluated directly as `sincos(2^k v)` rather than by the double-angle recurrence,
-/// which accumulates error at high octaves; the trainer computes the same.
+/// which accumulates error at high octaves, 16 arguments at a time ([`crate::kernels::sincos16`],
+/// within about an ulp of the true values); the trainer encodes through this function too.
 ///
 /// ```
 /// use nbrdf::encoding::positional_encoding;
@@ -36,22 +37,41 @@ pub const fn encoded_len(n: usize, frequencies: usize) -> usize {
 #[inline]
 pub fn positional_encoding(values: &[f32], frequencies: usize, out: &mut [f32]) -> usize {
     let block = 1 + 2 * frequencies;
-    let mut written = 0;
-    for (j, &v) in values.iter().enumerate() {
-        let Some(dst) = out.get_mut(j * block..(j + 1) * block) else {
-            break;
-        };
-        dst[0] = v;
-        let mut scale = 1.0f32;
-        for k in 0..frequencies {
-            let (s, c) = libm::sincosf(scale * v);
-            dst[1 + 2 * k] = s;
-            dst[2 + 2 * k] = c;
-            scale *= 2.0;
-        }
-        written += block;
+    // Whole blocks only.
+    let n = values.len().min(out.len() / block);
+    for (j, &v) in values[..n].iter().enumerate() {
+        out[j * block] = v;
     }
-    written
+    if frequencies == 0 {
+        return n * block;
+    }
+    // The arguments `2^k v_j` in output order, 16 per batch; `(j, k, 2^k)` is the next one.
+    let (mut j, mut k, mut scale) = (0, 0, 1.0f32);
+    let mut args = [0.0f32; 16];
+    while j < n {
+        let (j0, k0) = (j, k);
+        let mut m = 0;
+        while m < 16 && j < n {
+            args[m] = scale * values[j];
+            m += 1;
+            (k, scale) = (k + 1, scale * 2.0);
+            if k == frequencies {
+                (j, k, scale) = (j + 1, 0, 1.0);
+            }
+        }
+        let (s, c) = crate::kernels::sincos16(&args, m);
+        let (mut j, mut k) = (j0, k0);
+        for (s, c) in s.iter().zip(&c).take(m) {
+            let o = j * block + 1 + 2 * k;
+            out[o] = *s;
+            out[o + 1] = *c;
+            k += 1;
+            if k == frequencies {
+                (j, k) = (j + 1, 0);
+            }
+        }
+    }
+    n * block
 }
 
 #[cfg(test)]
@@ -74,6 +94,23 @@ mod tests {
             assert!((out[1 + 2 * k] - x.sin()).abs() < 1e-6);
             assert!((out[2 + 2 * k] - x.cos()).abs() < 1e-6);
         }
+    }
+
+    #[test]
+    fn encodings_longer_than_one_vector_of_arguments_keep_their_layout() {
+        // 4 values × 5 octaves = 20 arguments: one full batch of 16 and a partial one.
+        let v = [0.3f32, 1.7, 2.9, 6.1];
+        let mut out = [f32::NAN; 45];
+        assert_eq!(positional_encoding(&v, 5, &mut out), 44);
+        for (j, &x) in v.iter().enumerate() {
+            assert_eq!(out[j * 11], x);
+            for k in 0..5 {
+                let a = (x * (1u32 << k) as f32) as f64;
+                assert!((out[j * 11 + 1 + 2 * k] as f64 - libm::sin(a)).abs() < 1.5e-7, "sin, value {j} octave {k}");
+                assert!((out[j * 11 + 2 + 2 * k] as f64 - libm::cos(a)).abs() < 1.5e-7, "cos, value {j} octave {k}");
+            }
+        }
+        assert!(out[44].is_nan(), "nothing written past the blocks");
     }
 
     #[test]

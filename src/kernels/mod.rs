@@ -23,12 +23,14 @@
 //! Levels differ from each other by rounding only (FMA versus multiply-then-add).
 
 mod portable;
+mod sincos;
 mod tiny;
 #[cfg(target_arch = "x86_64")]
 mod x86;
 
 use core::sync::atomic::{AtomicU8, Ordering};
 
+pub use sincos::sincos16;
 pub use tiny::{half_diff_packet, TinyLayer, TinyNet, TINY_INPUTS, TINY_MAX_WIDTH, TINY_PACKET, UNIT_FAST_MAX, UNIT_FAST_MIN};
 
 /// Queries per packet of the batched kernels: 16, so that one weight vector (one f16 conversion)
