@@ -200,11 +200,6 @@ impl Default for Partial {
     }
 }
 
-#[inline(always)]
-fn copy_bias<W: Weight>(dst: &mut [f32], b: &[W]) {
-    W::widen(b, dst);
-}
-
 /// A segment without inputs, for layers that read one.
 #[inline(always)]
 fn none<'a, W>() -> Segment<'a, W> {
@@ -234,7 +229,7 @@ pub fn partial<W: Weight>(net: &Net<'_, W>, head: &[f32]) -> Partial {
     let n_in = d.n_in as usize;
     let mut bias = [0.0f32; MAX_WIDTH];
     let w0 = &net.weights[..(n_in + 1) * width];
-    copy_bias(&mut bias[..width], &w0[n_in * width..]);
+    W::widen(&w0[n_in * width..], &mut bias[..width]);
     let seg = Segment { x: head, stride: 0, n: head.len(), rows: w0 };
     let layer = Dense { init: &bias[..width], segs: [seg, none()], n_segs: 1, n_out: width, relu: false };
     k.one(&layer, &mut p.layer0[..width]);
@@ -243,7 +238,7 @@ pub fn partial<W: Weight>(net: &Net<'_, W>, head: &[f32]) -> Partial {
         let off = d.layer_offset(s);
         let rows = width + n_in;
         let ws = &net.weights[off..off + (rows + 1) * width];
-        copy_bias(&mut bias[..width], &ws[rows * width..]);
+        W::widen(&ws[rows * width..], &mut bias[..width]);
         let seg = Segment { x: head, stride: 0, n: head.len(), rows: &ws[width * width..] };
         let layer = Dense { init: &bias[..width], segs: [seg, none()], n_segs: 1, n_out: width, relu: false };
         k.one(&layer, &mut p.skip[..width]);
@@ -300,7 +295,7 @@ fn run<W: Weight, const Q: usize>(
             layer(&ls, t, width);
             off += (rows + 1) * width;
         } else {
-            copy_bias(&mut bias[..width], &net.weights[off + width * width..off + (width + 1) * width]);
+            W::widen(&net.weights[off + width * width..off + (width + 1) * width], &mut bias[..width]);
             let lh = Dense { init: &bias[..width], segs: [hs, none()], n_segs: 1, n_out: width, relu: true };
             layer(&lh, t, width);
             off += (width + 1) * width;
@@ -315,7 +310,7 @@ fn run<W: Weight, const Q: usize>(
     } else {
         let n_out = d.n_out as usize;
         let m = &net.weights[off..off + (width + 1) * n_out];
-        copy_bias(&mut bias[..n_out], &m[width * n_out..]);
+        W::widen(&m[width * n_out..], &mut bias[..n_out]);
         let hs = Segment { x: &h[..], stride: width, n: width, rows: m };
         let lo = Dense { init: &bias[..n_out], segs: [hs, none()], n_segs: 1, n_out, relu: false };
         layer(&lo, out, out_stride);
@@ -335,8 +330,7 @@ pub fn forward<W: Weight>(net: &Net<'_, W>, partial: &Partial, tail: &[f32], out
 }
 
 /// [`forward`] in one kernel call ([`Chain`]) where the level has the kernel and the network its shape
-/// (hidden width [`CHAIN_WIDTH`], at most [`CHAIN_OUT_MAX`] outputs); `false` where it ran nothing. The
-/// layer offsets are those of `run`.
+/// (hidden width [`CHAIN_WIDTH`], at most [`CHAIN_OUT_MAX`] outputs); `false` where it ran nothing.
 #[inline]
 fn forward_chain<W: Weight>(net: &Net<'_, W>, partial: &Partial, tail: &[f32], out: &mut [f32]) -> bool {
     let k = kernels::<W>();
@@ -347,29 +341,28 @@ fn forward_chain<W: Weight>(net: &Net<'_, W>, partial: &Partial, tail: &[f32], o
     {
         return false;
     }
+    let w = net.weights;
     let mut hidden = [ChainLayer { init: Init::F32(&[]), rows: &[], tail_rows: None }; MAX_HIDDEN];
-    let mut off = (n_in + 1) * width;
     for (l, hl) in hidden.iter_mut().enumerate().take(d.hidden as usize).skip(1) {
-        hl.rows = &net.weights[off..off + width * width];
+        let off = d.layer_offset(l);
+        hl.rows = &w[off..off + width * width];
         if d.skip as usize == l {
             let t = off + (width + head) * width;
-            hl.tail_rows = Some(&net.weights[t..t + n_tail * width]);
+            hl.tail_rows = Some(&w[t..t + n_tail * width]);
             hl.init = Init::F32(&partial.skip[..width]);
-            off += (width + n_in + 1) * width;
         } else {
-            hl.init = Init::Bias(&net.weights[off + width * width..off + (width + 1) * width]);
-            off += (width + 1) * width;
+            hl.init = Init::Bias(&w[off + width * width..off + (width + 1) * width]);
         }
     }
     let n_out = d.n_out as usize;
     let out_layer = (n_out > 0).then(|| {
-        let m = &net.weights[off..off + (width + 1) * n_out];
-        (&m[width * n_out..], &m[..width * n_out], n_out)
+        let off = d.layer_offset(d.hidden as usize);
+        (&w[off + width * n_out..off + (width + 1) * n_out], &w[off..off + width * n_out], n_out)
     });
     let chain = Chain {
         tail: &tail[..n_tail],
         first_init: &partial.layer0[..width],
-        first_rows: &net.weights[head * width..(head + n_tail) * width],
+        first_rows: &w[head * width..(head + n_tail) * width],
         hidden: &hidden[1..d.hidden as usize],
         out: out_layer,
     };

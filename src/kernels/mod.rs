@@ -200,6 +200,23 @@ pub enum Init<'a, W> {
     Bias(&'a [W]),
 }
 
+impl<W> Init<'_, W> {
+    /// Number of starting values.
+    #[inline]
+    pub fn len(&self) -> usize {
+        match self {
+            Init::F32(s) => s.len(),
+            Init::Bias(s) => s.len(),
+        }
+    }
+
+    /// Whether there are none.
+    #[inline]
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
 /// Width of every hidden layer of a [`Chain`]: the paper's networks.
 pub const CHAIN_WIDTH: usize = 128;
 
@@ -256,11 +273,7 @@ impl<W> Chain<'_, W> {
         assert!(t <= CHAIN_TAIL_MAX, "tail longer than CHAIN_TAIL_MAX");
         assert!(self.first_init.len() >= w && self.first_rows.len() >= t * w, "layer 0 out of bounds");
         for l in self.hidden {
-            let init = match l.init {
-                Init::F32(s) => s.len(),
-                Init::Bias(s) => s.len(),
-            };
-            assert!(init >= w && l.rows.len() >= w * w, "hidden layer out of bounds");
+            assert!(l.init.len() >= w && l.rows.len() >= w * w, "hidden layer out of bounds");
             assert!(l.tail_rows.is_none_or(|r| r.len() >= t * w), "skip rows out of bounds");
         }
         if let Some((bias, rows, n)) = self.out {

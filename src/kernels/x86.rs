@@ -146,12 +146,7 @@ struct Compressed {
 #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
 unsafe fn compress(x: *const f32, n: usize, row_bytes: u32, xs: *mut f32, offs: *mut u32) -> usize {
     let mut len = 0;
-    let mut off = _mm512_mullo_epi32(
-        _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15),
-        _mm512_set1_epi32(row_bytes as i32),
-    );
-    let step = _mm512_set1_epi32((16 * row_bytes) as i32);
-    let zero = _mm512_setzero_ps();
+    let (mut off, step) = row_offsets(row_bytes);
     let mut i = 0;
     while i < n {
         let valid = mask16(n - i);
@@ -159,15 +154,55 @@ unsafe fn compress(x: *const f32, n: usize, row_bytes: u32, xs: *mut f32, offs: 
         // the rounded-up room.
         unsafe {
             let v = _mm512_maskz_loadu_ps(valid, x.add(i));
-            let nz = _mm512_mask_cmp_ps_mask::<_CMP_NEQ_UQ>(valid, v, zero);
-            _mm512_storeu_ps(xs.add(len), _mm512_maskz_compress_ps(nz, v));
-            _mm512_storeu_si512(offs.add(len).cast(), _mm512_maskz_compress_epi32(nz, off));
-            len += nz.count_ones() as usize;
+            len = append(v, valid, off, xs, offs, len);
         }
         off = _mm512_add_epi32(off, step);
         i += 16;
     }
     len
+}
+
+/// [`compress`] of 128 values held in registers (a 128-wide layer's activations), so that the next
+/// layer does not wait for them to be stored and loaded again.
+///
+/// # Safety
+/// `xs` and `offs` have room for 128 entries; `128 * row_bytes < 2^31`.
+#[inline]
+#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
+unsafe fn compress8(h: &[__m512; 8], row_bytes: u32, xs: *mut f32, offs: *mut u32) -> usize {
+    let mut len = 0;
+    let (mut off, step) = row_offsets(row_bytes);
+    for v in h {
+        // SAFETY: whole vectors are stored at `len ≤ 16 k`, within the 128 entries.
+        len = unsafe { append(*v, 0xffff, off, xs, offs, len) };
+        off = _mm512_add_epi32(off, step);
+    }
+    len
+}
+
+/// The byte offsets `i * row_bytes` of the rows of a first vector of inputs, and the step to the next.
+#[inline]
+#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
+fn row_offsets(row_bytes: u32) -> (__m512i, __m512i) {
+    let iota = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+    (_mm512_mullo_epi32(iota, _mm512_set1_epi32(row_bytes as i32)), _mm512_set1_epi32((16 * row_bytes) as i32))
+}
+
+/// Appends the lanes of `v` in `valid` that are nonzero (NaN counts: unordered not-equal) to `xs` at
+/// `len`, their row offsets `off` to `offs`, and returns the new length.
+///
+/// # Safety
+/// `xs` and `offs` have room for 16 entries from `len` (whole vectors are stored).
+#[inline]
+#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
+unsafe fn append(v: __m512, valid: __mmask16, off: __m512i, xs: *mut f32, offs: *mut u32, len: usize) -> usize {
+    let nz = _mm512_mask_cmp_ps_mask::<_CMP_NEQ_UQ>(valid, v, _mm512_setzero_ps());
+    // SAFETY: 16 entries of room from `len` (contract).
+    unsafe {
+        _mm512_storeu_ps(xs.add(len), _mm512_maskz_compress_ps(nz, v));
+        _mm512_storeu_si512(offs.add(len).cast(), _mm512_maskz_compress_epi32(nz, off));
+    }
+    len + nz.count_ones() as usize
 }
 
 macro_rules! avx512 {
@@ -387,35 +422,6 @@ macro_rules! avx512 {
                 }
             }
 
-            /// Writes the nonzero activations of `h` (NaN counts) to `xs` and the byte offsets
-            /// `i * row_bytes` of their rows to `offs`, in order, and returns their number: `compress`
-            /// from registers, so the next layer does not wait for the activations to be stored.
-            ///
-            /// # Safety
-            /// `xs` and `offs` have room for 128 entries.
-            #[inline]
-            #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
-            unsafe fn compress8(h: &[__m512; 8], row_bytes: u32, xs: *mut f32, offs: *mut u32) -> usize {
-                // SAFETY: whole vectors are stored at `len ≤ 16 k`, within the 128 entries.
-                unsafe {
-                    let zero = _mm512_setzero_ps();
-                    let mut off = _mm512_mullo_epi32(
-                        _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15),
-                        _mm512_set1_epi32(row_bytes as i32),
-                    );
-                    let step = _mm512_set1_epi32((16 * row_bytes) as i32);
-                    let mut len = 0;
-                    for v in h {
-                        let nz = _mm512_cmp_ps_mask::<_CMP_NEQ_UQ>(*v, zero);
-                        _mm512_storeu_ps(xs.add(len), _mm512_maskz_compress_ps(nz, *v));
-                        _mm512_storeu_si512(offs.add(len).cast(), _mm512_maskz_compress_epi32(nz, off));
-                        len += nz.count_ones() as usize;
-                        off = _mm512_add_epi32(off, step);
-                    }
-                    len
-                }
-            }
-
             /// One query through a whole [`Chain`] (see there).
             ///
             /// # Safety
@@ -456,15 +462,13 @@ macro_rules! avx512 {
                             }
                         }
                         Some((bias, rows, n)) => {
+                            // The layer-by-layer path's output tile, on the bias widened to f32.
                             let m = mask16(n);
+                            let mut init = [0.0f32; 16];
+                            _mm512_storeu_ps(init.as_mut_ptr(), load16!($tag, bias.as_ptr(), m, true));
                             let len = compress8(&h, (n * core::mem::size_of::<$w>()) as u32, xp, op);
-                            let mut acc = load16!($tag, bias.as_ptr(), m, true);
-                            let base = rows.as_ptr().cast::<u8>();
-                            for j in 0..len {
-                                let r = base.add(*op.add(j) as usize).cast::<$w>();
-                                acc = _mm512_fmadd_ps(_mm512_set1_ps(*xp.add(j)), load16!($tag, r, m, true), acc);
-                            }
-                            _mm512_mask_storeu_ps(out, m, acc);
+                            let g = Compressed { x: xp, off: op, base: rows.as_ptr().cast(), len };
+                            one_tile::<1, true>(init.as_ptr(), out, 0, [m], &g);
                         }
                     }
                 }
