@@ -78,6 +78,20 @@ pub fn sanitize(v: [f32; 3]) -> [f32; 3] {
     [f(v[0]), f(v[1]), f(v[2])]
 }
 
+/// `(*wi, *wo)` read one component at a time.
+///
+/// A caller that stored a direction as 8 + 4 bytes (how a 12-byte `Vec3` is usually copied) and a
+/// callee that loads its `y, z` as one 8-byte pair (how the compiler likes to vectorise a length)
+/// meet in a load that spans two stores: it cannot be forwarded from them and waits until they
+/// retire, which serialises consecutive evaluations (seen here: a loop of independent queries ran
+/// no faster than a dependent chain). A 4-byte load always lies inside one store.
+#[inline(always)]
+pub fn load_pair(wi: &crate::Vec3, wo: &crate::Vec3) -> (crate::Vec3, crate::Vec3) {
+    use core::ptr::read_volatile as rd;
+    // SAFETY: reads of the fields of two live references.
+    unsafe { (crate::Vec3::new(rd(&wi.x), rd(&wi.y), rd(&wi.z)), crate::Vec3::new(rd(&wo.x), rd(&wo.y), rd(&wo.z))) }
+}
+
 /// Linear interpolation `a + t (b - a)`.
 #[inline]
 pub fn lerp(a: f32, b: f32, t: f32) -> f32 {

@@ -80,6 +80,8 @@ fn tiny_networks_match_a_scalar_reference_and_packets_match_single_queries() {
                 net.packet(&x, &mut packet);
                 for (q, input) in chunk.iter().enumerate() {
                     let got = net.one(input);
+                    // The clamped output is `sanitize` of the plain one, bit for bit, at every level.
+                    assert_eq!(net.brdf(input).map(f32::to_bits), nbrdf::math::sanitize(got).map(f32::to_bits));
                     let want = reference(&layers, &params, input);
                     for c in 0..3 {
                         assert_eq!(got[c].to_bits(), packet[c][q].to_bits(), "{level:?} {widths:?}: single vs packet");

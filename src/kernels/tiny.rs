@@ -109,28 +109,33 @@ impl TinyNet<'_> {
     /// The network on one input, then `expm1` (not clamped), at the active kernel level.
     #[inline]
     pub fn one(&self, x: &[f32; TINY_INPUTS]) -> [f32; 3] {
-        self.check();
-        #[cfg(target_arch = "x86_64")]
-        if super::level() == Level::Avx512 {
-            // SAFETY: `level()` is at most the detected level, so the CPU has AVX-512; `check` verified
-            // every extent the kernel reads.
-            return unsafe { avx512::one(self, x) };
-        }
-        generic_one(self, x)
+        self.single::<false>(x)
     }
 
-    /// [`one`](Self::one) on the input `input()` computes, `None` where it returns `None`. The input
-    /// function runs inside the AVX-512 kernel (inlined there: one call instead of two, and its
-    /// scalar square roots overlap the kernel's set-up); its results are the same bits as outside.
+    /// The NBRDF-json output of one input: [`one`](Self::one) clamped by `max(·, 0)`, with non-finite
+    /// values (an overflowing `expm1`) replaced by 0, as [`crate::math::sanitize`] does, without its
+    /// branches on the AVX-512 level.
     #[inline]
-    pub fn one_with(&self, input: impl FnOnce() -> Option<[f32; TINY_INPUTS]>) -> Option<[f32; 3]> {
+    pub fn brdf(&self, x: &[f32; TINY_INPUTS]) -> [f32; 3] {
+        self.single::<true>(x)
+    }
+
+    #[inline]
+    fn single<const CLAMP: bool>(&self, x: &[f32; TINY_INPUTS]) -> [f32; 3] {
         self.check();
         #[cfg(target_arch = "x86_64")]
         if super::level() == Level::Avx512 {
-            // SAFETY: as in `one`.
-            return unsafe { avx512::one_with(self, input) };
+            use core::arch::x86_64::*;
+            // SAFETY: `level()` is at most the detected level, so the CPU has AVX-512; `check` verified
+            // every extent the kernel reads.
+            let v = unsafe { avx512::one::<CLAMP>(self, x[0], x[1], x[2], x[3], x[4], x[5]) };
+            // SAFETY: SSE, which these take, is part of x86_64.
+            return unsafe {
+                [_mm_cvtss_f32(v), _mm_cvtss_f32(_mm_shuffle_ps::<0x55>(v, v)), _mm_cvtss_f32(_mm_movehl_ps(v, v))]
+            };
         }
-        input().map(|x| generic_one(self, &x))
+        let y = generic_one(self, x);
+        if CLAMP { crate::math::sanitize(y) } else { y }
     }
 
     /// [`one`](Self::one) for [`TINY_PACKET`] inputs, bit for bit, feature-major: query `q`'s input is
@@ -390,27 +395,28 @@ mod avx512 {
         }
     }
 
-    /// `one` on the input of `input`.
+    /// The network and `expm1` for one query, clamped as `TinyNet::brdf` where `CLAMP`, in the low
+    /// three lanes of the result.
     ///
-    /// # Safety
-    /// As `one`.
-    #[target_feature(enable = "avx512f,avx2,fma")]
-    pub(super) unsafe fn one_with(
-        net: &TinyNet<'_>,
-        input: impl FnOnce() -> Option<[f32; TINY_INPUTS]>,
-    ) -> Option<[f32; 3]> {
-        let x = input()?;
-        // SAFETY: same contract.
-        Some(unsafe { one(net, &x) })
-    }
-
-    /// The network and `expm1` for one query.
+    /// The inputs arrive in registers and the result leaves in one (the C ABI; the Rust ABI would
+    /// pass the array through memory and return it there). What goes through memory is written
+    /// no narrower than it is read: a load that spans several smaller stores cannot be forwarded
+    /// from them and waits until they retire, which serialises consecutive queries (with
+    /// `math::load_pair` in the caller, 0.89x the time of `nbrdf-json/eval` in `benches/eval.rs`).
     ///
     /// # Safety
     /// The CPU has AVX-512F; `net` passed `TinyNet::check`.
-    #[inline]
+    #[allow(improper_ctypes_definitions, clippy::too_many_arguments)] // Only called from Rust.
     #[target_feature(enable = "avx512f,avx2,fma")]
-    pub(super) unsafe fn one(net: &TinyNet<'_>, input: &[f32; TINY_INPUTS]) -> [f32; 3] {
+    pub(super) unsafe extern "C" fn one<const CLAMP: bool>(
+        net: &TinyNet<'_>,
+        x0: f32,
+        x1: f32,
+        x2: f32,
+        x3: f32,
+        x4: f32,
+        x5: f32,
+    ) -> __m128 {
         // Activations ping-pong between two buffers, not zeroed (a layer reads only the `inputs` values
         // the previous one wrote).
         let mut a = [MaybeUninit::<f32>::uninit(); TINY_MAX_WIDTH];
@@ -419,7 +425,9 @@ mod avx512 {
         // SAFETY: the buffers hold 64 values; `check` verified `(inputs + 1) padded` parameters from each
         // `offset`, `padded ≤ 64`, and each layer's inputs are the previous layer's outputs.
         unsafe {
-            core::ptr::copy_nonoverlapping(input.as_ptr(), x, TINY_INPUTS);
+            for (i, v) in [x0, x1, x2, x3, x4, x5].into_iter().enumerate() {
+                x.add(i).write(v);
+            }
             let mut last = _mm512_setzero_ps();
             for l in net.layers {
                 let w = net.params.as_ptr().add(l.offset);
@@ -439,10 +447,17 @@ mod avx512 {
                 core::mem::swap(&mut x, &mut y);
             }
             let v = expm1(last);
-            let mut o = [0.0f32; 16];
-            _mm512_storeu_ps(o.as_mut_ptr(), v);
-            [o[0], o[1], o[2]]
+            _mm512_castps512_ps128(if CLAMP { clamp(v) } else { v })
         }
+    }
+
+    /// `v` where `0 < v < ∞`, else 0 (NaN included), per lane: `math::sanitize` without branches.
+    #[inline]
+    #[target_feature(enable = "avx512f,avx2,fma")]
+    fn clamp(v: __m512) -> __m512 {
+        let keep = _mm512_cmp_ps_mask::<_CMP_GT_OQ>(v, _mm512_setzero_ps())
+            & _mm512_cmp_ps_mask::<_CMP_LT_OQ>(v, _mm512_set1_ps(f32::INFINITY));
+        _mm512_maskz_mov_ps(keep, v)
     }
 
     /// Outputs `o0 .. o0 + J` of one layer for a packet, lanes = queries: `x` and `y` are

@@ -23,7 +23,7 @@ use serde::Deserialize;
 
 use crate::angles::{half_diff_vectors, unit};
 use crate::kernels::{half_diff_packet, TinyLayer, TinyNet, TINY_PACKET, UNIT_FAST_MAX, UNIT_FAST_MIN};
-use crate::math::sanitize;
+use crate::math::{load_pair, sanitize};
 use crate::{Error, Rgb, Vec3, BLACK};
 
 /// Widest layer accepted: the size of the evaluator's stack buffers (the published networks are 21
@@ -288,11 +288,18 @@ impl NbrdfNetwork {
     }
 
     /// The BRDF at (`wi`, `wo`): 0 below the horizon and for degenerate input. No allocation.
+    ///
+    /// Inlined, so that the directions reach the input transform, and its result the network kernel,
+    /// in registers (see `TinyNet::brdf`).
+    #[inline(always)]
     pub fn eval(&self, wi: Vec3, wo: Vec3) -> Rgb {
-        // The input runs inside the network kernel (`TinyNet::one_with`): 1.5x faster than calling
-        // the kernel on its result. `expm1` is exp(y) - 1 without the cancellation near y = 0 (the
-        // dark, diffuse end).
-        self.tiny_net().one_with(|| input(wi, wo)).map_or(BLACK, sanitize)
+        // 0.85-0.9x the time per query in a loop of independent ones (see `load_pair`).
+        let (wi, wo) = load_pair(&wi, &wo);
+        // `expm1` is exp(y) - 1 without the cancellation near y = 0 (the dark, diffuse end).
+        match input(wi, wo) {
+            Some(x) => self.tiny_net().brdf(&x),
+            None => BLACK,
+        }
     }
 
     /// [`eval`](Self::eval) for many direction pairs: `out[i] = eval(wi[i], wo[i])` for the common
@@ -340,9 +347,8 @@ impl NbrdfNetwork {
         if !(theta_h.is_finite() && theta_d.is_finite() && phi_d.is_finite()) {
             return BLACK;
         }
-        // Not inside the kernel as in `eval`: the libm sine and cosine calls ran 10% slower there.
         let (h, d) = half_diff_vectors(theta_h, theta_d, phi_d);
-        sanitize(self.tiny_net().one(&[h.x, h.y, h.z, d.x, d.y, d.z]))
+        self.tiny_net().brdf(&[h.x, h.y, h.z, d.x, d.y, d.z])
     }
 
     #[inline]
