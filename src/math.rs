@@ -1,6 +1,8 @@
 //! Small numeric helpers shared by the models: safe square roots and inverse trigonometry, the output
 //! nonlinearities of Sec. 4.1, and finite-value guards. All `#[inline]`, all `no_std` through `libm`.
 
+use crate::Vec3;
+
 /// π as `f32`.
 pub const PI: f32 = core::f32::consts::PI;
 /// 1/π as `f32`.
@@ -86,10 +88,10 @@ pub fn sanitize(v: [f32; 3]) -> [f32; 3] {
 /// retire, which serialises consecutive evaluations (seen here: a loop of independent queries ran
 /// no faster than a dependent chain). A 4-byte load always lies inside one store.
 #[inline(always)]
-pub fn load_pair(wi: &crate::Vec3, wo: &crate::Vec3) -> (crate::Vec3, crate::Vec3) {
+pub fn load_pair(wi: &Vec3, wo: &Vec3) -> (Vec3, Vec3) {
     use core::ptr::read_volatile as rd;
     // SAFETY: reads of the fields of two live references.
-    unsafe { (crate::Vec3::new(rd(&wi.x), rd(&wi.y), rd(&wi.z)), crate::Vec3::new(rd(&wo.x), rd(&wo.y), rd(&wo.z))) }
+    unsafe { (Vec3::new(rd(&wi.x), rd(&wi.y), rd(&wi.z)), Vec3::new(rd(&wo.x), rd(&wo.y), rd(&wo.z))) }
 }
 
 /// Linear interpolation `a + t (b - a)`.
