@@ -4,13 +4,16 @@
 //! The generic layer kernels (`Kernels::one`) are built for 128-wide layers: per layer they pay an
 //! indirect call, bounds checks and one FMA chain per input row, which for a 21-wide layer is a
 //! latency-bound chain of 21 dependent FMAs. Here a whole network runs in one `#[target_feature]`
-//! function; every output sums its inputs in **four interleaved chains** (input `i` goes to chain
-//! `i mod 4`), which cuts the dependent FMAs per layer by four.
+//! function; every output sums its inputs in **interleaved chains** (input `i` goes to chain
+//! `i mod C`): `C = 4` in the hidden layers, whose 16 + 8 lanes of FMAs per input keep the FMA pipes
+//! busy with four, and `C = 8` in the output layer, whose 3 outputs (one 8-lane vector) are bound by
+//! the chain's latency alone.
 //!
 //! # Arithmetic of the AVX-512 kernels
 //! The same at every lane width, so single queries and packets agree bit for bit. For output `o` of a
-//! layer with inputs `x`: `p_c = Σ_{i ≡ c (mod 4)} x_i W[i][o]` accumulated in ascending `i` (one FMA
-//! each), `p_0` starting at the bias and `p_1..3` at `+0`; then `y = (p_0 + p_1) + (p_2 + p_3)`, then the ReLU `y > 0 ? y : +0` (0 for NaN, as
+//! layer with inputs `x`: `p_c = Σ_{i ≡ c (mod C)} x_i W[i][o]` accumulated in ascending `i` (one FMA
+//! each), `p_0` starting at the bias and the others at `+0`; then `y` is their sum as a balanced tree
+//! of adjacent pairs (`(p_0 + p_1) + (p_2 + p_3)` for `C = 4`), then the ReLU `y > 0 ? y : +0` (0 for NaN, as
 //! `vmaxps(y, 0)`). The output map is `expm1` as a vector polynomial (within 2.5e-7 relative of
 //! `libm::expm1f`).
 //!
@@ -18,7 +21,8 @@
 //!   accumulators).
 //! - AVX-512, a packet of [`TINY_PACKET`] queries: lanes are queries (activations stored
 //!   neuron-major), the weights are broadcast from memory, 4 outputs × 4 chains = 16 accumulators per
-//!   tile; no lane is wasted on padding (a 21-wide layer costs 21 instead of 32 lanes per input).
+//!   tile (the output layer: 3 × 8 = 24); no lane is wasted on padding (a 21-wide layer costs 21
+//!   instead of 32 lanes per input).
 //! - Other levels (AVX2, portable) run the layers through the generic kernels of their level
 //!   (`Kernels::one` and `Kernels::packet`, one FMA chain per output; single queries and packets agree
 //!   bit for bit there too) and `libm::expm1f`.
@@ -41,6 +45,9 @@ pub const TINY_INPUTS: usize = 6;
 pub const UNIT_FAST_MIN: f32 = 1e-30;
 /// See [`UNIT_FAST_MIN`].
 pub const UNIT_FAST_MAX: f32 = 1e30;
+/// The distance `| |v|² - 1 |` within which `nbrdf_json`'s input transform takes `1 / |v|` as
+/// `1.5 - |v|²/2` (`2^-12`: the neglected Taylor term is below `2.3e-8`).
+pub const UNIT_TAYLOR: f32 = 1.0 / 4096.0;
 
 /// The NBRDF-json network input `[ρ, 0, h_z, d_x, d_y, d_z]` of the pairs `(wi, wo)` in lanes `0..m`
 /// (component-major: `wi[c][q]`), written to `x` (feature-major), with the same operations in the same
@@ -103,7 +110,7 @@ impl TinyNet<'_> {
             assert!(self.params.len() >= l.offset + (l.inputs + 1) * l.padded, "parameters out of bounds");
             width = l.outputs;
         }
-        assert!(width == 3, "the last layer has 3 outputs");
+        assert!(width == 3 && self.layers.last().is_some_and(|l| l.padded == 8), "the last layer has 3 outputs, padded to 8");
     }
 
     /// The network on one input, then `expm1` (not clamped), at the active kernel level.
@@ -256,18 +263,27 @@ mod avx512 {
         expm1(x)
     }
 
-    /// `v / |v|` for the lanes with `|v|²` in the fast range (see `nbrdf_json::unit_fast`), and the
-    /// mask of those lanes.
+    /// `v / |v|` for the lanes with `|v|²` near 1 or in the fast range (see `nbrdf_json::unit_fast`),
+    /// and the mask of those lanes.
     #[inline]
     #[target_feature(enable = "avx512f,avx2,fma")]
     fn unit_fast(v: [__m512; 3]) -> ([__m512; 3], __mmask16) {
         let [x, y, z] = v;
         let l2 = _mm512_add_ps(_mm512_add_ps(_mm512_mul_ps(x, x), _mm512_mul_ps(y, y)), _mm512_mul_ps(z, z));
+        let one = _mm512_set1_ps(1.0);
         // Ordered comparisons: false for NaN.
+        let near = _mm512_cmp_ps_mask::<_CMP_LE_OQ>(_mm512_abs_ps(_mm512_sub_ps(l2, one)), _mm512_set1_ps(super::UNIT_TAYLOR));
         let ok = _mm512_cmp_ps_mask::<_CMP_GE_OQ>(l2, _mm512_set1_ps(super::UNIT_FAST_MIN))
             & _mm512_cmp_ps_mask::<_CMP_LE_OQ>(l2, _mm512_set1_ps(super::UNIT_FAST_MAX));
-        let s = _mm512_div_ps(_mm512_set1_ps(1.0), _mm512_sqrt_ps(l2));
-        ([_mm512_mul_ps(x, s), _mm512_mul_ps(y, s), _mm512_mul_ps(z, s)], ok)
+        let taylor = _mm512_sub_ps(_mm512_set1_ps(1.5), _mm512_mul_ps(_mm512_set1_ps(0.5), l2));
+        // The square root and division only where some lane needs them (never, for a renderer's unit
+        // directions).
+        let s = if near == 0xffff {
+            taylor
+        } else {
+            _mm512_mask_mov_ps(_mm512_div_ps(one, _mm512_sqrt_ps(l2)), near, taylor)
+        };
+        ([_mm512_mul_ps(x, s), _mm512_mul_ps(y, s), _mm512_mul_ps(z, s)], near | ok)
     }
 
     /// See `super::half_diff_packet`: returns `(valid, slow)` for all 16 lanes.
@@ -291,22 +307,25 @@ mod avx512 {
         let q = _mm512_add_ps(_mm512_mul_ps(hx, hx), _mm512_mul_ps(hy, hy));
         let one = _mm512_set1_ps(1.0);
         let inv_len = _mm512_div_ps(one, _mm512_sqrt_ps(_mm512_add_ps(q, _mm512_mul_ps(hz, hz))));
-        let hz = _mm512_mul_ps(hz, inv_len);
+        let cos_h = _mm512_mul_ps(hz, inv_len);
         let pos = _mm512_cmp_ps_mask::<_CMP_GT_OQ>(q, zero);
         let r = _mm512_sqrt_ps(q);
         let inv_r = _mm512_div_ps(one, r);
-        let rho = _mm512_maskz_mov_ps(pos, _mm512_mul_ps(r, inv_len));
-        let c = _mm512_mask_mov_ps(one, pos, _mm512_mul_ps(hx, inv_r));
-        let s = _mm512_maskz_mov_ps(pos, _mm512_mul_ps(hy, inv_r));
-        let tx = _mm512_add_ps(_mm512_mul_ps(c, i[0]), _mm512_mul_ps(s, i[1]));
-        let ty = _mm512_sub_ps(_mm512_mul_ps(c, i[1]), _mm512_mul_ps(s, i[0]));
+        let a = _mm512_add_ps(_mm512_mul_ps(hx, i[0]), _mm512_mul_ps(hy, i[1]));
+        let b = _mm512_sub_ps(_mm512_mul_ps(hx, i[1]), _mm512_mul_ps(hy, i[0]));
+        let dx = _mm512_mul_ps(
+            _mm512_mul_ps(inv_len, inv_r),
+            _mm512_sub_ps(_mm512_mul_ps(hz, a), _mm512_mul_ps(q, i[2])),
+        );
+        let dz = _mm512_mul_ps(inv_len, _mm512_add_ps(a, _mm512_mul_ps(hz, i[2])));
+        // `h_xy = 0`: `d` is `wi` rotated by `-θh` alone (see `nbrdf_json::input`).
         let v = [
-            rho,
+            _mm512_maskz_mov_ps(pos, _mm512_mul_ps(r, inv_len)),
             zero,
-            hz,
-            _mm512_sub_ps(_mm512_mul_ps(hz, tx), _mm512_mul_ps(rho, i[2])),
-            ty,
-            _mm512_add_ps(_mm512_mul_ps(rho, tx), _mm512_mul_ps(hz, i[2])),
+            cos_h,
+            _mm512_mask_mov_ps(_mm512_mul_ps(cos_h, i[0]), pos, dx),
+            _mm512_mask_mov_ps(i[1], pos, _mm512_mul_ps(b, inv_r)),
+            _mm512_mask_mov_ps(_mm512_mul_ps(cos_h, i[2]), pos, dz),
         ];
         // Finite: |v| ≤ MAX (false for NaN and infinity).
         let max = _mm512_set1_ps(f32::MAX);
@@ -319,9 +338,23 @@ mod avx512 {
         (fast & above & finite, !fast)
     }
 
+    /// `Σ p_c` of `C` (a power of two) chains as a balanced tree of adjacent pairs, `(p_0 + p_1) +
+    /// (p_2 + p_3)` for 4: the order the single and the packet kernels share.
+    #[inline(always)]
+    fn tree<T: Copy, const C: usize>(mut p: [T; C], add: impl Fn(T, T) -> T) -> T {
+        let mut n = C;
+        while n > 1 {
+            for j in 0..n / 2 {
+                p[j] = add(p[2 * j], p[2 * j + 1]);
+            }
+            n /= 2;
+        }
+        p[0]
+    }
+
     /// One layer for one query, lanes = outputs: `K` 16-lane vectors of outputs and, with `H`, one
     /// 8-lane vector more (a 21-wide layer is 16 + 8 lanes: on Zen 4 a 256-bit FMA costs half a
-    /// 512-bit one, so padding to 8 instead of 16 saves a quarter of the FMA work), 4 chains each;
+    /// 512-bit one, so padding to 8 instead of 16 saves a quarter of the FMA work), `C` chains each;
     /// writes `16 K + 8 H` values (the padding lanes: `0`, or ReLU of `0`) to `y`.
     ///
     /// # Safety
@@ -329,8 +362,8 @@ mod avx512 {
     /// `16 K + 8 H` values.
     #[inline]
     #[target_feature(enable = "avx512f,avx2,fma")]
-    unsafe fn layer_one<const K: usize, const H: bool>(
-        x: *const f32,
+    unsafe fn layer_one<const K: usize, const H: bool, const C: usize>(
+        x: impl Fn(usize) -> f32,
         n: usize,
         w: *const f32,
         y: *mut f32,
@@ -342,8 +375,8 @@ mod avx512 {
             let zero = _mm512_setzero_ps();
             let zero8 = _mm256_setzero_ps();
             let bias = w.add(n * stride);
-            let mut acc: [[__m512; K]; 4] = [[zero; K]; 4];
-            let mut acc8: [__m256; 4] = [zero8; 4];
+            let mut acc: [[__m512; K]; C] = [[zero; K]; C];
+            let mut acc8: [__m256; C] = [zero8; C];
             for (k, a) in acc[0].iter_mut().enumerate() {
                 *a = _mm512_loadu_ps(bias.add(16 * k));
             }
@@ -353,30 +386,31 @@ mod avx512 {
             macro_rules! step {
                 ($c:expr, $i:expr) => {{
                     let (c, i) = ($c, $i);
-                    let xb = _mm512_set1_ps(*x.add(i));
+                    let xi = x(i);
+                    let xb = _mm512_set1_ps(xi);
                     let r = w.add(i * stride);
                     for (k, a) in acc[c].iter_mut().enumerate() {
                         *a = _mm512_fmadd_ps(xb, _mm512_loadu_ps(r.add(16 * k)), *a);
                     }
                     if H {
-                        acc8[c] = _mm256_fmadd_ps(_mm512_castps512_ps256(xb), _mm256_loadu_ps(r.add(16 * K)), acc8[c]);
+                        acc8[c] = _mm256_fmadd_ps(_mm256_set1_ps(xi), _mm256_loadu_ps(r.add(16 * K)), acc8[c]);
                     }
                 }};
             }
             let mut i = 0;
-            while i + 4 <= n {
-                for c in 0..4 {
+            while i + C <= n {
+                for c in 0..C {
                     step!(c, i + c);
                 }
-                i += 4;
+                i += C;
             }
             for c in 0..n - i {
                 step!(c, i + c);
             }
             let mut first = zero;
-            #[allow(clippy::needless_range_loop)] // `k` indexes the four chains' arrays alike.
+            #[allow(clippy::needless_range_loop)] // `k` picks the same vector from every chain.
             for k in 0..K {
-                let v = _mm512_add_ps(_mm512_add_ps(acc[0][k], acc[1][k]), _mm512_add_ps(acc[2][k], acc[3][k]));
+                let v = tree(core::array::from_fn::<_, C, _>(|c| acc[c][k]), |a, b| _mm512_add_ps(a, b));
                 let v = if relu { _mm512_max_ps(v, zero) } else { v };
                 _mm512_storeu_ps(y.add(16 * k), v);
                 if k == 0 {
@@ -384,7 +418,7 @@ mod avx512 {
                 }
             }
             if H {
-                let v = _mm256_add_ps(_mm256_add_ps(acc8[0], acc8[1]), _mm256_add_ps(acc8[2], acc8[3]));
+                let v = tree(acc8, |a, b| _mm256_add_ps(a, b));
                 let v = if relu { _mm256_max_ps(v, zero8) } else { v };
                 _mm256_storeu_ps(y.add(16 * K), v);
                 if K == 0 {
@@ -422,30 +456,49 @@ mod avx512 {
         let mut a = [MaybeUninit::<f32>::uninit(); TINY_MAX_WIDTH];
         let mut b = [MaybeUninit::<f32>::uninit(); TINY_MAX_WIDTH];
         let (mut x, mut y) = (a.as_mut_ptr().cast::<f32>(), b.as_mut_ptr().cast::<f32>());
+        let input = [x0, x1, x2, x3, x4, x5];
         // SAFETY: the buffers hold 64 values; `check` verified `(inputs + 1) padded` parameters from each
         // `offset`, `padded ≤ 64`, and each layer's inputs are the previous layer's outputs.
         unsafe {
-            for (i, v) in [x0, x1, x2, x3, x4, x5].into_iter().enumerate() {
-                x.add(i).write(v);
-            }
-            let mut last = _mm512_setzero_ps();
-            for l in net.layers {
+            // `check`: at least one layer, the last with 3 outputs padded to 8.
+            let (hidden, output) = net.layers.split_at(net.layers.len() - 1);
+            for (j, l) in hidden.iter().enumerate() {
                 let w = net.params.as_ptr().add(l.offset);
                 let n = l.inputs;
-                last = match l.padded {
-                    8 => layer_one::<0, true>(x, n, w, y, l.relu),
-                    16 => layer_one::<1, false>(x, n, w, y, l.relu),
-                    24 => layer_one::<1, true>(x, n, w, y, l.relu),
-                    32 => layer_one::<2, false>(x, n, w, y, l.relu),
-                    40 => layer_one::<2, true>(x, n, w, y, l.relu),
-                    48 => layer_one::<3, false>(x, n, w, y, l.relu),
-                    56 => layer_one::<3, true>(x, n, w, y, l.relu),
-                    64 => layer_one::<4, false>(x, n, w, y, l.relu),
+                macro_rules! run {
+                    ($k:literal, $h:literal) => {
+                        if j == 0 {
+                            // The network inputs are broadcast from their registers (`check`: the
+                            // first layer has `TINY_INPUTS` inputs; a constant count unrolls the loop).
+                            layer_one::<$k, $h, 4>(|i| input[i], TINY_INPUTS, w, y, l.relu)
+                        } else {
+                            let x = x as *const f32;
+                            layer_one::<$k, $h, 4>(|i| *x.add(i), n, w, y, l.relu)
+                        }
+                    };
+                }
+                match l.padded {
+                    8 => run!(0, true),
+                    16 => run!(1, false),
+                    24 => run!(1, true),
+                    32 => run!(2, false),
+                    40 => run!(2, true),
+                    48 => run!(3, false),
+                    56 => run!(3, true),
+                    64 => run!(4, false),
                     // A layer without outputs (the next one has no inputs).
                     _ => _mm512_setzero_ps(),
                 };
                 core::mem::swap(&mut x, &mut y);
             }
+            let l = &output[0];
+            let w = net.params.as_ptr().add(l.offset);
+            let last = if hidden.is_empty() {
+                layer_one::<0, true, 8>(|i| input[i], TINY_INPUTS, w, y, l.relu)
+            } else {
+                let x = x as *const f32;
+                layer_one::<0, true, 8>(|i| *x.add(i), l.inputs, w, y, l.relu)
+            };
             let v = expm1(last);
             _mm512_castps512_ps128(if CLAMP { clamp(v) } else { v })
         }
@@ -460,15 +513,15 @@ mod avx512 {
         _mm512_maskz_mov_ps(keep, v)
     }
 
-    /// Outputs `o0 .. o0 + J` of one layer for a packet, lanes = queries: `x` and `y` are
-    /// neuron-major (`x[i]` holds input `i` of the 16 queries).
+    /// Outputs `o0 .. o0 + J` of one layer for a packet, lanes = queries, in `C` chains each: `x` and
+    /// `y` are neuron-major (`x[i]` holds input `i` of the 16 queries).
     ///
     /// # Safety
     /// `x` holds `n` vectors, `w` a matrix `[n][stride]` followed by the bias, `o0 + J ≤ stride`,
     /// `y` room for `o0 + J` vectors.
     #[inline]
     #[target_feature(enable = "avx512f,avx2,fma")]
-    unsafe fn packet_tile<const J: usize>(
+    unsafe fn packet_tile<const J: usize, const C: usize>(
         x: *const __m512,
         n: usize,
         w: *const f32,
@@ -481,20 +534,20 @@ mod avx512 {
         unsafe {
             let zero = _mm512_setzero_ps();
             let w = w.add(o0);
-            let mut acc: [[__m512; 4]; J] = [[zero; 4]; J];
+            let mut acc: [[__m512; C]; J] = [[zero; C]; J];
             for (j, a) in acc.iter_mut().enumerate() {
                 a[0] = _mm512_set1_ps(*w.add(n * stride + j));
             }
             let mut i = 0;
-            while i + 4 <= n {
-                for c in 0..4 {
+            while i + C <= n {
+                for c in 0..C {
                     let xv = *x.add(i + c);
                     let r = w.add((i + c) * stride);
                     for (j, a) in acc.iter_mut().enumerate() {
                         a[c] = _mm512_fmadd_ps(xv, _mm512_set1_ps(*r.add(j)), a[c]);
                     }
                 }
-                i += 4;
+                i += C;
             }
             for c in 0..n - i {
                 let xv = *x.add(i + c);
@@ -504,7 +557,7 @@ mod avx512 {
                 }
             }
             for (j, a) in acc.iter().enumerate() {
-                let v = _mm512_add_ps(_mm512_add_ps(a[0], a[1]), _mm512_add_ps(a[2], a[3]));
+                let v = tree(*a, |a, b| _mm512_add_ps(a, b));
                 *y.add(o0 + j) = if relu { _mm512_max_ps(v, zero) } else { v };
             }
         }
@@ -530,21 +583,26 @@ mod avx512 {
             for (f, v) in input.iter().enumerate() {
                 x.add(f).write(_mm512_loadu_ps(v.as_ptr()));
             }
-            for l in net.layers {
+            // `check`: at least one layer, the last with 3 outputs.
+            let (hidden, output) = net.layers.split_at(net.layers.len() - 1);
+            for l in hidden {
                 let w = net.params.as_ptr().add(l.offset);
                 let mut o = 0;
                 while o + 4 <= l.outputs {
-                    packet_tile::<4>(x, l.inputs, w, l.padded, o, y, l.relu);
+                    packet_tile::<4, 4>(x, l.inputs, w, l.padded, o, y, l.relu);
                     o += 4;
                 }
                 match l.outputs - o {
-                    1 => packet_tile::<1>(x, l.inputs, w, l.padded, o, y, l.relu),
-                    2 => packet_tile::<2>(x, l.inputs, w, l.padded, o, y, l.relu),
-                    3 => packet_tile::<3>(x, l.inputs, w, l.padded, o, y, l.relu),
+                    1 => packet_tile::<1, 4>(x, l.inputs, w, l.padded, o, y, l.relu),
+                    2 => packet_tile::<2, 4>(x, l.inputs, w, l.padded, o, y, l.relu),
+                    3 => packet_tile::<3, 4>(x, l.inputs, w, l.padded, o, y, l.relu),
                     _ => {}
                 }
                 core::mem::swap(&mut x, &mut y);
             }
+            let l = &output[0];
+            packet_tile::<3, 8>(x, l.inputs, net.params.as_ptr().add(l.offset), l.padded, 0, y, l.relu);
+            core::mem::swap(&mut x, &mut y);
             for (c, o) in out.iter_mut().enumerate() {
                 _mm512_storeu_ps(o.as_mut_ptr(), expm1(*x.add(c)));
             }

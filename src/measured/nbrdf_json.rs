@@ -22,7 +22,7 @@ use alloc::vec::Vec;
 use serde::Deserialize;
 
 use crate::angles::{half_diff_vectors, unit};
-use crate::kernels::{half_diff_packet, TinyLayer, TinyNet, TINY_PACKET, UNIT_FAST_MAX, UNIT_FAST_MIN};
+use crate::kernels::{half_diff_packet, TinyLayer, TinyNet, TINY_PACKET, UNIT_FAST_MAX, UNIT_FAST_MIN, UNIT_TAYLOR};
 use crate::math::{load_pair, sanitize};
 use crate::{Error, Rgb, Vec3, BLACK};
 
@@ -357,31 +357,47 @@ impl NbrdfNetwork {
     }
 }
 
-/// `v / |v|` with one square root and one division where `|v|²` is comfortably inside the f32 range
-/// (always, for directions a renderer passes), otherwise the careful [`unit`] (which rescales first);
-/// `None` for zero or non-finite `v`. `crate::kernels::half_diff_packet` repeats these operations in
-/// the same order on 16 pairs at once: keep the two identical.
+/// `v / |v|`, `None` for zero or non-finite `v`, by the cheapest exact-enough rule:
+/// - `| |v|² - 1 | ≤` [`UNIT_TAYLOR`] (every direction a renderer normalised itself): `1 / |v|` is
+///   `1.5 - |v|²/2`, the first-order Taylor term of `(|v|²)^(-1/2)` about 1. The term left out is
+///   `3/8 (|v|² - 1)² ≤ 2.3e-8`, a fifth of an f32 ulp at 1, and the value is one rounding (`|v|²/2`
+///   is exact). Four cycles instead of a square root and a division (about 25 on Zen 4), on the
+///   dependent chain of every single query;
+/// - `|v|²` comfortably inside the f32 range: one square root and one division;
+/// - otherwise the careful [`unit`] (which rescales first).
+///
+/// `crate::kernels::half_diff_packet` repeats these operations in the same order on 16 pairs at once:
+/// keep the two identical.
 #[inline(always)]
 fn unit_fast(v: Vec3) -> Option<Vec3> {
     let l2 = (v.x * v.x + v.y * v.y) + v.z * v.z;
-    // False for NaN and infinity.
-    if (UNIT_FAST_MIN..=UNIT_FAST_MAX).contains(&l2) {
-        let s = 1.0 / libm::sqrtf(l2);
-        Some(Vec3::new(v.x * s, v.y * s, v.z * s))
+    // Both comparisons are false for NaN and infinity.
+    let s = if (l2 - 1.0).abs() <= UNIT_TAYLOR {
+        1.5 - 0.5 * l2
+    } else if (UNIT_FAST_MIN..=UNIT_FAST_MAX).contains(&l2) {
+        1.0 / libm::sqrtf(l2)
     } else {
-        unit(v)
-    }
+        return unit(v);
+    };
+    Some(Vec3::new(v.x * s, v.y * s, v.z * s))
 }
 
 /// The network input `[h, d]` of a direction pair computed from the vectors without trigonometry (the
-/// angles and `half_diff_vectors` cost about 100 ns of libm calls per pair): `h` with `φh = 0` is
-/// `(ρ, 0, h_z)` with `ρ = |h_xy| = sin θh`, and `d` is `wi` rotated by `-φh` about z (cos and sin of
-/// `φh` are `h_x / |h_xy|` and `h_y / |h_xy|`; `φh = 0` for `h_xy = 0`, as in `angles::to_rusinkiewicz`),
-/// then by `-θh` about y. Equal to `half_diff_vectors(rusinkiewicz_angles(wi, wo))` up to float
-/// rounding. The half vector is never normalised itself: `ρ` and `h_z` take its length from one
-/// square root, the rotation's cosine and sine from another, so the chain waits on two
-/// square-root-and-divide steps instead of four. `crate::kernels::half_diff_packet` is the same
-/// computation on 16 pairs, bit for bit.
+/// angles and `half_diff_vectors` cost about 100 ns of libm calls per pair), equal to
+/// `half_diff_vectors(rusinkiewicz_angles(wi, wo))` up to float rounding.
+///
+/// With the unnormalised half vector `h = wi + wo`, `q = h_x² + h_y²`, `r = √q` and `|h|`: the half
+/// vector with `φh = 0` is `(ρ, 0, h_z / |h|)` with `ρ = r / |h| = sin θh`, and `d` is `wi` rotated by
+/// `-φh` about z (`cos φh = h_x / r`, `sin φh = h_y / r`), then by `-θh` about y. Multiplied out,
+/// with `a = h_x wi_x + h_y wi_y` and `b = h_x wi_y - h_y wi_x`:
+/// ```text
+/// d = ( (h_z a - q wi_z) / (r |h|),  b / r,  (a + h_z wi_z) / |h| )
+/// ```
+/// The numerators wait on no square root, and the two reciprocal square roots (`1 / r` and `1 / |h|`)
+/// run side by side, so the dependent chain is one square-root-and-divide step and two
+/// multiplications after `q`. `h_xy = 0` means `φh = 0`, as in `angles::to_rusinkiewicz`: `d` is `wi`
+/// rotated by `-θh = 0`. `crate::kernels::half_diff_packet` is the same computation on 16 pairs, bit
+/// for bit.
 #[inline(always)]
 fn input(wi: Vec3, wo: Vec3) -> Option<[f32; INPUTS]> {
     let wi = unit_fast(wi)?;
@@ -393,16 +409,15 @@ fn input(wi: Vec3, wo: Vec3) -> Option<[f32; INPUTS]> {
     let (hx, hy, hz) = (wi.x + wo.x, wi.y + wo.y, wi.z + wo.z);
     let q = hx * hx + hy * hy;
     let inv_len = 1.0 / libm::sqrtf(q + hz * hz);
-    let hz = hz * inv_len;
-    let (rho, c, s) = if q > 0.0 {
+    let cos_h = hz * inv_len;
+    let v = if q > 0.0 {
         let r = libm::sqrtf(q);
         let inv_r = 1.0 / r;
-        (r * inv_len, hx * inv_r, hy * inv_r)
+        let (a, b) = (hx * wi.x + hy * wi.y, hx * wi.y - hy * wi.x);
+        [r * inv_len, 0.0, cos_h, (inv_len * inv_r) * (hz * a - q * wi.z), b * inv_r, inv_len * (a + hz * wi.z)]
     } else {
-        (0.0, 1.0, 0.0)
+        [0.0, 0.0, cos_h, cos_h * wi.x, wi.y, cos_h * wi.z]
     };
-    let (tx, ty) = (c * wi.x + s * wi.y, c * wi.y - s * wi.x);
-    let v = [rho, 0.0, hz, hz * tx - rho * wi.z, ty, rho * tx + hz * wi.z];
     v.iter().all(|c| c.is_finite()).then_some(v)
 }
 
@@ -436,6 +451,24 @@ mod tests {
         }
         assert_eq!(input(Vec3::Z, Vec3::Z), Some([0.0, 0.0, 1.0, 0.0, 0.0, 1.0]));
         assert_eq!(input(Vec3::new(0.0, 0.0, -1.0), Vec3::Z), None);
+    }
+
+    #[test]
+    fn near_unit_directions_normalise_within_2e_7_relative() {
+        // |v|² - 1 from -6e-4 to 6e-4: inside and outside the Taylor range (2^-12 = 2.4e-4).
+        let base = [Vec3::new(0.36, -0.48, 0.8), Vec3::new(-0.6, 0.0, 0.8), Vec3::new(0.1, 0.7, 0.2)];
+        for v in base {
+            for k in -40..=40 {
+                let scale = libm::sqrt(1.0 + k as f64 * 1.5e-5);
+                let v = Vec3::new((v.x as f64 * scale) as f32, (v.y as f64 * scale) as f32, (v.z as f64 * scale) as f32);
+                let u = unit_fast(v).unwrap();
+                let len = libm::sqrt((v.x as f64).powi(2) + (v.y as f64).powi(2) + (v.z as f64).powi(2));
+                for (got, c) in [(u.x, v.x), (u.y, v.y), (u.z, v.z)] {
+                    let want = c as f64 / len;
+                    assert!((got as f64 - want).abs() <= 2e-7 * want.abs(), "{v:?}: {got} vs {want}");
+                }
+            }
+        }
     }
 
     #[test]
@@ -475,6 +508,9 @@ mod tests {
             (a, Vec3::new(0.0, f32::INFINITY, 1.0)),
             (Vec3::ZERO, b),
             (a, Vec3::new(1e-30, 0.0, 1e-30)),
+            // Either side of the edges of the Taylor range `| |v|² - 1 | ≤ 2^-12`.
+            (a.normalize() * 1.000_11, b.normalize() * 0.999_89),
+            (a.normalize() * 1.000_13, b.normalize() * 0.999_87),
         ];
         for rot in 0..special.len() {
             let wi: Vec<Vec3> = (0..19).map(|i| if i % 2 == 0 { special[(i / 2 + rot) % special.len()].0 } else { dir(i as f32, 0.5) }).collect();
