@@ -22,7 +22,7 @@ pub const fn encoded_len(n: usize, frequencies: usize) -> usize {
 /// panic) and the count written is returned, so callers check it against `encoded_len`.
 ///
 /// Each octave is evaluated directly as `sincos(2^k v)` rather than by the double-angle recurrence,
-/// which accumulates error at high octaves, 16 arguments at a time ([`crate::kernels::sincos16`],
+/// which accumulates error at high octaves, 16 arguments at a time ([`crate::kernels::sincos_octaves`],
 /// within about an ulp of the true values); the trainer encodes through this function too.
 ///
 /// ```
@@ -45,23 +45,11 @@ pub fn positional_encoding(values: &[f32], frequencies: usize, out: &mut [f32]) 
     if frequencies == 0 {
         return n * block;
     }
-    // The arguments `2^k v_j` in output order, 16 per batch; `(j, k, 2^k)` is the next one.
-    let (mut j, mut k, mut scale) = (0, 0, 1.0f32);
-    let mut args = [0.0f32; 16];
-    while j < n {
-        let (j0, k0) = (j, k);
-        let mut m = 0;
-        while m < 16 && j < n {
-            args[m] = scale * values[j];
-            m += 1;
-            (k, scale) = (k + 1, scale * 2.0);
-            if k == frequencies {
-                (j, k, scale) = (j + 1, 0, 1.0);
-            }
-        }
-        let (s, c) = crate::kernels::sincos16(&args, m);
-        let (mut j, mut k) = (j0, k0);
-        for (s, c) in s.iter().zip(&c).take(m) {
+    // The arguments `2^k v_j` in output order, 16 per batch.
+    let (mut j, mut k) = (0, 0);
+    for first in (0..n * frequencies).step_by(16) {
+        let (s, c) = crate::kernels::sincos_octaves(&values[..n], frequencies, first);
+        for (s, c) in s.iter().zip(&c).take(n * frequencies - first) {
             let o = j * block + 1 + 2 * k;
             out[o] = *s;
             out[o + 1] = *c;

@@ -30,7 +30,7 @@ mod x86;
 
 use core::sync::atomic::{AtomicU8, Ordering};
 
-pub use sincos::sincos16;
+pub use sincos::{sincos16, sincos_octaves};
 pub use tiny::{half_diff_packet, TinyLayer, TinyNet, TINY_INPUTS, TINY_MAX_WIDTH, TINY_PACKET, UNIT_FAST_MAX, UNIT_FAST_MIN, UNIT_TAYLOR};
 
 /// Queries per packet of the batched kernels: 16, so that one weight vector (one f16 conversion)
