@@ -22,6 +22,7 @@
 //! pre-activation is erased by the ReLU (`max(acc, 0)` returns `+0`) and by every output map.
 //! Levels differ from each other by rounding only (FMA versus multiply-then-add).
 
+mod output_map;
 mod portable;
 mod sincos;
 mod tiny;
@@ -30,6 +31,7 @@ mod x86;
 
 use core::sync::atomic::{AtomicU8, Ordering};
 
+pub use output_map::{map_outputs, sigmoid_slice, softplus_slice};
 pub use sincos::{sincos16, sincos_octaves};
 pub use tiny::{half_diff_packet, TinyLayer, TinyNet, TINY_INPUTS, TINY_MAX_WIDTH, TINY_PACKET, UNIT_FAST_MAX, UNIT_FAST_MIN, UNIT_TAYLOR};
 

@@ -1,6 +1,7 @@
 //! The additive diffuse/specular split of Sec. 4.1.2 and its enhancement (Sec. 4.4, Eq. 8).
 
-use crate::math::{sanitize, sigmoid, softplus, INV_PI};
+use crate::kernels::map_outputs;
+use crate::math::{sanitize, sigmoid, INV_PI};
 use crate::mlp::{forward, forward_packet, Net, Partial, Weight, MAX_WIDTH, PACKET};
 use crate::Rgb;
 
@@ -36,12 +37,30 @@ pub fn diffuse(raw: &[f32]) -> Rgb {
 /// ```
 #[inline]
 pub fn combine(f_d: Rgb, s: &[f32], enhanced: bool) -> Rgb {
-    let mut f = [0.0; 3];
-    for c in 0..3 {
-        let keep = if enhanced { 1.0 - sigmoid(s[3 + c]) } else { 1.0 };
-        f[c] = keep * f_d[c] + softplus(s[c]);
-    }
-    f
+    let mut m = [0.0f32; 6];
+    let n = if enhanced { 6 } else { 3 };
+    m[..n].copy_from_slice(&s[..n]);
+    map_split(&mut m, enhanced);
+    mix(f_d, &m, enhanced)
+}
+
+// `map_outputs` picks a value's map by its index modulo 8.
+const _: () = assert!(super::single_mlp::OUT_STRIDE == 8);
+
+/// The maps of [`combine`] on raw outputs in place, 8 per query: softplus of `s[0..3]`, and when
+/// enhanced the sigmoid `ξ` of `s[3..6]`.
+#[inline]
+fn map_split(s: &mut [f32], enhanced: bool) {
+    map_outputs(s, 0b111, if enhanced { 0b111_000 } else { 0 });
+}
+
+/// [`combine`] of outputs already mapped by [`map_split`].
+#[inline]
+fn mix(f_d: Rgb, m: &[f32], enhanced: bool) -> Rgb {
+    core::array::from_fn(|c| {
+        let keep = if enhanced { 1.0 - m[3 + c] } else { 1.0 };
+        keep * f_d[c] + m[c]
+    })
 }
 
 /// The specular network of an additive model on the encoded angles, combined with `f_d` by
@@ -50,7 +69,8 @@ pub fn combine(f_d: Rgb, s: &[f32], enhanced: bool) -> Rgb {
 pub fn eval<W: Weight>(specular: &Net<'_, W>, f_d: Rgb, prepared: &Partial, angles: &[f32], enhanced: bool) -> Rgb {
     let mut s = [0.0f32; MAX_WIDTH];
     forward(specular, prepared, angles, &mut s);
-    combine(f_d, &s, enhanced)
+    map_split(&mut s[..8], enhanced);
+    mix(f_d, &s, enhanced)
 }
 
 /// [`eval`] for [`PACKET`] queries: query `q`'s encoded angles at `angles[q * stride..][..n]`.
@@ -67,5 +87,6 @@ pub fn eval_packet<W: Weight>(
     const S: usize = super::single_mlp::OUT_STRIDE;
     let mut s = [0.0f32; PACKET * S];
     forward_packet(specular, prepared, angles, stride, n, &mut s, S);
-    core::array::from_fn(|q| combine(f_d, &s[q * S..(q + 1) * S], enhanced))
+    map_split(&mut s, enhanced);
+    core::array::from_fn(|q| mix(f_d, &s[q * S..(q + 1) * S], enhanced))
 }

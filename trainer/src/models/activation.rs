@@ -1,7 +1,9 @@
 //! Output nonlinearities of Sec. 4.1 as candle ops with their own backward pass.
 //!
-//! They call the core's scalar [`nbrdf::math::softplus`] and [`nbrdf::math::sigmoid`] element by element,
-//! so the candle twin and the exported model apply bitwise the same function to the same pre-activation;
+//! They map their tensors through the core's [`nbrdf::kernels::softplus_slice`] and
+//! [`nbrdf::kernels::sigmoid_slice`], the output maps of the exported models (vectorised where the CPU
+//! allows, and per value a function of that value alone), so the candle twin and the exported model
+//! apply bitwise the same function to the same pre-activation;
 //! composing them from candle's `exp`/`log` would differ by rounding and, for sigmoid, overflow to NaN
 //! gradients at large |x|.
 
@@ -15,10 +17,10 @@ enum Func {
 }
 
 impl Func {
-    fn apply(self, x: f32) -> f32 {
+    fn apply(self, x: &mut [f32]) {
         match self {
-            Func::Softplus => nbrdf::math::softplus(x),
-            Func::Sigmoid => nbrdf::math::sigmoid(x),
+            Func::Softplus => nbrdf::kernels::softplus_slice(x),
+            Func::Sigmoid => nbrdf::kernels::sigmoid_slice(x),
         }
     }
 }
@@ -40,7 +42,8 @@ impl CustomOp1 for Elementwise {
         let Some((start, end)) = layout.contiguous_offsets() else {
             candle_core::bail!("{} expects a contiguous tensor", self.name())
         };
-        let out: Vec<f32> = data[start..end].iter().map(|&x| self.0.apply(x)).collect();
+        let mut out = data[start..end].to_vec();
+        self.0.apply(&mut out);
         Ok((CpuStorage::F32(out), layout.shape().clone()))
     }
 
