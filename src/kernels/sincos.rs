@@ -18,6 +18,7 @@ use super::Level;
 
 /// Largest `|x|` reduced in the vector path: `j = round(2x/π)` stays below 2^13, where the three-part
 /// constant keeps the remainder accurate to well under an ulp.
+#[cfg(any(target_arch = "x86_64", test))]
 const REDUCE_MAX: f32 = 8192.0;
 
 /// `(sin x_i, cos x_i)` for the first `n ≤ 16` lanes of `x` (the rest are unspecified).
