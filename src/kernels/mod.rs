@@ -33,7 +33,7 @@ use core::sync::atomic::{AtomicU8, Ordering};
 
 pub use output_map::{map_outputs, sigmoid_slice, softplus_slice};
 pub use sincos::{sincos16, sincos_octaves};
-pub use tiny::{half_diff_packet, TinyLayer, TinyNet, TINY_INPUTS, TINY_MAX_WIDTH, TINY_PACKET, UNIT_FAST_MAX, UNIT_FAST_MIN, UNIT_TAYLOR};
+pub use tiny::{half_diff_packet, TinyLayer, TinyNet, TINY_INPUTS, TINY_MAX_WIDTH, TINY_PACKET};
 
 /// Queries per packet of the batched kernels: 16, so that one weight vector (one f16 conversion)
 /// serves 16 FMAs in the AVX-512 kernel (8 left f16 17% slower than f32; 16: within 2%).

@@ -40,15 +40,6 @@ pub const TINY_PACKET: usize = 16;
 /// Network inputs of a tiny network (the NBRDF-json input `[h, d]`).
 pub const TINY_INPUTS: usize = 6;
 
-/// The range of `|v|²` in which `nbrdf_json`'s input transform normalises `v` with one square root
-/// and one division (outside it: by the careful `angles::unit`).
-pub const UNIT_FAST_MIN: f32 = 1e-30;
-/// See [`UNIT_FAST_MIN`].
-pub const UNIT_FAST_MAX: f32 = 1e30;
-/// The distance `| |v|² - 1 |` within which `nbrdf_json`'s input transform takes `1 / |v|` as
-/// `1.5 - |v|²/2` (`2^-12`: the neglected Taylor term is below `2.3e-8`).
-pub const UNIT_TAYLOR: f32 = 1.0 / 4096.0;
-
 /// The NBRDF-json network input `[ρ, 0, h_z, d_x, d_y, d_z]` of the pairs `(wi, wo)` in lanes `0..m`
 /// (component-major: `wi[c][q]`), written to `x` (feature-major), with the same operations in the same
 /// order as the scalar `nbrdf_json::input` (IEEE square root and division are exact-rounded in every
@@ -263,7 +254,7 @@ mod avx512 {
         expm1(x)
     }
 
-    /// `v / |v|` for the lanes with `|v|²` near 1 or in the fast range (see `nbrdf_json::unit_fast`),
+    /// `v / |v|` for the lanes with `|v|²` near 1 or in the fast range (the first two rules of `angles::unit`),
     /// and the mask of those lanes.
     #[inline]
     #[target_feature(enable = "avx512f,avx2,fma")]
@@ -272,9 +263,9 @@ mod avx512 {
         let l2 = _mm512_add_ps(_mm512_add_ps(_mm512_mul_ps(x, x), _mm512_mul_ps(y, y)), _mm512_mul_ps(z, z));
         let one = _mm512_set1_ps(1.0);
         // Ordered comparisons: false for NaN.
-        let near = _mm512_cmp_ps_mask::<_CMP_LE_OQ>(_mm512_abs_ps(_mm512_sub_ps(l2, one)), _mm512_set1_ps(super::UNIT_TAYLOR));
-        let ok = _mm512_cmp_ps_mask::<_CMP_GE_OQ>(l2, _mm512_set1_ps(super::UNIT_FAST_MIN))
-            & _mm512_cmp_ps_mask::<_CMP_LE_OQ>(l2, _mm512_set1_ps(super::UNIT_FAST_MAX));
+        let near = _mm512_cmp_ps_mask::<_CMP_LE_OQ>(_mm512_abs_ps(_mm512_sub_ps(l2, one)), _mm512_set1_ps(crate::angles::UNIT_TAYLOR));
+        let ok = _mm512_cmp_ps_mask::<_CMP_GE_OQ>(l2, _mm512_set1_ps(crate::angles::UNIT_FAST_MIN))
+            & _mm512_cmp_ps_mask::<_CMP_LE_OQ>(l2, _mm512_set1_ps(crate::angles::UNIT_FAST_MAX));
         let taylor = _mm512_sub_ps(_mm512_set1_ps(1.5), _mm512_mul_ps(_mm512_set1_ps(0.5), l2));
         // The square root and division only where some lane needs them (never, for a renderer's unit
         // directions).

@@ -22,7 +22,7 @@ use alloc::vec::Vec;
 use serde::Deserialize;
 
 use crate::angles::{half_diff_vectors, unit};
-use crate::kernels::{half_diff_packet, TinyLayer, TinyNet, TINY_PACKET, UNIT_FAST_MAX, UNIT_FAST_MIN, UNIT_TAYLOR};
+use crate::kernels::{half_diff_packet, TinyLayer, TinyNet, TINY_PACKET};
 use crate::math::{load_pair, sanitize};
 use crate::{Error, Rgb, Vec3, BLACK};
 
@@ -357,31 +357,6 @@ impl NbrdfNetwork {
     }
 }
 
-/// `v / |v|`, `None` for zero or non-finite `v`, by the cheapest exact-enough rule:
-/// - `| |v|² - 1 | ≤` [`UNIT_TAYLOR`] (every direction a renderer normalised itself): `1 / |v|` is
-///   `1.5 - |v|²/2`, the first-order Taylor term of `(|v|²)^(-1/2)` about 1. The term left out is
-///   `3/8 (|v|² - 1)² ≤ 2.3e-8`, a fifth of an f32 ulp at 1, and the value is one rounding (`|v|²/2`
-///   is exact). Four cycles instead of a square root and a division (about 25 on Zen 4), on the
-///   dependent chain of every single query;
-/// - `|v|²` comfortably inside the f32 range: one square root and one division;
-/// - otherwise the careful [`unit`] (which rescales first).
-///
-/// `crate::kernels::half_diff_packet` repeats these operations in the same order on 16 pairs at once:
-/// keep the two identical.
-#[inline(always)]
-fn unit_fast(v: Vec3) -> Option<Vec3> {
-    let l2 = (v.x * v.x + v.y * v.y) + v.z * v.z;
-    // Both comparisons are false for NaN and infinity.
-    let s = if (l2 - 1.0).abs() <= UNIT_TAYLOR {
-        1.5 - 0.5 * l2
-    } else if (UNIT_FAST_MIN..=UNIT_FAST_MAX).contains(&l2) {
-        1.0 / libm::sqrtf(l2)
-    } else {
-        return unit(v);
-    };
-    Some(Vec3::new(v.x * s, v.y * s, v.z * s))
-}
-
 /// The network input `[h, d]` of a direction pair computed from the vectors without trigonometry (the
 /// angles and `half_diff_vectors` cost about 100 ns of libm calls per pair), equal to
 /// `half_diff_vectors(rusinkiewicz_angles(wi, wo))` up to float rounding.
@@ -400,8 +375,8 @@ fn unit_fast(v: Vec3) -> Option<Vec3> {
 /// for bit.
 #[inline(always)]
 fn input(wi: Vec3, wo: Vec3) -> Option<[f32; INPUTS]> {
-    let wi = unit_fast(wi)?;
-    let wo = unit_fast(wo)?;
+    let wi = unit(wi)?;
+    let wo = unit(wo)?;
     if !(wi.z > 0.0 && wo.z > 0.0) {
         return None;
     }
@@ -451,24 +426,6 @@ mod tests {
         }
         assert_eq!(input(Vec3::Z, Vec3::Z), Some([0.0, 0.0, 1.0, 0.0, 0.0, 1.0]));
         assert_eq!(input(Vec3::new(0.0, 0.0, -1.0), Vec3::Z), None);
-    }
-
-    #[test]
-    fn near_unit_directions_normalise_within_2e_7_relative() {
-        // |v|² - 1 from -6e-4 to 6e-4: inside and outside the Taylor range (2^-12 = 2.4e-4).
-        let base = [Vec3::new(0.36, -0.48, 0.8), Vec3::new(-0.6, 0.0, 0.8), Vec3::new(0.1, 0.7, 0.2)];
-        for v in base {
-            for k in -40..=40 {
-                let scale = libm::sqrt(1.0 + k as f64 * 1.5e-5);
-                let v = Vec3::new((v.x as f64 * scale) as f32, (v.y as f64 * scale) as f32, (v.z as f64 * scale) as f32);
-                let u = unit_fast(v).unwrap();
-                let len = libm::sqrt((v.x as f64).powi(2) + (v.y as f64).powi(2) + (v.z as f64).powi(2));
-                for (got, c) in [(u.x, v.x), (u.y, v.y), (u.z, v.z)] {
-                    let want = c as f64 / len;
-                    assert!((got as f64 - want).abs() <= 2e-7 * want.abs(), "{v:?}: {got} vs {want}");
-                }
-            }
-        }
     }
 
     #[test]

@@ -211,6 +211,8 @@ mod tests {
     #[test]
     fn cosine_proxy_is_the_cosine_density() {
         let wi = Vec3::new(0.3, -0.2, 0.9).normalize();
-        assert_eq!(Proxy::COSINE.pdf(Vec3::Z, wi), wi.z * crate::math::INV_PI);
+        // Within the rounding of normalising `wi` again.
+        let want = wi.z * crate::math::INV_PI;
+        assert!((Proxy::COSINE.pdf(Vec3::Z, wi) - want).abs() <= 2e-7 * want);
     }
 }
