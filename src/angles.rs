@@ -46,11 +46,11 @@ pub struct Rusinkiewicz {
     pub phi_d: f32,
 }
 
-/// The distance `| |v|² - 1 |` within which [`unit`] takes `1 / |v|` as `1.5 - |v|²/2` (`2^-12`: the
+/// The distance `| |v|² - 1 |` within which [`unit()`] takes `1 / |v|` as `1.5 - |v|²/2` (`2^-12`: the
 /// neglected Taylor term is below `2.3e-8`).
 pub const UNIT_TAYLOR: f32 = 1.0 / 4096.0;
 
-/// The range of `|v|²` in which [`unit`] normalises with one square root and one division.
+/// The range of `|v|²` in which [`unit()`] normalises with one square root and one division.
 pub const UNIT_FAST_MIN: f32 = 1e-30;
 /// See [`UNIT_FAST_MIN`].
 pub const UNIT_FAST_MAX: f32 = 1e30;

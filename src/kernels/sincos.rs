@@ -28,12 +28,7 @@ pub fn sincos16(x: &[f32; 16], n: usize) -> ([f32; 16], [f32; 16]) {
     if super::level() == Level::Avx512 {
         // SAFETY: `level()` is at most the detected level, so the CPU has AVX-512F.
         let (mut s, mut c, slow) = unsafe { avx512(x) };
-        let mut slow = slow as u32 & ((1u32 << n.min(16)) - 1);
-        while slow != 0 {
-            let i = slow.trailing_zeros() as usize;
-            (s[i], c[i]) = libm::sincosf(x[i]);
-            slow &= slow - 1;
-        }
+        redo(x, slow as u32 & ((1u32 << n.min(16)) - 1), &mut s, &mut c);
         return (s, c);
     }
     let mut s = [0.0f32; 16];
@@ -70,16 +65,12 @@ pub fn sincos_octaves(values: &[f32], frequencies: usize, first: usize) -> ([f32
             let args = octave_args(values, frequencies, first);
             (args, avx512_vector(args))
         };
-        let mut slow = slow as u32 & ((1u32 << m) - 1);
+        let slow = slow as u32 & ((1u32 << m) - 1);
         if slow != 0 {
             let mut x = [0.0f32; 16];
             // SAFETY: `x` holds 16 values (AVX-512F as above).
             unsafe { core::arch::x86_64::_mm512_storeu_ps(x.as_mut_ptr(), args) };
-            while slow != 0 {
-                let i = slow.trailing_zeros() as usize;
-                (s[i], c[i]) = libm::sincosf(x[i]);
-                slow &= slow - 1;
-            }
+            redo(&x, slow, &mut s, &mut c);
         }
         return (s, c);
     }
@@ -90,6 +81,17 @@ pub fn sincos_octaves(values: &[f32], frequencies: usize, first: usize) -> ([f32
         *x = (0..k).fold(1.0f32, |p, _| p * 2.0) * values[j];
     }
     sincos16(&x, m)
+}
+
+/// Redoes the lanes of `slow` with `libm::sincosf`, which reduces any argument exactly.
+#[cfg(target_arch = "x86_64")]
+#[inline]
+fn redo(x: &[f32; 16], mut slow: u32, s: &mut [f32; 16], c: &mut [f32; 16]) {
+    while slow != 0 {
+        let i = slow.trailing_zeros() as usize;
+        (s[i], c[i]) = libm::sincosf(x[i]);
+        slow &= slow - 1;
+    }
 }
 
 /// The arguments of [`sincos_octaves`] in one vector: each value `v_j` is broadcast (from a 4-byte
