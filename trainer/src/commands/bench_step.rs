@@ -341,7 +341,7 @@ impl Drop for Torch {
     }
 }
 
-/// Our step and PyTorch's, alternating rounds per architecture (see [`time_config`]). Without python3
+/// Our step and PyTorch's, alternating rounds per architecture (see `time_config`). Without python3
 /// or torch it prints how to install it and returns our timings alone.
 pub fn run_with_torch(configs: &[Config], batch: usize, steps: usize, rounds: usize, script: &Path) -> Result<Vec<StepTiming>> {
     let spec = bench_spec(configs, batch, steps);

@@ -3,7 +3,7 @@
 //!
 //! Both kinds load into one in-memory form, [`Dataset`]: a mesh prepared for ray casting, and views
 //! (a camera, a split, an object mask and images, each with its directional light). Images stay on
-//! disk until [`samples`] reads them, one at a time, keeping only lit, unshadowed pixels.
+//! disk until [`samples()`] reads them, one at a time, keeping only lit, unshadowed pixels.
 
 pub mod diligent;
 pub mod material;
@@ -130,7 +130,7 @@ pub fn load_mesh(spec: &spec::MeshSpec, base: &Path) -> Result<(Mesh, nbrdf::sce
 
 impl Dataset {
     /// Opens a semi-synthetic data set written by `synth`: reads and checks `dataset.json`, the mesh
-    /// and every view's mask; radiance images are read later by [`samples`].
+    /// and every view's mask; radiance images are read later by [`samples()`].
     pub fn open(dir: &Path) -> Result<Self, Error> {
         let file = spec::DatasetFile::read(dir)?;
         let (mesh, _) = load_mesh(&file.mesh, dir)?;

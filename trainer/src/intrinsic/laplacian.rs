@@ -3,7 +3,7 @@
 //! matrix M (diagonal, positive, summing to the surface area). The eigenfunctions of the intrinsic
 //! encoding solve L φ = λ M φ (Koestler et al. 2022, Sec. 3).
 //!
-//! Both are assembled in `f64` on a [`ValidMesh`](super::mesh::ValidMesh), i.e. in compact numbering
+//! Both are assembled in `f64` on a [`ValidMesh`], i.e. in compact numbering
 //! without isolated vertices and degenerate triangles.
 
 use super::mesh::{cross_edges, dot, norm, sub, ValidMesh};

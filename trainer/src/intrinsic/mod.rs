@@ -6,7 +6,7 @@
 //! Pipeline: [`mesh`] validates the arrays and drops degenerate triangles and isolated vertices;
 //! [`laplacian`] assembles the cotangent stiffness L and mixed-Voronoi mass M; [`eigen`] solves
 //! L φ = λ M φ by shift-invert block Lanczos on a sparse Cholesky factor; [`cache`] keeps the result on disk
-//! per mesh and k. [`extrinsic`] is the baseline encoding of the 3D point itself.
+//! per mesh and k. [`extrinsic()`] is the baseline encoding of the 3D point itself.
 //!
 //! ```
 //! use trainer::intrinsic::IntrinsicEncoding;
