@@ -451,45 +451,39 @@ mod avx512 {
         // SAFETY: the buffers hold 64 values; `check` verified `(inputs + 1) padded` parameters from each
         // `offset`, `padded ≤ 64`, and each layer's inputs are the previous layer's outputs.
         unsafe {
+            // A layer with `K` 16-lane and `H` 8-lane vectors of outputs in `C` chains; the first
+            // broadcasts the network inputs from their registers (`check`: it has `TINY_INPUTS` inputs;
+            // a constant count unrolls the loop), the others read the previous layer's buffer.
+            macro_rules! run {
+                ($first:expr, $l:expr, $k:literal, $h:literal, $c:literal) => {{
+                    let l = $l;
+                    let w = net.params.as_ptr().add(l.offset);
+                    if $first {
+                        layer_one::<$k, $h, $c>(|i| input[i], TINY_INPUTS, w, y, l.relu)
+                    } else {
+                        let x = x as *const f32;
+                        layer_one::<$k, $h, $c>(|i| *x.add(i), l.inputs, w, y, l.relu)
+                    }
+                }};
+            }
             // `check`: at least one layer, the last with 3 outputs padded to 8.
             let (hidden, output) = net.layers.split_at(net.layers.len() - 1);
             for (j, l) in hidden.iter().enumerate() {
-                let w = net.params.as_ptr().add(l.offset);
-                let n = l.inputs;
-                macro_rules! run {
-                    ($k:literal, $h:literal) => {
-                        if j == 0 {
-                            // The network inputs are broadcast from their registers (`check`: the
-                            // first layer has `TINY_INPUTS` inputs; a constant count unrolls the loop).
-                            layer_one::<$k, $h, 4>(|i| input[i], TINY_INPUTS, w, y, l.relu)
-                        } else {
-                            let x = x as *const f32;
-                            layer_one::<$k, $h, 4>(|i| *x.add(i), n, w, y, l.relu)
-                        }
-                    };
-                }
                 match l.padded {
-                    8 => run!(0, true),
-                    16 => run!(1, false),
-                    24 => run!(1, true),
-                    32 => run!(2, false),
-                    40 => run!(2, true),
-                    48 => run!(3, false),
-                    56 => run!(3, true),
-                    64 => run!(4, false),
+                    8 => run!(j == 0, l, 0, true, 4),
+                    16 => run!(j == 0, l, 1, false, 4),
+                    24 => run!(j == 0, l, 1, true, 4),
+                    32 => run!(j == 0, l, 2, false, 4),
+                    40 => run!(j == 0, l, 2, true, 4),
+                    48 => run!(j == 0, l, 3, false, 4),
+                    56 => run!(j == 0, l, 3, true, 4),
+                    64 => run!(j == 0, l, 4, false, 4),
                     // A layer without outputs (the next one has no inputs).
                     _ => _mm512_setzero_ps(),
                 };
                 core::mem::swap(&mut x, &mut y);
             }
-            let l = &output[0];
-            let w = net.params.as_ptr().add(l.offset);
-            let last = if hidden.is_empty() {
-                layer_one::<0, true, 8>(|i| input[i], TINY_INPUTS, w, y, l.relu)
-            } else {
-                let x = x as *const f32;
-                layer_one::<0, true, 8>(|i| *x.add(i), l.inputs, w, y, l.relu)
-            };
+            let last = run!(hidden.is_empty(), &output[0], 0, true, 8);
             let v = expm1(last);
             _mm512_castps512_ps128(if CLAMP { clamp(v) } else { v })
         }
