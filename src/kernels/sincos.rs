@@ -41,8 +41,9 @@ pub fn sincos16(x: &[f32; 16], n: usize) -> ([f32; 16], [f32; 16]) {
 
 /// `(sin, cos)` of the positional encoding's arguments `2^k v_j` (`docs/models.md`), in the order
 /// `(j, k)` with `k < frequencies` fastest, from flat index `first` on: lane `i` holds argument
-/// `first + i`; lanes past `values.len() × frequencies` are unspecified. The arguments are those of
-/// [`sincos16`] (`2^k` exact, one rounding of the product) and so are the results, bit for bit.
+/// `first + i`; lanes past `values.len() × frequencies` are unspecified (all 0 when there are none).
+/// The arguments are those of [`sincos16`] (`2^k` exact, one rounding of the product) and so are the
+/// results, bit for bit.
 ///
 /// ```
 /// use nbrdf::kernels::{sincos16, sincos_octaves};
@@ -57,6 +58,10 @@ pub fn sincos16(x: &[f32; 16], n: usize) -> ([f32; 16], [f32; 16]) {
 pub fn sincos_octaves(values: &[f32], frequencies: usize, first: usize) -> ([f32; 16], [f32; 16]) {
     let total = values.len() * frequencies;
     let m = total.saturating_sub(first).min(16);
+    // No argument at or after `first` (no values, no octaves): every lane is past the end.
+    if m == 0 {
+        return ([0.0; 16], [0.0; 16]);
+    }
     #[cfg(target_arch = "x86_64")]
     // `2^k` is built from its exponent bits: below 2^127 only (the encodings use a handful of octaves).
     if super::level() == Level::Avx512 && frequencies <= 127 {
@@ -224,6 +229,14 @@ mod tests {
                     }
                 }
             }
+        }
+    }
+
+    #[test]
+    fn octaves_past_the_end_or_of_nothing_are_empty_not_a_panic() {
+        let v = [0.3f32, 1.2];
+        for (values, frequencies, first) in [(&v[..], 0, 0), (&v[..0], 4, 0), (&v[..], 4, 8), (&v[..], 4, 100)] {
+            assert_eq!(sincos_octaves(values, frequencies, first), ([0.0; 16], [0.0; 16]), "{values:?} F {frequencies} first {first}");
         }
     }
 
