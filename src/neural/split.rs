@@ -1,7 +1,7 @@
 //! The additive diffuse/specular split of Sec. 4.1.2 and its enhancement (Sec. 4.4, Eq. 8).
 
-use crate::kernels::map_outputs;
-use crate::math::{sanitize, sigmoid, INV_PI};
+use crate::kernels::{map_outputs, sigmoid_slice};
+use crate::math::{sanitize, INV_PI};
 use crate::mlp::{forward, forward_packet, Net, Partial, Weight, MAX_WIDTH, PACKET};
 use crate::Rgb;
 
@@ -17,7 +17,10 @@ pub fn diffuse(raw: &[f32]) -> Rgb {
     // A network whose activations overflowed (inf - inf inside it, e.g. f16 weights near ±65504) emits
     // NaN, and sigmoid(NaN) is NaN: like every degenerate value of the crate it reads as 0, so that
     // `Prepared::diffuse` never hands a renderer NaN (issue 7; tests/hard_cases.rs).
-    sanitize([sigmoid(raw[0]) * INV_PI, sigmoid(raw[1]) * INV_PI, sigmoid(raw[2]) * INV_PI])
+    // Through the same map as the trainer's sigmoid op, so the candle twin's `f_d` is this one's bits.
+    let mut s = [raw[0], raw[1], raw[2]];
+    sigmoid_slice(&mut s);
+    sanitize([s[0] * INV_PI, s[1] * INV_PI, s[2] * INV_PI])
 }
 
 /// Combines the diffuse term with the specular network's raw outputs `s`.
