@@ -6,8 +6,9 @@
 //!   nonzero inputs (layers of at most `DENSE_BELOW` inputs: every input);
 //! - a packet: `QT` queries × `K` vectors of outputs; per input row, `K` weight loads are shared by
 //!   `QT` broadcast inputs. AVX-512: all 16 queries × 1 vector = 16 accumulators of 32 registers, so
-//!   one weight load (and, for f16, one `vcvtph2ps`) serves 16 FMAs; AVX2: 4 queries × 2 vectors =
-//!   8 of 16 registers, the packet run as four quarters;
+//!   one weight load (and, for f16, one `vcvtph2ps`) serves 16 FMAs, the inputs transposed first so
+//!   that the 16 broadcasts of a row read one cache line at fixed offsets; AVX2: 4 queries × 2
+//!   vectors = 8 of 16 registers, the packet run as four quarters;
 //! - a chain (AVX-512 only): one query through every layer of a 128-wide network, its 128
 //!   activations held in 8 registers from one layer to the next and compressed from there.
 //!
@@ -474,72 +475,190 @@ macro_rules! avx512 {
                 }
             }
 
-            /// Outputs `o .. o + 16 K` of the `PACKET` queries.
+            /// Outputs `o .. o + 16` of the `PACKET` queries over the inputs transposed in `xt`:
+            /// `acc_q` starts at `init` (`first`) or at the partial sums in `out`, then one FMA per
+            /// listed input in order; ReLU where `relu`.
             ///
             /// # Safety
-            /// See the module docs; `m[k]` masks the valid outputs of vector `k`.
+            /// `xt` holds the inputs of every piece (`PACKET` values each, feature-major); each piece's
+            /// rows hold `n_out` weights per input; `out` and `init` as in `Dense::check`; `m` masks
+            /// the valid outputs from `o`.
             #[inline]
             #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
-            unsafe fn packet_tile<const K: usize, const MASKED: bool>(
+            unsafe fn packet_tile<const MASKED: bool>(
                 l: &Dense<'_, $w>,
+                xt: *const f32,
+                pieces: &[Piece<$w>],
+                first: bool,
+                relu: bool,
                 out: *mut f32,
                 os: usize,
                 o: usize,
-                m: [__mmask16; K],
+                m: __mmask16,
             ) {
                 let n = l.n_out;
-                // SAFETY (whole body): as in `one_tile`, with query `q < PACKET` at `q * stride` of the
-                // inputs and `q * os` of the outputs, both within the checked extents.
+                // SAFETY (whole body): as in `one_tile`, with query `q < PACKET` at `q * os` of the
+                // outputs; every input read lies in `xt`'s listed pieces (contract).
                 unsafe {
-                    let init = l.init.as_ptr().add(o);
-                    let init: [__m512; K] = core::array::from_fn(|k| load16!(f32, init.add(16 * k), m[k], MASKED));
-                    let mut acc: [[__m512; K]; PACKET] = [init; PACKET];
-                    for s in &l.segs[..l.n_segs] {
-                        let (x, rows) = (s.x.as_ptr(), s.rows.as_ptr().add(o));
-                        for i in 0..s.n {
-                            let r = rows.add(i * n);
-                            let w: [__m512; K] = core::array::from_fn(|k| load16!($tag, r.add(16 * k), m[k], MASKED));
-                            for q in 0..PACKET {
-                                let xb = _mm512_set1_ps(*x.add(q * s.stride + i));
-                                for k in 0..K {
-                                    acc[q][k] = _mm512_fmadd_ps(xb, w[k], acc[q][k]);
-                                }
+                    let mut acc: [__m512; PACKET] = if first {
+                        [load16!(f32, l.init.as_ptr().add(o), m, MASKED); PACKET]
+                    } else {
+                        core::array::from_fn(|q| load16!(f32, out.add(q * os + o), m, MASKED))
+                    };
+                    for p in pieces {
+                        // Moving pointers, not `base + i * stride`: the broadcasts then address
+                        // `x + 4q` (base and displacement), which Intel cores keep as one fused
+                        // micro-op with the FMA, where an indexed address splits it in two.
+                        let mut x = xt.add(p.start * PACKET);
+                        let mut r = p.rows.add(o);
+                        for _ in 0..p.n {
+                            let w = load16!($tag, r, m, MASKED);
+                            for (q, a) in acc.iter_mut().enumerate() {
+                                *a = _mm512_fmadd_ps(_mm512_set1_ps(*x.add(q)), w, *a);
                             }
+                            x = x.add(PACKET);
+                            r = r.add(n);
                         }
                     }
                     let zero = _mm512_setzero_ps();
-                    for q in 0..PACKET {
-                        for k in 0..K {
-                            let v = if l.relu { _mm512_max_ps(acc[q][k], zero) } else { acc[q][k] };
-                            _mm512_mask_storeu_ps(out.add(q * os + o + 16 * k), m[k], v);
-                        }
+                    for (q, a) in acc.iter().enumerate() {
+                        let v = if relu { _mm512_max_ps(*a, zero) } else { *a };
+                        _mm512_mask_storeu_ps(out.add(q * os + o), m, v);
                     }
                 }
             }
 
-            /// `PACKET` queries through the layer, every input row: skipping each query's zero inputs
-            /// (about half) was tried and is slower on Zen 4, whose single 512-bit load per cycle then
-            /// limits the FMAs (one weight load, one broadcast and one offset load per FMA pair).
+            /// `PACKET` queries through the layer, every input row: each query's inputs are first
+            /// transposed to feature-major (`transpose_inputs`), so that a tile reads the 16 inputs
+            /// of one row from one cache line at fixed offsets. Skipping each query's zero inputs
+            /// (about half) was tried and is slower on Zen 4, whose single 512-bit load per cycle
+            /// then limits the FMAs (one weight load, one broadcast and one offset load per FMA pair).
             ///
             /// # Safety
             /// See the module docs (`check(PACKET, ..)`).
             #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
             pub(in crate::kernels) unsafe fn packet(l: &Dense<'_, $w>, out: *mut f32, os: usize) {
                 let n = l.n_out;
-                let mut o = 0;
-                // SAFETY: each tile stays below `n_out` (full tiles by the loop bounds, the rest masked).
-                unsafe {
-                    while o + 16 <= n {
-                        packet_tile::<1, false>(l, out, os, o, [0xffff]);
-                        o += 16;
+                let mut xt = [core::mem::MaybeUninit::<__m512>::uninit(); XT_CAP];
+                let xt = xt.as_mut_ptr().cast::<f32>();
+                // Runs every output tile over the pieces transposed so far.
+                let tiles = |pieces: &[Piece<$w>], first: bool, last: bool| {
+                    let relu = last && l.relu;
+                    let mut o = 0;
+                    // SAFETY: each tile stays below `n_out` (full tiles by the loop bounds, the rest
+                    // masked); the pieces lie in `xt` and in their checked segments.
+                    unsafe {
+                        while o + 16 <= n {
+                            packet_tile::<false>(l, xt, pieces, first, relu, out, os, o, 0xffff);
+                            o += 16;
+                        }
+                        if o < n {
+                            packet_tile::<true>(l, xt, pieces, first, relu, out, os, o, mask16(n - o));
+                        }
                     }
-                    if o < n {
-                        packet_tile::<1, true>(l, out, os, o, [mask16(n - o)]);
+                };
+                // Up to `XT_CAP` inputs at a time, in segment order; a longer layer passes its partial
+                // sums through `out` (exact), the ReLU on the last pass only.
+                let mut pieces = [Piece { rows: core::ptr::null(), start: 0, n: 0 }; 2];
+                let (mut np, mut used, mut first) = (0, 0, true);
+                for s in &l.segs[..l.n_segs] {
+                    let mut i0 = 0;
+                    while i0 < s.n {
+                        if used == XT_CAP {
+                            tiles(&pieces[..np], first, false);
+                            (np, used, first) = (0, 0, false);
+                        }
+                        let c = (s.n - i0).min(XT_CAP - used);
+                        // SAFETY: inputs `i0 .. i0 + c` of every query lie in the checked segment;
+                        // `xt` has room for `used + c ≤ XT_CAP` rows.
+                        unsafe {
+                            transpose_inputs(s.x.as_ptr().add(i0), s.stride, c, xt.add(used * PACKET));
+                            pieces[np] = Piece { rows: s.rows.as_ptr().add(i0 * n), start: used, n: c };
+                        }
+                        (np, used, i0) = (np + 1, used + c, i0 + c);
                     }
                 }
+                tiles(&pieces[..np], first, true);
             }
         }
     };
+}
+
+/// Inputs per pass of the AVX-512 packet kernel: `XT_CAP × PACKET` f32 (16 KB) on the stack, room
+/// for every layer of the paper's networks (at most 128 + 132 inputs) in one pass.
+const XT_CAP: usize = 256;
+
+/// Consecutive inputs of one segment, transposed: rows `rows[i * n_out..]` for the inputs at
+/// `xt[(start + i) * PACKET..][..PACKET]`, `i < n`.
+struct Piece<W> {
+    rows: *const W,
+    start: usize,
+    n: usize,
+}
+
+impl<W> Clone for Piece<W> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+impl<W> Copy for Piece<W> {}
+
+/// Writes inputs `x[q * stride + i]`, `i < n`, of the `PACKET` queries feature-major to
+/// `xt[i * PACKET + q]`: 16 × 16 blocks, each loaded as 16 rows (masked past `n`), transposed in
+/// registers ([`transpose16`]) and stored as 16 columns.
+///
+/// # Safety
+/// Each query's `n` inputs are readable from `x + q * stride`; `xt` has room for `n * PACKET` values.
+#[inline]
+#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
+unsafe fn transpose_inputs(x: *const f32, stride: usize, n: usize, xt: *mut f32) {
+    const { assert!(PACKET == 16) };
+    let mut i = 0;
+    while i < n {
+        let m = mask16(n - i);
+        // SAFETY: lanes `i + j < n` only are read; columns `j < n - i` only are written.
+        unsafe {
+            let rows: [__m512; 16] = core::array::from_fn(|q| _mm512_maskz_loadu_ps(m, x.add(q * stride + i)));
+            let cols = transpose16(rows);
+            for (j, c) in cols.iter().enumerate().take(n - i) {
+                _mm512_storeu_ps(xt.add((i + j) * PACKET), *c);
+            }
+        }
+        i += 16;
+    }
+}
+
+/// The transpose of a 16 × 16 block: lane `q` of result `j` is lane `j` of `r[q]`. Four rounds of
+/// 16 shuffles: 32-bit and 64-bit interleaves within 128-bit lanes, then two rounds of 128-bit lane
+/// shuffles.
+#[inline]
+#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
+fn transpose16(r: [__m512; 16]) -> [__m512; 16] {
+    // t[2k] = a0 b0 a1 b1 | a4 b4 a5 b5 | ..., t[2k + 1] = a2 b2 a3 b3 | ... for rows a, b = 2k, 2k + 1.
+    let t: [__m512; 16] = core::array::from_fn(|j| {
+        let (a, b) = (r[j & !1], r[j | 1]);
+        if j % 2 == 0 { _mm512_unpacklo_ps(a, b) } else { _mm512_unpackhi_ps(a, b) }
+    });
+    // u[4k + c] holds, in 128-bit lane L, column 4L + c of rows 4k .. 4k + 3.
+    let u: [__m512; 16] = core::array::from_fn(|j| {
+        let (k, c) = (j / 4, j % 4);
+        let (a, b) = (_mm512_castps_pd(t[4 * k + c / 2]), _mm512_castps_pd(t[4 * k + 2 + c / 2]));
+        _mm512_castpd_ps(if c % 2 == 0 { _mm512_unpacklo_pd(a, b) } else { _mm512_unpackhi_pd(a, b) })
+    });
+    // For each c: lanes 0, 1 and 2, 3 of the row groups 0, 1 (s01) and 2, 3 (s23), then the columns.
+    let mut out = [_mm512_setzero_ps(); 16];
+    for c in 0..4 {
+        let (a, b, cc, d) = (u[c], u[4 + c], u[8 + c], u[12 + c]);
+        let s0 = _mm512_shuffle_f32x4::<0b01_00_01_00>(a, b);
+        let s1 = _mm512_shuffle_f32x4::<0b11_10_11_10>(a, b);
+        let s2 = _mm512_shuffle_f32x4::<0b01_00_01_00>(cc, d);
+        let s3 = _mm512_shuffle_f32x4::<0b11_10_11_10>(cc, d);
+        out[c] = _mm512_shuffle_f32x4::<0b10_00_10_00>(s0, s2);
+        out[4 + c] = _mm512_shuffle_f32x4::<0b11_01_11_01>(s0, s2);
+        out[8 + c] = _mm512_shuffle_f32x4::<0b10_00_10_00>(s1, s3);
+        out[12 + c] = _mm512_shuffle_f32x4::<0b11_01_11_01>(s1, s3);
+    }
+    out
 }
 
 avx512!(avx512_f32, f32, f32);
