@@ -475,22 +475,19 @@ macro_rules! avx512 {
                 }
             }
 
-            /// Outputs `o .. o + 16` of the `PACKET` queries over the inputs transposed in `xt`:
-            /// `acc_q` starts at `init` (`first`) or at the partial sums in `out`, then one FMA per
-            /// listed input in order; ReLU where `relu`.
+            /// Outputs `o .. o + 16` of the `PACKET` queries over the inputs of one pass: `acc_q`
+            /// starts at `init` (the first pass) or at the partial sums in `out`, then one FMA per
+            /// listed input in order; ReLU where the pass says so.
             ///
             /// # Safety
-            /// `xt` holds the inputs of every piece (`PACKET` values each, feature-major); each piece's
-            /// rows hold `n_out` weights per input; `out` and `init` as in `Dense::check`; `m` masks
-            /// the valid outputs from `o`.
+            /// `p.xt` holds the inputs of every piece (`PACKET` values each, feature-major); each
+            /// piece's rows hold `n_out` weights per input; `out` and `init` as in `Dense::check`;
+            /// `m` masks the valid outputs from `o`.
             #[inline]
             #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
             unsafe fn packet_tile<const MASKED: bool>(
                 l: &Dense<'_, $w>,
-                xt: *const f32,
-                pieces: &[Piece<$w>],
-                first: bool,
-                relu: bool,
+                p: &Pass<'_, $w>,
                 out: *mut f32,
                 os: usize,
                 o: usize,
@@ -500,18 +497,18 @@ macro_rules! avx512 {
                 // SAFETY (whole body): as in `one_tile`, with query `q < PACKET` at `q * os` of the
                 // outputs; every input read lies in `xt`'s listed pieces (contract).
                 unsafe {
-                    let mut acc: [__m512; PACKET] = if first {
+                    let mut acc: [__m512; PACKET] = if p.first {
                         [load16!(f32, l.init.as_ptr().add(o), m, MASKED); PACKET]
                     } else {
                         core::array::from_fn(|q| load16!(f32, out.add(q * os + o), m, MASKED))
                     };
-                    for p in pieces {
+                    for piece in p.pieces {
                         // Moving pointers, not `base + i * stride`: the broadcasts then address
                         // `x + 4q` (base and displacement), which Intel cores keep as one fused
                         // micro-op with the FMA, where an indexed address splits it in two.
-                        let mut x = xt.add(p.start * PACKET);
-                        let mut r = p.rows.add(o);
-                        for _ in 0..p.n {
+                        let mut x = p.xt.add(piece.start * PACKET);
+                        let mut r = piece.rows.add(o);
+                        for _ in 0..piece.n {
                             let w = load16!($tag, r, m, MASKED);
                             for (q, a) in acc.iter_mut().enumerate() {
                                 *a = _mm512_fmadd_ps(_mm512_set1_ps(*x.add(q)), w, *a);
@@ -522,7 +519,7 @@ macro_rules! avx512 {
                     }
                     let zero = _mm512_setzero_ps();
                     for (q, a) in acc.iter().enumerate() {
-                        let v = if relu { _mm512_max_ps(*a, zero) } else { *a };
+                        let v = if p.relu { _mm512_max_ps(*a, zero) } else { *a };
                         _mm512_mask_storeu_ps(out.add(q * os + o), m, v);
                     }
                 }
@@ -543,17 +540,17 @@ macro_rules! avx512 {
                 let xt = xt.as_mut_ptr().cast::<f32>();
                 // Runs every output tile over the pieces transposed so far.
                 let tiles = |pieces: &[Piece<$w>], first: bool, last: bool| {
-                    let relu = last && l.relu;
+                    let p = Pass { xt, pieces, first, relu: last && l.relu };
                     let mut o = 0;
                     // SAFETY: each tile stays below `n_out` (full tiles by the loop bounds, the rest
                     // masked); the pieces lie in `xt` and in their checked segments.
                     unsafe {
                         while o + 16 <= n {
-                            packet_tile::<false>(l, xt, pieces, first, relu, out, os, o, 0xffff);
+                            packet_tile::<false>(l, &p, out, os, o, 0xffff);
                             o += 16;
                         }
                         if o < n {
-                            packet_tile::<true>(l, xt, pieces, first, relu, out, os, o, mask16(n - o));
+                            packet_tile::<true>(l, &p, out, os, o, mask16(n - o));
                         }
                     }
                 };
@@ -594,6 +591,15 @@ struct Piece<W> {
     rows: *const W,
     start: usize,
     n: usize,
+}
+
+/// One pass of the AVX-512 packet kernel over transposed inputs: the pieces in `xt`, whether it is
+/// the first pass (starting from `init`) and whether the ReLU follows (the last pass of a hidden layer).
+struct Pass<'a, W> {
+    xt: *const f32,
+    pieces: &'a [Piece<W>],
+    first: bool,
+    relu: bool,
 }
 
 impl<W> Clone for Piece<W> {
