@@ -307,9 +307,9 @@ impl<'a> Model<'a> {
     /// for the common length of the three slices, bit for bit.
     ///
     /// The valid pairs are gathered into packets of [`crate::mlp::PACKET`] that run through each layer
-    /// together (every weight row read once per packet): for the paper-size Single MLP about 1.2-1.3x
-    /// faster per pair than [`Model::eval`] on an AVX-512 CPU, where single queries are bound by
-    /// streaming the weights from L2 and packets by the FMA rate (see `benches/eval.rs`).
+    /// together (every weight row read once per packet): for the paper-size Single MLP 1.2-1.3x
+    /// (Zen 4) to 1.5x (Intel Xeon) faster per pair than [`Model::eval`], where single queries are
+    /// bound by streaming the weights from L2 and packets by the FMA rate (see `docs/speed.md`).
     pub fn eval_many(&self, prepared: &Prepared, wi: &[Vec3], wo: &[Vec3], out: &mut [Rgb]) {
         let n = out.len().min(wi.len()).min(wo.len());
         self.eval_many_by(prepared, n, |i| (wi[i], wo[i]), |i, f| out[i] = f);
