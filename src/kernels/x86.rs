@@ -582,11 +582,13 @@ macro_rules! avx512 {
 }
 
 /// Inputs per pass of the AVX-512 packet kernel: `XT_CAP × PACKET` f32 (16 KB) on the stack, room
-/// for every layer of the paper's networks (at most 128 + 132 inputs) in one pass.
+/// for every layer of the paper-size networks (at most 128 + 36 inputs) in one pass; a layer with
+/// more inputs (a longer angle encoding) takes one pass per `XT_CAP`.
 const XT_CAP: usize = 256;
 
 /// Consecutive inputs of one segment, transposed: rows `rows[i * n_out..]` for the inputs at
 /// `xt[(start + i) * PACKET..][..PACKET]`, `i < n`.
+#[derive(Clone, Copy)]
 struct Piece<W> {
     rows: *const W,
     start: usize,
@@ -601,13 +603,6 @@ struct Pass<'a, W> {
     first: bool,
     relu: bool,
 }
-
-impl<W> Clone for Piece<W> {
-    fn clone(&self) -> Self {
-        *self
-    }
-}
-impl<W> Copy for Piece<W> {}
 
 /// Writes inputs `x[q * stride + i]`, `i < n`, of the `PACKET` queries feature-major to
 /// `xt[i * PACKET + q]`: 16 × 16 blocks, each loaded as 16 rows (masked past `n`), transposed in
