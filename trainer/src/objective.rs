@@ -16,7 +16,7 @@
 use std::sync::{Arc, Mutex};
 
 use candle_core::{CpuStorage, CustomOp1, Layout, Result, Shape, Tensor};
-use nbrdf::math::{sigmoid, softplus};
+use nbrdf::kernels::{sigmoid_slice, softplus_slice};
 use rayon::prelude::*;
 
 use crate::models::fused::{data, ROW_BLOCK};
@@ -121,7 +121,16 @@ impl CustomOp1 for Objective {
             .map(|(b, (g, u))| {
                 let r0 = b * ROW_BLOCK;
                 let mut acc = [0.0f64; 3];
-                for (j, (g, u)) in g.chunks_exact_mut(k).zip(u.chunks_exact(k)).enumerate() {
+                // The block's softplus and sigmoid through the core's slice maps, as the exported model
+                // maps its outputs: the loss is taken of what a renderer will evaluate, bit for bit (a
+                // per-value `libm` map differs by a few ulp, and is slower).
+                let (mut sp, mut sg) = (u.to_vec(), u.to_vec());
+                if head != Head::Brdf {
+                    softplus_slice(&mut sp);
+                    sigmoid_slice(&mut sg);
+                }
+                let rows = g.chunks_exact_mut(k).zip(u.chunks_exact(k)).zip(sp.chunks_exact(k).zip(sg.chunks_exact(k)));
+                for (j, ((g, u), (softplus, sigmoid))) in rows.enumerate() {
                     let r = r0 + j;
                     let v = valid[r];
                     for c in 0..3 {
@@ -129,15 +138,15 @@ impl CustomOp1 for Objective {
                         // f and its partial derivatives in the packed raw values of channel c.
                         let (f, df) = match head {
                             Head::Brdf => (u[c], [1.0, 0.0, 0.0]),
-                            Head::Softplus => (softplus(u[c]), [sigmoid(u[c]), 0.0, 0.0]),
+                            Head::Softplus => (softplus[c], [sigmoid[c], 0.0, 0.0]),
                             Head::Additive | Head::Enhanced { .. } => {
-                                let sd = sigmoid(u[c]);
+                                let sd = sigmoid[c];
                                 let fd = sd * core::f32::consts::FRAC_1_PI;
                                 let dfd = fd * (1.0 - sd);
-                                let fs = softplus(u[3 + c]);
-                                let dfs = sigmoid(u[3 + c]);
+                                let fs = softplus[3 + c];
+                                let dfs = sigmoid[3 + c];
                                 if let Head::Enhanced { lambda_diffuse, lambda_specular } = head {
-                                    let xi = sigmoid(u[6 + c]);
+                                    let xi = sigmoid[6 + c];
                                     // Sec. 4.4: the diffuse-only rendering against the target, the
                                     // specular rendering against 0.
                                     let (gd, sd_) = gamma_and_slope(fd * v * li);
@@ -279,6 +288,41 @@ mod tests {
                     assert!((x - y).abs() <= 1e-4 * scale + 1e-9, "{} var {v}: {y} vs {x}", config.name());
                 }
             }
+        }
+    }
+
+    /// The softplus head fits exactly what an exported model evaluates: the raw outputs mapped by the
+    /// core's `softplus_slice` and rendered as a BRDF give the same loss, and the gradient in the raw
+    /// outputs is the BRDF head's gradient times `sigmoid_slice`, bit for bit. Raw values from -8 to
+    /// -5.8 under unit light render in the linear toe of the sRGB curve, where an ulp of `f` reaches
+    /// the gradient; the scalar `libm` softplus differs from the slice map in about a third of them.
+    #[test]
+    fn softplus_head_is_the_exported_output_map() {
+        let device = Device::Cpu;
+        let n = 1000;
+        let raw: Vec<f32> = (0..3 * n).map(|i| ((i * 7919) % 2001) as f32 * 0.0011 - 8.0).collect();
+        let (mut f, mut slope) = (raw.clone(), raw.clone());
+        nbrdf::kernels::softplus_slice(&mut f);
+        nbrdf::kernels::sigmoid_slice(&mut slope);
+        let t = |v: Vec<f32>, k: usize| Tensor::from_vec(v, (n, k), &device).unwrap();
+        let target: Vec<f32> = (0..3 * n).map(|i| (i % 11) as f32 * 0.004).collect();
+        let (inc, tgt) = (t(vec![1.0; 3 * n], 3), t(target, 3));
+        let valid = t((0..n).map(|i| (i % 5 != 0) as u8 as f32).collect(), 1);
+        // The loss and its gradient in the head's input.
+        let run = |head: Head, values: Vec<f32>| {
+            let u = candle_core::Var::from_tensor(&t(values, 3)).unwrap();
+            let l = loss(&u, head, &inc, &tgt, &valid).unwrap();
+            let g = l.backward().unwrap().get(&u).unwrap().flatten_all().unwrap().to_vec1::<f32>().unwrap();
+            (l.to_scalar::<f32>().unwrap(), g)
+        };
+        let (mapped, g_raw) = run(Head::Softplus, raw);
+        let (exported, g_f) = run(Head::Brdf, f);
+        assert!(mapped > 0.0);
+        assert_eq!(mapped.to_bits(), exported.to_bits(), "{mapped} vs {exported}");
+        let moved = g_raw.iter().filter(|g| **g != 0.0).count();
+        assert!(moved > n, "{moved} non-zero gradients");
+        for (i, ((gr, gf), s)) in g_raw.iter().zip(&g_f).zip(&slope).enumerate() {
+            assert_eq!(gr.to_bits(), (gf * s).to_bits(), "value {i}: {gr} vs {gf} × {s}");
         }
     }
 
