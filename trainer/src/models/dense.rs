@@ -245,38 +245,24 @@ mod x86 {
         // SAFETY (whole body): every address is within the tile the caller names (its contract);
         // masked lanes are neither read nor written.
         unsafe {
-            let mut acc = [[_mm512_setzero_ps(); V]; R];
-            if epi.accumulate {
-                for (r, acc) in acc.iter_mut().enumerate() {
-                    for (j, v) in acc.iter_mut().enumerate() {
-                        *v = _mm512_maskz_loadu_ps(m[j], c.add(r * ldc + 16 * j));
-                    }
-                }
-            }
-            let mut brow = b.ptr;
-            for (a, p) in [(a1, p1), (a2, p2)] {
-                for q in 0..p {
-                    let mut bv = [_mm512_setzero_ps(); V];
-                    for (j, v) in bv.iter_mut().enumerate() {
-                        *v = load!(FULL, m[j], brow.add(16 * j));
-                    }
-                    for (r, acc) in acc.iter_mut().enumerate() {
-                        let av = _mm512_set1_ps(*a.ptr.add(r * a.ld + q));
-                        for (v, &bj) in acc.iter_mut().zip(&bv) {
-                            *v = _mm512_fmadd_ps(av, bj, *v);
-                        }
-                    }
-                    brow = brow.add(b.ld);
-                }
-            }
+            // Built whole rather than zeroed and then overwritten in place, and the epilogue walks it
+            // by iterators: the old form left the 6 × 3, 6 × 4 and 5 × 4 tiles a stack copy of the
+            // accumulators (a 1.5 KiB memset per tile, stores and reloads around the sweeps). Without
+            // it a 256 × 128 × 128 product runs 1.07× as fast, the masked backward one 1.13× (best of
+            // six, alternating in one session).
+            let mut acc: [[__m512; V]; R] = core::array::from_fn(|r| {
+                core::array::from_fn(|j| if epi.accumulate { _mm512_maskz_loadu_ps(m[j], c.add(r * ldc + 16 * j)) } else { _mm512_setzero_ps() })
+            });
+            let brow = sweep::<R, V, FULL>(&mut acc, a1, p1, b.ptr, b.ld, m);
+            sweep::<R, V, FULL>(&mut acc, a2, p2, brow, b.ld, m);
             let zero = _mm512_setzero_ps();
-            for j in 0..V {
-                let bias = match epi.bias {
-                    Some(bias) => _mm512_maskz_loadu_ps(m[j], bias.add(16 * j)),
-                    None => zero,
-                };
-                for (r, acc) in acc.iter().enumerate() {
-                    let mut v = acc[j];
+            let bias: [__m512; V] = core::array::from_fn(|j| match epi.bias {
+                Some(bias) => _mm512_maskz_loadu_ps(m[j], bias.add(16 * j)),
+                None => zero,
+            });
+            for (r, acc) in acc.iter().enumerate() {
+                for (j, (&v, &bias)) in acc.iter().zip(&bias).enumerate() {
+                    let mut v = v;
                     if epi.bias.is_some() {
                         v = _mm512_add_ps(v, bias);
                     }
@@ -290,6 +276,29 @@ mod x86 {
                     _mm512_mask_storeu_ps(c.add(r * ldc + 16 * j), m[j], v);
                 }
             }
+        }
+    }
+
+    /// The inner products of a tile over the `p` columns of one part of its input, `b` at `brow`
+    /// (row stride `ldb`): returns the next row of `b`.
+    #[inline(always)]
+    unsafe fn sweep<const R: usize, const V: usize, const FULL: bool>(acc: &mut [[__m512; V]; R], a: Mat, p: usize, mut brow: *const f32, ldb: usize, m: [u16; 4]) -> *const f32 {
+        // SAFETY (whole body): the caller's tile contract covers `p` rows of `a` and `b`.
+        unsafe {
+            for q in 0..p {
+                let mut bv = [_mm512_setzero_ps(); V];
+                for (j, v) in bv.iter_mut().enumerate() {
+                    *v = load!(FULL, m[j], brow.add(16 * j));
+                }
+                for (r, acc) in acc.iter_mut().enumerate() {
+                    let av = _mm512_set1_ps(*a.ptr.add(r * a.ld + q));
+                    for (v, &bj) in acc.iter_mut().zip(&bv) {
+                        *v = _mm512_fmadd_ps(av, bj, *v);
+                    }
+                }
+                brow = brow.add(ldb);
+            }
+            brow
         }
     }
 
