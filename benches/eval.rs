@@ -294,8 +294,8 @@ unsafe fn stream_rows(w: &[f32], rows: &[(usize, bool)]) -> f32 {
     for &(off, full) in rows {
         // SAFETY: the row lies in `w` (contract).
         let r = unsafe { base.add(off).cast::<f32>() };
-        for k in 0..if full { 8 } else { 1 } {
-            acc[k] = _mm512_fmadd_ps(x, unsafe { _mm512_loadu_ps(r.add(16 * k)) }, acc[k]);
+        for (k, a) in acc.iter_mut().enumerate().take(if full { 8 } else { 1 }) {
+            *a = _mm512_fmadd_ps(x, unsafe { _mm512_loadu_ps(r.add(16 * k)) }, *a);
         }
     }
     let s = acc.iter().fold(_mm512_setzero_ps(), |s, a| _mm512_add_ps(s, *a));

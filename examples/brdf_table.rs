@@ -54,7 +54,8 @@ fn reciprocity(f: &dyn Fn(Vec3, Vec3) -> Rgb) -> f32 {
 }
 
 fn main() {
-    let mut rows: Vec<(String, Box<dyn Fn(Vec3, Vec3) -> Rgb>)> = vec![
+    type Eval = Box<dyn Fn(Vec3, Vec3) -> Rgb>;
+    let mut rows: Vec<(String, Eval)> = vec![
         ("Lambert (kd 0.8)".into(), Box::new(|a, b| Parametric::Lambert(Lambert { kd: [0.8; 3] }).eval(a, b))),
         (
             "RP (kd 0.4, ks 0.5, n 80)".into(),

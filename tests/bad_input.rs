@@ -230,7 +230,7 @@ fn ply_malformed_variants() {
     assert!(ply(good.as_bytes()).is_ok());
     assert_err!("empty file", ply(b""), Error::Parse { .. });
     assert_err!("not a ply", ply(b"solid stl\n"), Error::Parse { .. });
-    assert_err!("truncated body", ply(good[..good.len() - 6].as_bytes()), Error::Parse { .. });
+    assert_err!("truncated body", ply(&good.as_bytes()[..good.len() - 6]), Error::Parse { .. });
     assert_err!("no face element", ply(b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nend_header\n0 0 0\n1 0 0\n0 1 0\n"), Error::Parse { .. });
     assert_eq!(ply(format!("{}0 0 0\n1 0 0\n0 1 0\n1 1 0\n4 0 1 3 2\n", header_n("4", "1")).as_bytes()).unwrap().triangles.len(), 2);
     assert_err!("a two-corner face", ply(format!("{}0 0 0\n1 0 0\n0 1 0\n2 0 1\n", header("1")).as_bytes()), Error::Parse { .. });
@@ -451,7 +451,8 @@ fn a_failed_write_leaves_the_existing_file_intact_for_every_writer() {
     let model = encode(&h, &small_weights(h.n_weights()), None).unwrap();
     let table = MerlTable::tabulate(|_, _| [0.1; 3]);
     let img = gradient(3, 2);
-    let writes: Vec<(&str, Box<dyn Fn() -> Result<(), Error>>)> = vec![
+    type Write<'a> = Box<dyn Fn() -> Result<(), Error> + 'a>;
+    let writes: Vec<(&str, Write)> = vec![
         ("file::save", Box::new(|| nbrdf::file::save(dir.join("m.nbrdf"), &model))),
         ("MerlTable::write", Box::new(|| table.write(dir.join("t.binary")))),
         ("write_exr", Box::new(|| nbrdf::image::write_exr(dir.join("i.exr"), &img))),

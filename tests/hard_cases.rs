@@ -331,8 +331,9 @@ fn sampling_is_finite_on_the_grid_for_extreme_models_and_random_numbers() {
     // but its pdf and weight must still be finite.
     let us = [0.0, 1e-7, 0.25, 0.5, 0.999_999_94, 1.0, -0.5, 1.5, f32::NAN];
     let in_range = |u: f32| (0.0..=1.0).contains(&u);
-    let mut models: Vec<(String, Box<dyn Fn([f32; 3], Vec3) -> Option<nbrdf::sampling::BsdfSample>>, Box<dyn Fn(Vec3, Vec3) -> f32>)> =
-        Vec::new();
+    type Sample = Box<dyn Fn([f32; 3], Vec3) -> Option<nbrdf::sampling::BsdfSample>>;
+    type Pdf = Box<dyn Fn(Vec3, Vec3) -> f32>;
+    let mut models: Vec<(String, Sample, Pdf)> = Vec::new();
     let mut rng = Lcg(11);
     for kind in ParametricKind::ALL {
         for (raw, object) in raw_configs(kind, &mut rng).into_iter().step_by(7) {

@@ -34,7 +34,8 @@ fn ggx(wi: Vec3, wo: Vec3, alpha: f32) -> f32 {
 fn proxy_sample_and_pdf_agree_and_weights_are_unbiased() {
     let metal = |wi: Vec3, wo: Vec3| Builtin::TwoLobeMetal.eval(wi, wo);
     let coat = |wi: Vec3, wo: Vec3| Builtin::ClearCoat.eval(wi, wo);
-    let cases: Vec<(&str, Proxy, &(dyn Fn(Vec3, Vec3) -> Rgb + Sync))> = vec![
+    type Reference<'a> = &'a (dyn Fn(Vec3, Vec3) -> Rgb + Sync);
+    let cases: Vec<(&str, Proxy, Reference)> = vec![
         ("fitted two-lobe-metal", fit_proxy(metal), &metal),
         ("fitted clear-coat", fit_proxy(coat), &coat),
         ("hand-made", Proxy::new(0.3, [GgxLobe { weight: 0.5, alpha: 0.08 }, GgxLobe { weight: 0.2, alpha: 0.5 }]).unwrap(), &metal),
