@@ -13,6 +13,7 @@
 //! the functions of [`crate::loss`]; the test below checks that this op gives the same loss and the same
 //! gradients for every head.
 
+use std::borrow::Cow;
 use std::sync::{Arc, Mutex};
 
 use candle_core::{CpuStorage, CustomOp1, Layout, Result, Shape, Tensor};
@@ -123,12 +124,17 @@ impl CustomOp1 for Objective {
                 let mut acc = [0.0f64; 3];
                 // The block's softplus and sigmoid through the core's slice maps, as the exported model
                 // maps its outputs: the loss is taken of what a renderer will evaluate, bit for bit (a
-                // per-value `libm` map differs by a few ulp, and is slower).
-                let (mut sp, mut sg) = (u.to_vec(), u.to_vec());
-                if head != Head::Brdf {
-                    softplus_slice(&mut sp);
-                    sigmoid_slice(&mut sg);
-                }
+                // per-value `libm` map differs by a few ulp, and is slower). A parametric model's
+                // outputs are its BRDF already and are not mapped (nor copied).
+                let map = |f: fn(&mut [f32])| -> Cow<'_, [f32]> {
+                    if head == Head::Brdf {
+                        return Cow::Borrowed(u);
+                    }
+                    let mut v = u.to_vec();
+                    f(&mut v);
+                    Cow::Owned(v)
+                };
+                let (sp, sg) = (map(softplus_slice), map(sigmoid_slice));
                 let rows = g.chunks_exact_mut(k).zip(u.chunks_exact(k)).zip(sp.chunks_exact(k).zip(sg.chunks_exact(k)));
                 for (j, ((g, u), (softplus, sigmoid))) in rows.enumerate() {
                     let r = r0 + j;
@@ -302,8 +308,8 @@ mod tests {
         let n = 1000;
         let raw: Vec<f32> = (0..3 * n).map(|i| ((i * 7919) % 2001) as f32 * 0.0011 - 8.0).collect();
         let (mut f, mut slope) = (raw.clone(), raw.clone());
-        nbrdf::kernels::softplus_slice(&mut f);
-        nbrdf::kernels::sigmoid_slice(&mut slope);
+        softplus_slice(&mut f);
+        sigmoid_slice(&mut slope);
         let t = |v: Vec<f32>, k: usize| Tensor::from_vec(v, (n, k), &device).unwrap();
         let target: Vec<f32> = (0..3 * n).map(|i| (i % 11) as f32 * 0.004).collect();
         let (inc, tgt) = (t(vec![1.0; 3 * n], 3), t(target, 3));
