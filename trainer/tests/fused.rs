@@ -151,3 +151,43 @@ fn whole_network_op_matches_layer_by_layer_for_every_variant() {
         }
     }
 }
+
+/// The Additive Shared op (trunk and both heads on one block of rows, the specular head reading the
+/// trunk's features and the angles in place) gives the outputs of its three networks run one by one
+/// as whole-network ops, with the specular head on the joined `[t, PE(a)]`, bit for bit; and their
+/// gradients to rounding: the op continues the specular head's sums for `∂t` from the diffuse head's,
+/// where candle adds the two finished sums.
+#[test]
+fn additive_shared_op_is_its_three_networks() {
+    let dev = Device::Cpu;
+    let position = PositionEncoding::Intrinsic { k: 6 };
+    // Not a multiple of the row blocks, so that the last block, sweep and task are partial.
+    let n = 2500;
+    let obs = trainer::toy::observations(n, position, 9);
+    for enhanced in [false, true] {
+        let config = Config::paper(Kind::AdditiveShared, enhanced, Reciprocity::Exact, position);
+        let model = Model::init(config, 3, &dev).unwrap();
+        let x = Inputs::build(&config, &RawBatch { position: &obs.position, wi: &obs.wi, wo: &obs.wo, swap: None }, &dev).unwrap();
+        let n_nets = &model.nets;
+        let r = Tensor::from_vec(random(&mut ChaCha8Rng::seed_from_u64(5), n * n_nets[1].desc.n_out as usize), (n, n_nets[1].desc.n_out as usize), &dev).unwrap();
+        let k_s = n_nets[2].desc.n_out as usize;
+        let r_s = Tensor::from_vec(random(&mut ChaCha8Rng::seed_from_u64(6), n * k_s), (n, k_s), &dev).unwrap();
+        let loss = |d: &Tensor, s: &Tensor| ((d * &r).unwrap().sum_all().unwrap() + (s * &r_s).unwrap().sum_all().unwrap()).unwrap();
+        let both = trainer::models::additive_shared::additive_shared(&x.position, &x.angles, &n_nets[0], &n_nets[1], &n_nets[2]).unwrap();
+        let m_d = n_nets[1].desc.n_out as usize;
+        let (d, s) = (both.narrow(1, 0, m_d).unwrap(), both.narrow(1, m_d, k_s).unwrap());
+        let g = loss(&d, &s).backward().unwrap();
+        let t = n_nets[0].forward(&x.position, &x.ones).unwrap();
+        let d_ref = n_nets[1].forward(&t, &x.ones).unwrap();
+        let s_ref = n_nets[2].forward(&Tensor::cat(&[&t, &x.angles], 1).unwrap(), &x.ones).unwrap();
+        let g_ref = loss(&d_ref, &s_ref).backward().unwrap();
+        let bits = |t: &Tensor| t.flatten_all().unwrap().to_vec1::<f32>().unwrap().into_iter().map(f32::to_bits).collect::<Vec<_>>();
+        assert!(bits(&d) == bits(&d_ref) && bits(&s) == bits(&s_ref), "{}: outputs differ", config.name());
+        for (j, v) in model.vars().iter().enumerate() {
+            let (a, e) = (g.get(v.as_tensor()).unwrap(), g_ref.get(v.as_tensor()).unwrap());
+            // Variables 0.. are the trunk's (file order): only they see the two orders of `∂t`.
+            let tol = if j < 2 * n_nets[0].layers.len() { 2e-6 } else { 0.0 };
+            assert!(rel_err(a, e) <= tol, "{}: gradient of variable {j} differs by {}", config.name(), rel_err(a, e));
+        }
+    }
+}

@@ -6,8 +6,8 @@ pub mod arch;
 pub mod features;
 pub mod dense;
 pub mod fused;
-pub mod heads;
 pub mod network;
+pub mod additive_shared;
 pub mod mlp;
 pub mod export;
 pub mod parametric;
@@ -135,12 +135,12 @@ impl Model {
                 Raw::Additive { d: n[0].forward(&x.position, &x.ones)?, s: n[1].forward(&x.joint, &x.ones)? }
             }
             Kind::AdditiveShared => {
-                let trunk = n[0].forward(&x.position, &x.ones)?;
-                if network::whole_network() && n[1].desc.n_in > 0 {
-                    let both = heads::heads(&trunk, &x.angles, &n[1], &n[2])?;
+                if network::whole_network() && n[0].desc.n_in > 0 {
+                    let both = additive_shared::additive_shared(&x.position, &x.angles, &n[0], &n[1], &n[2])?;
                     let m_d = n[1].desc.n_out as usize;
                     Raw::Additive { d: both.narrow(1, 0, m_d)?, s: both.narrow(1, m_d, both.dim(1)? - m_d)? }
                 } else {
+                    let trunk = n[0].forward(&x.position, &x.ones)?;
                     let d = n[1].forward(&trunk, &x.ones)?;
                     let s = n[2].forward(&Tensor::cat(&[&trunk, &x.angles], 1)?, &x.ones)?;
                     Raw::Additive { d, s }
