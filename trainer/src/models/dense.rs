@@ -200,7 +200,7 @@ unsafe fn portable_product(rows: usize, cols: usize, a1: Mat, p1: usize, a2: Mat
 #[cfg(target_arch = "x86_64")]
 mod x86 {
     //! The AVX-512 kernels: a tile of up to 6 rows × 4 vectors (64 columns) of accumulators, 24 of
-    //! the 32 registers; per inner index 4 loads of `B`, 6 broadcasts of `A` and 24 FMAs, which keeps
+    //! the 32 registers (24 rows × 1 vector where the columns are one vector, `NARROW_MR`); per inner index 4 loads of `B`, 6 broadcasts of `A` and 24 FMAs, which keeps
     //! Zen 4's one 512-bit FMA per cycle busy (~94% of peak in cache), and an Intel Xeon's two at
     //! 150-165 GFLOP/s per core in cache (256 rows by a 128 × 128 matrix; the same tile in C: 174).
     //! Edge tiles use masks; full ones do not (see `load!`).
@@ -209,6 +209,11 @@ mod x86 {
 
     /// Rows per tile.
     const MR: usize = 6;
+    /// Rows per tile where the columns are one vector (a network's output layer, 3 or 6 wide): a
+    /// 6 × 1 tile has only 6 independent FMA chains, too few for two FMA ports of 4-cycle latency
+    /// (8 in flight), and pays a masked `B` load per 6 FMAs; 24 rows keep 24 chains in 24 of the 32
+    /// registers. The same in a weight gradient whose layer has at most 16 outputs, along its inputs.
+    const NARROW_MR: usize = 24;
     /// Columns per tile (four vectors).
     const NR: usize = 64;
 
@@ -332,7 +337,20 @@ mod x86 {
                 let m = masks(cols - c0);
                 let vecs = (cols - c0).min(NR).div_ceil(16);
                 let epi_c = Epilogue { bias: epi.bias.map(|p| p.add(c0)), mask: epi.mask.map(|k| k.at(0, c0)), ..epi };
-                for r0 in (0..rows).step_by(MR) {
+                let mut start = 0;
+                if vecs == 1 {
+                    while rows - start >= NARROW_MR {
+                        let epi_t = Epilogue { mask: epi_c.mask.map(|k| k.at(start, 0)), ..epi_c };
+                        let args = (a1.at(start, 0), p1, a2.at(start, 0), p2, b.at(0, c0), c.add(start * ldc + c0), ldc, m, epi_t);
+                        if m[0] == u16::MAX {
+                            tile::<NARROW_MR, 1, true>(args.0, args.1, args.2, args.3, args.4, args.5, args.6, args.7, args.8);
+                        } else {
+                            tile::<NARROW_MR, 1, false>(args.0, args.1, args.2, args.3, args.4, args.5, args.6, args.7, args.8);
+                        }
+                        start += NARROW_MR;
+                    }
+                }
+                for r0 in (start..rows).step_by(MR) {
                     let epi_t = Epilogue { mask: epi_c.mask.map(|k| k.at(r0, 0)), ..epi_c };
                     let args = (a1.at(r0, 0), p1, a2.at(r0, 0), p2, b.at(0, c0), c.add(r0 * ldc + c0), ldc, m, epi_t);
                     dispatch!(tile, rows - r0, vecs, m, (args.0, args.1, args.2, args.3, args.4, args.5, args.6, args.7, args.8));
@@ -384,7 +402,20 @@ mod x86 {
         unsafe {
             for i0 in (0..rows).step_by(W_ROWS) {
                 let n = W_ROWS.min(rows - i0);
-                for k0 in (0..k).step_by(MR) {
+                let mut start = 0;
+                if m <= 16 {
+                    let mask = masks(m);
+                    while k - start >= NARROW_MR {
+                        let args = (n, a.at(i0, start), g.at(i0, 0), w.add(start * m), m, mask, accumulate || i0 > 0);
+                        if m == 16 {
+                            weight_tile::<NARROW_MR, 1, true>(args.0, args.1, args.2, args.3, args.4, args.5, args.6);
+                        } else {
+                            weight_tile::<NARROW_MR, 1, false>(args.0, args.1, args.2, args.3, args.4, args.5, args.6);
+                        }
+                        start += NARROW_MR;
+                    }
+                }
+                for k0 in (start..k).step_by(MR) {
                     for c0 in (0..m).step_by(NR) {
                         let mask = masks(m - c0);
                         let vecs = (m - c0).min(NR).div_ceil(16);
@@ -448,7 +479,7 @@ mod tests {
     fn product_meets_its_definition_on_every_tile_shape() {
         // Rows and columns that leave partial tiles (1..5 rows, 1..3 vectors, masked lanes), a skip
         // layer's two-part input, and each epilogue.
-        for &(rows, cols, p1, p2) in &[(1, 1, 1, 0), (7, 3, 5, 0), (13, 17, 9, 4), (6, 64, 128, 0), (25, 130, 40, 27), (12, 128, 128, 68)] {
+        for &(rows, cols, p1, p2) in &[(1, 1, 1, 0), (7, 3, 5, 0), (13, 17, 9, 4), (6, 64, 128, 0), (25, 130, 40, 27), (12, 128, 128, 68), (53, 3, 128, 0), (50, 16, 20, 7)] {
             let (a1, a2, b) = (values(rows * p1, 1), values(rows * p2, 2), values((p1 + p2) * cols, 3));
             let (c0, bias, mask) = (values(rows * cols, 4), values(cols, 5), values(rows * cols, 6));
             let epilogues = [
@@ -500,21 +531,24 @@ mod tests {
     #[test]
     fn weight_product_adds_the_transposed_product() {
         // 300 rows: more than one sweep of the kernel's row blocks; 70 columns and 13 weight rows
-        // leave partial tiles.
-        let (rows, k, m) = (300, 13, 70);
-        let (a, g, w0) = (values(rows * k, 9), values(rows * m, 10), values(k * m, 11));
-        for accumulate in [true, false] {
-            // Without `accumulate` the old values must not matter: start from NaN.
-            let mut w = if accumulate { w0.clone() } else { vec![f32::NAN; k * m] };
-            // SAFETY: a is rows × k, g rows × m, w k × m.
-            unsafe { weight_product(rows, k, m, Mat::new(&a, k), Mat::new(&g, m), w.as_mut_ptr(), accumulate) };
-            for i in 0..k {
-                for j in 0..m {
-                    let start = if accumulate { w0[i * m + j] as f64 } else { 0.0 };
-                    let want = start + (0..rows).map(|r| a[r * k + i] as f64 * g[r * m + j] as f64).sum::<f64>();
-                    assert!((w[i * m + j] as f64 - want).abs() < 1e-4, "accumulate {accumulate} [{i}, {j}] {} vs {want}", w[i * m + j]);
+        // leave partial tiles; an output layer's 3 and 16 columns take the narrow tiles, 53 and 48
+        // weight rows with and without a remainder.
+        for (rows, k, m) in [(300, 13, 70), (300, 53, 3), (290, 48, 16)] {
+            let (a, g, w0) = (values(rows * k, 9), values(rows * m, 10), values(k * m, 11));
+            for accumulate in [true, false] {
+                // Without `accumulate` the old values must not matter: start from NaN.
+                let mut w = if accumulate { w0.clone() } else { vec![f32::NAN; k * m] };
+                // SAFETY: a is rows × k, g rows × m, w k × m.
+                unsafe { weight_product(rows, k, m, Mat::new(&a, k), Mat::new(&g, m), w.as_mut_ptr(), accumulate) };
+                for i in 0..k {
+                    for j in 0..m {
+                        let start = if accumulate { w0[i * m + j] as f64 } else { 0.0 };
+                        let want = start + (0..rows).map(|r| a[r * k + i] as f64 * g[r * m + j] as f64).sum::<f64>();
+                        assert!((w[i * m + j] as f64 - want).abs() < 1e-4, "{k}x{m} accumulate {accumulate} [{i}, {j}] {} vs {want}", w[i * m + j]);
+                    }
                 }
             }
         }
     }
 }
+
