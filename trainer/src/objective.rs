@@ -21,7 +21,7 @@ use nbrdf::kernels::{sigmoid_slice, softplus_slice};
 use rayon::prelude::*;
 
 use crate::models::fused::{data, ROW_BLOCK};
-use crate::models::{Model, Raw};
+use crate::models::{network, step, Kind, Model, Raw};
 use crate::train::{Batch, TrainOptions};
 
 /// How the packed raw outputs of a sample become its BRDF `f` (`[N, k]` rows, `k` columns).
@@ -78,6 +78,101 @@ fn sign(e: f32) -> f32 {
     }
 }
 
+/// Eq. 10 and the regularisers are means over the `3N` colour values of a batch of `N` samples.
+pub(crate) fn scale_of(n: usize) -> f32 {
+    1.0 / (3 * n).max(1) as f32
+}
+
+/// A batch's constants: `L_i cos θ_l` and `γ(L_GT)` (`[N, 3]`) and the valid-pair mask (`[N]`).
+#[derive(Clone, Copy)]
+pub(crate) struct Constants<'a> {
+    pub incident: &'a [f32],
+    pub target: &'a [f32],
+    pub valid: &'a [f32],
+}
+
+/// The objective on one block of rows, the batch's rows `r0..` (`u`, `g`: `[rows, k]`, `g` zeroed):
+/// adds `d loss / d u` into `g` and returns the block's `(Σ e², Σ |e_d|, Σ |γ_s|)` in f64. Blocks of
+/// [`ROW_BLOCK`] rows, their sums added in block order ([`loss_of`]), give the op's loss.
+pub(crate) fn rows(head: Head, u: &[f32], g: &mut [f32], c: Constants<'_>, r0: usize, scale: f32) -> [f64; 3] {
+    let k = head.width();
+    let (inc, tgt, valid) = (c.incident, c.target, c.valid);
+    let mut acc = [0.0f64; 3];
+    // The block's softplus and sigmoid through the core's slice maps, as the exported model
+    // maps its outputs: the loss is taken of what a renderer will evaluate, bit for bit (a
+    // per-value `libm` map differs by a few ulp, and is slower). A parametric model's
+    // outputs are its BRDF already and are not mapped (nor copied).
+    let map = |f: fn(&mut [f32])| -> Cow<'_, [f32]> {
+        if head == Head::Brdf {
+            return Cow::Borrowed(u);
+        }
+        let mut v = u.to_vec();
+        f(&mut v);
+        Cow::Owned(v)
+    };
+    let (sp, sg) = (map(softplus_slice), map(sigmoid_slice));
+    let rows = g.chunks_exact_mut(k).zip(u.chunks_exact(k)).zip(sp.chunks_exact(k).zip(sg.chunks_exact(k)));
+    for (j, ((g, u), (softplus, sigmoid))) in rows.enumerate() {
+        let r = r0 + j;
+        let v = valid[r];
+        for c in 0..3 {
+            let (li, t) = (inc[3 * r + c], tgt[3 * r + c]);
+            // f and its partial derivatives in the packed raw values of channel c.
+            let (f, df) = match head {
+                Head::Brdf => (u[c], [1.0, 0.0, 0.0]),
+                Head::Softplus => (softplus[c], [sigmoid[c], 0.0, 0.0]),
+                Head::Additive | Head::Enhanced { .. } => {
+                    let sd = sigmoid[c];
+                    let fd = sd * core::f32::consts::FRAC_1_PI;
+                    let dfd = fd * (1.0 - sd);
+                    let fs = softplus[3 + c];
+                    let dfs = sigmoid[3 + c];
+                    if let Head::Enhanced { lambda_diffuse, lambda_specular } = head {
+                        let xi = sigmoid[6 + c];
+                        // Sec. 4.4: the diffuse-only rendering against the target, the
+                        // specular rendering against 0.
+                        let (gd, sd_) = gamma_and_slope(fd * v * li);
+                        let ed = gd - t;
+                        acc[1] += ed.abs() as f64;
+                        let (gs, ss) = gamma_and_slope(fs * li);
+                        acc[2] += gs.abs() as f64;
+                        g[c] += lambda_diffuse * scale * sign(ed) * sd_ * v * li * dfd;
+                        g[3 + c] += lambda_specular * scale * sign(gs) * ss * li * dfs;
+                        ((1.0 - xi) * fd + fs, [(1.0 - xi) * dfd, dfs, -fd * xi * (1.0 - xi)])
+                    } else {
+                        (fd + fs, [dfd, dfs, 0.0])
+                    }
+                }
+            };
+            // Eq. 9 (invalid pairs are black) and Eq. 10.
+            let (gl, sl) = gamma_and_slope(f * v * li);
+            let e = gl - t;
+            acc[0] += (e * e) as f64;
+            let de = 2.0 * scale * e * sl * v * li;
+            for (m, d) in df.iter().enumerate().take(k / 3) {
+                g[3 * m + c] += de * d;
+            }
+        }
+    }
+    acc
+}
+
+/// The loss from the blocks' sums of [`rows`], added in block order.
+pub(crate) fn loss_of(head: Head, sums: &[[f64; 3]], scale: f32) -> f64 {
+    let mut total = [0.0f64; 3];
+    for s in sums {
+        for (t, s) in total.iter_mut().zip(s) {
+            *t += s;
+        }
+    }
+    match head {
+        Head::Enhanced { lambda_diffuse, lambda_specular } => {
+            (total[0] + lambda_diffuse as f64 * total[1] + lambda_specular as f64 * total[2]) * scale as f64
+        }
+        _ => total[0] * scale as f64,
+    }
+}
+
 /// The op over the packed raw outputs `u [N, k]`; the batch constants ride along.
 struct Objective {
     head: Head,
@@ -110,8 +205,7 @@ impl CustomOp1 for Objective {
         if u.len() != n * k || inc.len() != 3 * n || tgt.len() != 3 * n {
             candle_core::bail!("objective: {} raw outputs, {} incident, {} targets for {n} samples of {k}", u.len(), inc.len(), tgt.len())
         }
-        // Eq. 10 and the regularisers are means over the 3N colour values.
-        let scale = 1.0 / (3 * n).max(1) as f32;
+        let scale = scale_of(n);
         let head = self.head;
         let mut grad = vec![0.0f32; n * k];
         // Per block of rows: (Σ e², Σ |e_d|, Σ |γ_s|) in f64, added in block order (deterministic).
@@ -119,80 +213,9 @@ impl CustomOp1 for Objective {
             .par_chunks_mut(ROW_BLOCK * k)
             .zip(u.par_chunks(ROW_BLOCK * k))
             .enumerate()
-            .map(|(b, (g, u))| {
-                let r0 = b * ROW_BLOCK;
-                let mut acc = [0.0f64; 3];
-                // The block's softplus and sigmoid through the core's slice maps, as the exported model
-                // maps its outputs: the loss is taken of what a renderer will evaluate, bit for bit (a
-                // per-value `libm` map differs by a few ulp, and is slower). A parametric model's
-                // outputs are its BRDF already and are not mapped (nor copied).
-                let map = |f: fn(&mut [f32])| -> Cow<'_, [f32]> {
-                    if head == Head::Brdf {
-                        return Cow::Borrowed(u);
-                    }
-                    let mut v = u.to_vec();
-                    f(&mut v);
-                    Cow::Owned(v)
-                };
-                let (sp, sg) = (map(softplus_slice), map(sigmoid_slice));
-                let rows = g.chunks_exact_mut(k).zip(u.chunks_exact(k)).zip(sp.chunks_exact(k).zip(sg.chunks_exact(k)));
-                for (j, ((g, u), (softplus, sigmoid))) in rows.enumerate() {
-                    let r = r0 + j;
-                    let v = valid[r];
-                    for c in 0..3 {
-                        let (li, t) = (inc[3 * r + c], tgt[3 * r + c]);
-                        // f and its partial derivatives in the packed raw values of channel c.
-                        let (f, df) = match head {
-                            Head::Brdf => (u[c], [1.0, 0.0, 0.0]),
-                            Head::Softplus => (softplus[c], [sigmoid[c], 0.0, 0.0]),
-                            Head::Additive | Head::Enhanced { .. } => {
-                                let sd = sigmoid[c];
-                                let fd = sd * core::f32::consts::FRAC_1_PI;
-                                let dfd = fd * (1.0 - sd);
-                                let fs = softplus[3 + c];
-                                let dfs = sigmoid[3 + c];
-                                if let Head::Enhanced { lambda_diffuse, lambda_specular } = head {
-                                    let xi = sigmoid[6 + c];
-                                    // Sec. 4.4: the diffuse-only rendering against the target, the
-                                    // specular rendering against 0.
-                                    let (gd, sd_) = gamma_and_slope(fd * v * li);
-                                    let ed = gd - t;
-                                    acc[1] += ed.abs() as f64;
-                                    let (gs, ss) = gamma_and_slope(fs * li);
-                                    acc[2] += gs.abs() as f64;
-                                    g[c] += lambda_diffuse * scale * sign(ed) * sd_ * v * li * dfd;
-                                    g[3 + c] += lambda_specular * scale * sign(gs) * ss * li * dfs;
-                                    ((1.0 - xi) * fd + fs, [(1.0 - xi) * dfd, dfs, -fd * xi * (1.0 - xi)])
-                                } else {
-                                    (fd + fs, [dfd, dfs, 0.0])
-                                }
-                            }
-                        };
-                        // Eq. 9 (invalid pairs are black) and Eq. 10.
-                        let (gl, sl) = gamma_and_slope(f * v * li);
-                        let e = gl - t;
-                        acc[0] += (e * e) as f64;
-                        let de = 2.0 * scale * e * sl * v * li;
-                        for (m, d) in df.iter().enumerate().take(k / 3) {
-                            g[3 * m + c] += de * d;
-                        }
-                    }
-                }
-                acc
-            })
+            .map(|(b, (g, u))| rows(head, u, g, Constants { incident: inc, target: tgt, valid }, b * ROW_BLOCK, scale))
             .collect();
-        let mut total = [0.0f64; 3];
-        for s in sums {
-            for (t, s) in total.iter_mut().zip(s) {
-                *t += s;
-            }
-        }
-        let loss = match head {
-            Head::Enhanced { lambda_diffuse, lambda_specular } => {
-                (total[0] + lambda_diffuse as f64 * total[1] + lambda_specular as f64 * total[2]) * scale as f64
-            }
-            _ => total[0] * scale as f64,
-        };
+        let loss = loss_of(head, &sums, scale);
         *self.grad.lock().map_err(|_| candle_core::Error::Msg("objective: poisoned gradient".into()))? = grad;
         Ok((CpuStorage::F32(vec![loss as f32]), Shape::from(())))
     }
@@ -222,6 +245,11 @@ pub fn loss(u: &Tensor, head: Head, incident: &Tensor, target: &Tensor, valid: &
 /// The objective of one batch: Eq. 10, plus the Sec. 4.4 regularisers for enhanced models; the
 /// networks as their ops, everything after them as one [`loss`] op.
 pub fn objective(model: &Model, batch: &Batch, opts: &TrainOptions) -> Result<Tensor> {
+    let nets = &model.nets;
+    if let (Kind::SingleMlp, [net], true, true) = (model.config.kind, &nets[..], network::whole_network() && step::fused_step(), nets.first().is_some_and(|n| n.desc.n_in > 0)) {
+        let x = &batch.inputs;
+        return step::single_mlp_loss(net, &x.joint, &batch.incident, &batch.target, &x.valid);
+    }
     let (u, head) = match model.raw(&batch.inputs)? {
         Raw::Brdf(f) => (f, Head::Brdf),
         Raw::Softplus(out) => (out, Head::Softplus),

@@ -8,6 +8,7 @@ pub mod dense;
 pub mod fused;
 pub mod network;
 pub mod additive_shared;
+pub mod step;
 pub mod mlp;
 pub mod export;
 pub mod parametric;
