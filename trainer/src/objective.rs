@@ -245,24 +245,34 @@ pub fn loss(u: &Tensor, head: Head, incident: &Tensor, target: &Tensor, valid: &
 /// The objective of one batch: Eq. 10, plus the Sec. 4.4 regularisers for enhanced models; the
 /// networks as their ops, everything after them as one [`loss`] op.
 pub fn objective(model: &Model, batch: &Batch, opts: &TrainOptions) -> Result<Tensor> {
-    let nets = &model.nets;
-    if let (Kind::SingleMlp, [net], true, true) = (model.config.kind, &nets[..], network::whole_network() && step::fused_step(), nets.first().is_some_and(|n| n.desc.n_in > 0)) {
-        let x = &batch.inputs;
-        return step::single_mlp_loss(net, &x.joint, &batch.incident, &batch.target, &x.valid);
+    // The networks, the head and the loss in one op where the networks feed the head directly (and
+    // read an input; a uniform material's position-only trunk is a bias).
+    let (nets, x) = (&model.nets[..], &batch.inputs);
+    if network::whole_network() && step::fused_step() && nets.first().is_some_and(|n| n.desc.n_in > 0) {
+        match (model.config.kind, nets) {
+            (Kind::SingleMlp, [net]) => return step::single_mlp_loss(net, &x.joint, &batch.incident, &batch.target, &x.valid),
+            (Kind::AdditiveShared, [trunk, d, s]) => {
+                let head = additive_head(model, opts);
+                return step::additive_shared_loss(trunk, d, s, head, &x.position, &x.angles, &batch.incident, &batch.target, &x.valid);
+            }
+            _ => {}
+        }
     }
     let (u, head) = match model.raw(&batch.inputs)? {
         Raw::Brdf(f) => (f, Head::Brdf),
         Raw::Softplus(out) => (out, Head::Softplus),
-        Raw::Additive { d, s } => {
-            let head = if model.config.has_xi() {
-                Head::Enhanced { lambda_diffuse: opts.lambda_diffuse, lambda_specular: opts.lambda_specular }
-            } else {
-                Head::Additive
-            };
-            (Tensor::cat(&[&d, &s], 1)?, head)
-        }
+        Raw::Additive { d, s } => (Tensor::cat(&[&d, &s], 1)?, additive_head(model, opts)),
     };
     loss(&u, head, &batch.incident, &batch.target, &batch.inputs.valid)
+}
+
+/// The head of an additive model: Eq. 8 with the Sec. 4.4 regularisers where it is enhanced.
+fn additive_head(model: &Model, opts: &TrainOptions) -> Head {
+    if model.config.has_xi() {
+        Head::Enhanced { lambda_diffuse: opts.lambda_diffuse, lambda_specular: opts.lambda_specular }
+    } else {
+        Head::Additive
+    }
 }
 
 #[cfg(test)]

@@ -192,9 +192,10 @@ fn additive_shared_op_is_its_three_networks() {
     }
 }
 
-/// A Single MLP's training step as one op (forward, objective and backward on each block of rows,
-/// `models::step`) gives the loss and every weight's gradient of the network op followed by the
-/// objective op, bit for bit, on a batch that ends in a partial block.
+/// The training step as one op (forward, objective and backward on each block of rows,
+/// `models::step`) gives the loss and every weight's gradient of the network ops followed by the
+/// objective op, bit for bit: the Single MLP and the Additive Shared model, plain and enhanced (with
+/// its regularisers), on a batch that ends in a partial block.
 #[test]
 fn fused_step_is_the_network_and_objective_ops_bit_for_bit() {
     use trainer::models::step;
@@ -204,26 +205,30 @@ fn fused_step_is_the_network_and_objective_ops_bit_for_bit() {
     let position = PositionEncoding::Intrinsic { k: 6 };
     let n = 2500;
     let obs = trainer::toy::observations(n, position, 12);
-    let config = Config::paper(Kind::SingleMlp, false, Reciprocity::Exact, position);
-    let model = Model::init(config, 8, &dev).unwrap();
-    let inputs = Inputs::build(&config, &RawBatch { position: &obs.position, wi: &obs.wi, wo: &obs.wo, swap: None }, &dev).unwrap();
     // Incident light from 0 to ~20: rendered values below the sRGB knee, on the curve and clipped.
     let incident: Vec<f32> = (0..n).flat_map(|i| [(i % 7) as f32 * 3.0 * obs.wi[i].z.max(0.0); 3]).collect();
     let target: Vec<f32> = obs.radiance.iter().flatten().map(|&v| trainer::loss::gamma(v)).collect();
-    let batch = Batch { inputs, incident: Tensor::from_vec(incident, (n, 3), &dev).unwrap(), target: Tensor::from_vec(target, (n, 3), &dev).unwrap() };
-    let run = |fused: bool| {
-        step::set_fused_step(fused);
-        let loss = objective(&model, &batch, &TrainOptions::default()).unwrap();
-        step::set_fused_step(true);
-        let g = loss.backward().unwrap();
-        (loss.to_scalar::<f32>().unwrap(), g)
-    };
-    let ((loss, g), (loss_ref, g_ref)) = (run(true), run(false));
-    assert!(loss > 0.0);
-    assert_eq!(loss.to_bits(), loss_ref.to_bits(), "loss {loss} vs {loss_ref}");
-    let bits = |t: &Tensor| t.flatten_all().unwrap().to_vec1::<f32>().unwrap().into_iter().map(f32::to_bits).collect::<Vec<_>>();
-    for (j, v) in model.vars().iter().enumerate() {
-        let (a, e) = (g.get(v.as_tensor()).unwrap(), g_ref.get(v.as_tensor()).unwrap());
-        assert!(bits(a) == bits(e), "variable {j} differs by {}", rel_err(a, e));
+    let opts = TrainOptions { lambda_diffuse: 0.3, lambda_specular: 0.2, ..Default::default() };
+    for (kind, enhanced) in [(Kind::SingleMlp, false), (Kind::AdditiveShared, false), (Kind::AdditiveShared, true)] {
+        let config = Config::paper(kind, enhanced, Reciprocity::Exact, position);
+        let model = Model::init(config, 8, &dev).unwrap();
+        let inputs = Inputs::build(&config, &RawBatch { position: &obs.position, wi: &obs.wi, wo: &obs.wo, swap: None }, &dev).unwrap();
+        let batch = Batch { inputs, incident: Tensor::from_vec(incident.clone(), (n, 3), &dev).unwrap(), target: Tensor::from_vec(target.clone(), (n, 3), &dev).unwrap() };
+        let run = |fused: bool| {
+            step::set_fused_step(fused);
+            let loss = objective(&model, &batch, &opts).unwrap();
+            step::set_fused_step(true);
+            let g = loss.backward().unwrap();
+            (loss.to_scalar::<f32>().unwrap(), g)
+        };
+        let ((loss, g), (loss_ref, g_ref)) = (run(true), run(false));
+        let name = config.name();
+        assert!(loss > 0.0, "{name}");
+        assert_eq!(loss.to_bits(), loss_ref.to_bits(), "{name}: loss {loss} vs {loss_ref}");
+        let bits = |t: &Tensor| t.flatten_all().unwrap().to_vec1::<f32>().unwrap().into_iter().map(f32::to_bits).collect::<Vec<_>>();
+        for (j, v) in model.vars().iter().enumerate() {
+            let (a, e) = (g.get(v.as_tensor()).unwrap(), g_ref.get(v.as_tensor()).unwrap());
+            assert!(bits(a) == bits(e), "{name}: variable {j} differs by {}", rel_err(a, e));
+        }
     }
 }

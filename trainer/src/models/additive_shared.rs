@@ -88,31 +88,134 @@ unsafe fn mats_from(v: &[Vec<f32>], widths: &[(usize, usize)], r: usize) -> Vec<
     v.iter().zip(widths).map(|(b, &(_, m))| unsafe { Mat::new(b, m).at(r, 0) }).collect()
 }
 
-impl AdditiveShared {
-    /// The three networks on their blocks of `p`, checked against an input of `n_p` position and
-    /// `n_a` angle columns, and where each network's matrices and biases start in `p`.
-    fn nets<'a>(&'a self, p: &'a [f32], n_p: usize, n_a: usize, op: &str) -> Result<([Net<'a>; 3], [(usize, usize); 3])> {
-        let shapes = [&self.trunk, &self.d, &self.s];
+/// The model's three networks on their blocks of a parameter vector `p` (each network's matrices then
+/// its biases, in the order trunk, diffuse head, specular head), checked against an input of `n_p`
+/// position and `n_a` angle columns: the passes on a block of rows that this op and the fused
+/// training step ([`super::step`]) share.
+pub(super) struct Three<'a> {
+    pub trunk: Net<'a>,
+    pub d: Net<'a>,
+    pub s: Net<'a>,
+    /// Where each network's matrices and biases start in `p`, and how many biases it has.
+    at: [(usize, usize, usize); 3],
+}
+
+impl<'a> Three<'a> {
+    pub fn new(shapes: [&'a NetShape; 3], p: &'a [f32], n_p: usize, n_a: usize, op: &str) -> Result<Self> {
         let total: usize = shapes.iter().map(|s| sizes(s).0 + sizes(s).1).sum();
         if p.len() != total {
             candle_core::bail!("{op}: {} parameters for networks of {total}", p.len())
         }
-        let mut at = [(0, 0); 3];
+        let mut at = [(0, 0, 0); 3];
         let mut o = 0;
         for (a, s) in at.iter_mut().zip(shapes) {
             let (w, b) = sizes(s);
-            *a = (o, o + w);
+            *a = (o, o + w, b);
             o += w + b;
         }
         let block = |i: usize| {
             let (w, b) = sizes(shapes[i]);
             (&p[at[i].0..at[i].0 + w], &p[at[i].1..at[i].1 + b])
         };
-        let trunk = Net::new(&self.trunk, block(0).0, block(0).1, 0, n_p, op)?;
+        let trunk = Net::new(shapes[0], block(0).0, block(0).1, 0, n_p, op)?;
         let n_t = trunk.m();
-        let d = Net::new(&self.d, block(1).0, block(1).1, 0, n_t, op)?;
-        let s = Net::new(&self.s, block(2).0, block(2).1, n_t, n_a, op)?;
-        Ok(([trunk, d, s], at))
+        let d = Net::new(shapes[1], block(1).0, block(1).1, 0, n_t, op)?;
+        let s = Net::new(shapes[2], block(2).0, block(2).1, n_t, n_a, op)?;
+        Ok(Three { trunk, d, s, at })
+    }
+
+    /// Columns of the output `[d, s]`: `(m_d, m_d + m_s)`.
+    pub fn widths(&self) -> (usize, usize) {
+        (self.d.m(), self.d.m() + self.s.m())
+    }
+
+    /// Columns of the widest matrix side of the three, the width of a sweep's gradient buffers.
+    pub fn width(&self) -> usize {
+        [&self.trunk, &self.d, &self.s].iter().map(|net| net.width()).max().unwrap_or(0)
+    }
+
+    /// `Wᵀ` of every layer of the three networks.
+    pub fn transposed(&self) -> [Vec<Vec<f32>>; 3] {
+        [self.trunk.transposed(), self.d.transposed(), self.s.transposed()]
+    }
+
+    /// Zeroes the bias blocks of a gradient laid out as `p`, the blocks that the sweeps add to.
+    ///
+    /// # Safety
+    /// `dp` must have room for `p.len()` values.
+    pub unsafe fn zero_biases(&self, dp: *mut f32) {
+        for &(_, ob, nb) in &self.at {
+            // SAFETY: the bias blocks lie within p's length (checked in `new`).
+            unsafe { std::ptr::write_bytes(dp.add(ob), 0, nb) };
+        }
+    }
+
+    /// The forward pass on `rows` rows, `x` and `a` from the block's first row: the trunk's layers to
+    /// `dst_t` (the last is `t`), the heads' hidden layers to `dst_d` and `dst_s`, and their outputs
+    /// side by side to `out` (`[d, s]`, row stride ≥ `m_d + m_s`); the specular head reads `t` and the
+    /// angles in place.
+    ///
+    /// # Safety
+    /// As [`Net::forward_rows`] for each network.
+    pub unsafe fn forward_rows(&self, rows: usize, x: Mat, a: Mat, dst_t: &[Dst], dst_d: &[Dst], dst_s: &[Dst], out: Dst) {
+        let n_t = self.trunk.m();
+        // SAFETY: the caller's contract.
+        unsafe {
+            self.trunk.forward_rows(rows, x, x, dst_t);
+            let tm = Mat { ptr: dst_t[dst_t.len() - 1].at.0, ld: n_t };
+            let mut at_d = dst_d.to_vec();
+            at_d.push(out);
+            self.d.forward_rows(rows, tm, tm, &at_d);
+            let mut at_s = dst_s.to_vec();
+            at_s.push(Dst { at: Shared(out.at.add(self.d.m())), ld: out.ld });
+            self.s.forward_rows(rows, a, tm, &at_s);
+        }
+    }
+
+    /// The backward pass on one sweep of `rows` rows from the gradient `dy` of `[d, s]`: each network's
+    /// weight and bias gradients into its blocks of `dp` (laid out as `p`; `first`: the matrices are
+    /// written, not added to), the heads' `∂t` through the buffer `dt` (`rows × n_t`) to the trunk.
+    /// `acts_*` are the networks' layer outputs (the trunk's last is `t`, the heads' outputs are not
+    /// read), `x` and `a` the inputs, all from the sweep's first row; `wt` is [`Three::transposed`].
+    ///
+    /// # Safety
+    /// As [`Net::backward_rows`] for each network; `dp` must have room for `p.len()` values and its
+    /// bias blocks be initialised ([`Three::zero_biases`]).
+    #[allow(clippy::too_many_arguments)]
+    pub unsafe fn backward_rows(
+        &self,
+        wt: &[Vec<Vec<f32>>; 3],
+        rows: usize,
+        (acts_t, acts_d, acts_s): (&[Mat], &[Mat], &[Mat]),
+        x: Mat,
+        a: Mat,
+        dy: Mat,
+        dp: *mut f32,
+        first: bool,
+        scratch: (&mut Vec<f32>, &mut Vec<f32>),
+        dt: *mut f32,
+    ) {
+        let n_t = self.trunk.m();
+        let (g, below) = scratch;
+        let tm = acts_t[acts_t.len() - 1];
+        let dt_at = Dst { at: Shared(dt), ld: n_t };
+        // SAFETY: the caller's contract; each network's blocks of dp are its own.
+        unsafe {
+            let db = |i: usize| std::slice::from_raw_parts_mut(dp.add(self.at[i].1), self.at[i].2);
+            let to_dt = |add| Some(Grad { to: dt_at, add });
+            self.d.backward_rows(&wt[1], rows, acts_d, None, tm, tm, dy, dp.add(self.at[1].0), db(1), first, (&mut *g, &mut *below), to_dt(false), None);
+            self.s.backward_rows(&wt[2], rows, acts_s, None, a, tm, dy.at(0, self.d.m()), dp.add(self.at[2].0), db(2), first, (&mut *g, &mut *below), None, to_dt(true));
+            let dtm = Mat { ptr: dt, ld: n_t };
+            let hidden_t = &acts_t[..acts_t.len() - 1];
+            self.trunk.backward_rows(&wt[0], rows, hidden_t, Some(tm), x, x, dtm, dp.add(self.at[0].0), db(0), first, (g, below), None, None);
+        }
+    }
+}
+
+impl AdditiveShared {
+    /// The three networks on `p`.
+    fn nets<'a>(&'a self, p: &'a [f32], n_p: usize, n_a: usize, op: &str) -> Result<Three<'a>> {
+        Three::new([&self.trunk, &self.d, &self.s], p, n_p, n_a, op)
     }
 }
 
@@ -128,8 +231,8 @@ impl CustomOp3 for AdditiveShared {
         if n_a_rows != n {
             candle_core::bail!("{op}: {n} position rows, {n_a_rows} angle rows")
         }
-        let ([trunk, d, s], _) = self.nets(p, n_p, n_a, op)?;
-        let (n_t, m_d, k) = (trunk.m(), d.m(), d.m() + s.m());
+        let three = self.nets(p, n_p, n_a, op)?;
+        let k = three.widths().1;
         let hidden = |shape: &NetShape| shape.layers[..shape.layers.len() - 1].iter().map(|&(_, m)| m).collect::<Vec<_>>();
         let (mut kt, dt) = buffers(self.trunk.layers.iter().map(|&(_, m)| m), n);
         let (mut kd, dd) = buffers(hidden(&self.d).into_iter(), n);
@@ -139,19 +242,11 @@ impl CustomOp3 for AdditiveShared {
         (0..n.div_ceil(FORWARD_ROWS)).into_par_iter().for_each(|blk| {
             let (r0, rows) = (blk * FORWARD_ROWS, FORWARD_ROWS.min(n - blk * FORWARD_ROWS));
             // SAFETY: x and a hold n rows (checked), read from row r0; every buffer has room for n rows
-            // of its width, of which this task alone writes rows r0..r0 + rows: the heads' outputs go
-            // to their columns of `out`, t is read right after the trunk has written it.
+            // of its width, of which this task alone writes rows r0..r0 + rows.
             unsafe {
                 let (xm, am) = (Mat::new(x, n_p).at(r0, 0), Mat::new(a, n_a).at(r0, 0));
-                let at_t = from_row(&dt, r0);
-                trunk.forward_rows(rows, xm, xm, &at_t);
-                let tm = Mat { ptr: at_t[at_t.len() - 1].at.0, ld: n_t };
-                let mut at_d = from_row(&dd, r0);
-                at_d.push(Dst { at: Shared(o.add(r0 * k)), ld: k });
-                d.forward_rows(rows, tm, tm, &at_d);
-                let mut at_s = from_row(&ds, r0);
-                at_s.push(Dst { at: Shared(o.add(r0 * k + m_d)), ld: k });
-                s.forward_rows(rows, am, tm, &at_s);
+                let out = Dst { at: Shared(o.add(r0 * k)), ld: k };
+                three.forward_rows(rows, xm, am, &from_row(&dt, r0), &from_row(&dd, r0), &from_row(&ds, r0), out);
             }
         });
         for (v, m) in kt.iter_mut().chain(&mut kd).chain(&mut ks).zip(self.trunk.layers.iter().map(|l| l.1).chain(hidden(&self.d)).chain(hidden(&self.s))) {
@@ -176,8 +271,8 @@ impl CustomOp3 for AdditiveShared {
         let (ps, pl) = p.storage_and_layout();
         let (gs, gl) = dout.storage_and_layout();
         let (x, a, p, dout) = (cpu(&xs, xl, op)?, cpu(&as_, al, op)?, cpu(&ps, pl, op)?, cpu(&gs, gl, op)?);
-        let ([trunk, d, s], at) = self.nets(p, n_p, n_a, op)?;
-        let (n_t, m_d, k) = (trunk.m(), d.m(), d.m() + s.m());
+        let three = self.nets(p, n_p, n_a, op)?;
+        let (n_t, k) = (three.trunk.m(), three.widths().1);
         let kept = self.kept.lock().map_err(|_| poisoned(op))?;
         let fits = |v: &[Vec<f32>], shape: &NetShape, all: bool| {
             v.len() + usize::from(!all) == shape.layers.len() && v.iter().zip(&shape.layers).all(|(b, &(_, m))| b.len() == n * m)
@@ -185,10 +280,8 @@ impl CustomOp3 for AdditiveShared {
         if !(fits(&kept.trunk, &self.trunk, true) && fits(&kept.d, &self.d, false) && fits(&kept.s, &self.s, false)) || dout.len() != n * k || x.len() != n * n_p || a.len() != n * n_a {
             candle_core::bail!("{op}: backward without its forward pass")
         }
-        let nets = [&trunk, &d, &s];
-        let wt: Vec<Vec<Vec<f32>>> = nets.iter().map(|net| net.transposed()).collect();
-        let width = nets.iter().map(|net| net.width()).max().unwrap_or(0);
-        let biases: Vec<(usize, usize)> = [&self.trunk, &self.d, &self.s].iter().zip(&at).map(|(shape, &(_, ob))| (ob, sizes(shape).1)).collect();
+        let wt = three.transposed();
+        let width = three.width();
         let partial: Vec<Vec<f32>> = (0..n.div_ceil(BACKWARD_ROWS))
             .into_par_iter()
             .map(|task| {
@@ -199,31 +292,18 @@ impl CustomOp3 for AdditiveShared {
                 let mut g = vec![0.0f32; SWEEP_ROWS * width];
                 let mut below = vec![0.0f32; SWEEP_ROWS * width];
                 let mut dt = vec![0.0f32; SWEEP_ROWS * n_t];
-                let dt_at = Dst { at: Shared(dt.as_mut_ptr()), ld: n_t };
                 let (start, end) = (task * BACKWARD_ROWS, ((task + 1) * BACKWARD_ROWS).min(n));
                 // SAFETY: every kept buffer, x, a and dout hold n rows of their widths (checked), read
-                // from row s0 for `rows` rows; `part` has room for p.len() values: the bias blocks are
-                // zeroed here, the matrix blocks written by the first sweep, each network in its own
-                // blocks; dt holds SWEEP_ROWS rows of n_t values, written by the diffuse head, added
-                // to by the specular head, then read by the trunk.
+                // from row s0 for `rows` rows; `part` has room for p.len() values, its bias blocks
+                // zeroed here and its matrix blocks written by the first sweep; dt holds SWEEP_ROWS
+                // rows of n_t values.
                 unsafe {
-                    for &(ob, nb) in &biases {
-                        std::ptr::write_bytes(base.add(ob), 0, nb);
-                    }
-                    let db = |i: usize| std::slice::from_raw_parts_mut(base.add(biases[i].0), biases[i].1);
+                    three.zero_biases(base);
                     for s0 in (start..end).step_by(SWEEP_ROWS) {
-                        let (rows, first) = (SWEEP_ROWS.min(end - s0), s0 == start);
-                        let acts_t = mats_from(&kept.trunk, &self.trunk.layers, s0);
-                        let tm = acts_t[acts_t.len() - 1];
+                        let acts = (mats_from(&kept.trunk, &self.trunk.layers, s0), mats_from(&kept.d, &self.d.layers, s0), mats_from(&kept.s, &self.s.layers, s0));
                         let (xm, am, gm) = (Mat::new(x, n_p).at(s0, 0), Mat::new(a, n_a).at(s0, 0), Mat::new(dout, k).at(s0, 0));
-                        let to_dt = |add| Some(Grad { to: dt_at, add });
-                        let acts_d = mats_from(&kept.d, &self.d.layers, s0);
-                        d.backward_rows(&wt[1], rows, &acts_d, None, tm, tm, gm, base.add(at[1].0), db(1), first, (&mut g, &mut below), to_dt(false), None);
-                        let acts_s = mats_from(&kept.s, &self.s.layers, s0);
-                        s.backward_rows(&wt[2], rows, &acts_s, None, am, tm, gm.at(0, m_d), base.add(at[2].0), db(2), first, (&mut g, &mut below), None, to_dt(true));
-                        let dtm = Mat { ptr: dt_at.at.0, ld: n_t };
-                        let hidden_t = &acts_t[..acts_t.len() - 1];
-                        trunk.backward_rows(&wt[0], rows, hidden_t, Some(tm), xm, xm, dtm, base.add(at[0].0), db(0), first, (&mut g, &mut below), None, None);
+                        let rows = SWEEP_ROWS.min(end - s0);
+                        three.backward_rows(&wt, rows, (&acts.0, &acts.1, &acts.2), xm, am, gm, base, s0 == start, (&mut g, &mut below), dt.as_mut_ptr());
                     }
                     part.set_len(p.len());
                 }

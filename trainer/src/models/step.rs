@@ -1,22 +1,25 @@
-//! A Single MLP's loss and its gradient in the weights as one candle op that runs the forward pass,
-//! the objective and the backward pass on each block of rows in turn (issue 8).
+//! The loss of a training batch and its gradient in the weights as one candle op that runs the
+//! forward pass, the objective and the backward pass on each block of rows in turn (issue 8): for the
+//! Single MLP and for the Additive Shared model, the two architectures whose networks feed the
+//! objective directly.
 //!
 //! Why: the objective of a batch is a sum over its samples, so a block's gradient in the weights needs
-//! nothing of the other blocks. As a network op followed by the objective op, every hidden
-//! activation of the batch (six `[2^15, 128]` matrices, 96 MiB) went to memory in the forward pass and
-//! came back in the backward one, as did the network output and its gradient; here a task runs its
-//! 1024 rows forward, through the objective and backward while its activations (3 MiB) stay in its
-//! core's caches. The sums are the unfused path's, bit for bit: the same row blocks
-//! ([`super::network::FORWARD_ROWS`], [`BACKWARD_ROWS`], [`super::fused::ROW_BLOCK`]) in the same
-//! order; trainer/tests/fused.rs compares the two.
+//! nothing of the other blocks. As network ops followed by the objective op, every hidden activation
+//! of the batch (six `[2^15, 128]` matrices for the Single MLP, 96 MiB; eight for the Additive
+//! Shared model) went to memory in the forward pass and came back in the backward one, as did the
+//! networks' output and its gradient; here a task runs its 1024 rows forward, through the objective
+//! and backward while its activations (3–4 MiB) stay in its core's caches. The sums are the unfused
+//! path's, bit for bit: the same row blocks ([`super::network::FORWARD_ROWS`], [`BACKWARD_ROWS`],
+//! [`super::fused::ROW_BLOCK`]) in the same order; trainer/tests/fused.rs compares the two.
 
 use std::sync::{Arc, Mutex};
 
-use candle_core::{CpuStorage, CustomOp2, Layout, Result, Shape, Tensor};
+use candle_core::{CpuStorage, CustomOp3, Layout, Result, Shape, Tensor};
 use rayon::prelude::*;
 
 use super::dense::{Mat, Shared};
 use super::fused::{add_in_order, data, dims2, ROW_BLOCK};
+use super::additive_shared::Three;
 use super::mlp::Mlp;
 use super::network::{Dst, Net, NetShape, BACKWARD_ROWS, FORWARD_ROWS, SWEEP_ROWS};
 use crate::objective::{self, Constants, Head};
@@ -25,7 +28,8 @@ use crate::objective::{self, Constants, Head};
 const _: () = assert!(BACKWARD_ROWS == ROW_BLOCK && BACKWARD_ROWS.is_multiple_of(FORWARD_ROWS));
 
 thread_local! {
-    /// Whether [`crate::objective::objective`] on this thread runs a Single MLP's step as this op.
+    /// Whether [`crate::objective::objective`] on this thread runs the step of a Single MLP or an
+    /// Additive Shared model as this op.
     static FUSED_STEP: std::cell::Cell<bool> = const { std::cell::Cell::new(true) };
 }
 
@@ -40,11 +44,21 @@ pub fn fused_step() -> bool {
     FUSED_STEP.with(|f| f.get())
 }
 
-/// The op over `(x [N, n_x], p)`, `p` the network's matrices then its biases (file order); the
-/// batch's constants ride along. Its value is the loss; its gradient in `p`, computed with it, waits
-/// for the backward pass.
+/// The networks of a fused step.
+enum Nets {
+    /// A Single MLP on the joint input `x`.
+    Single(NetShape),
+    /// The Additive Shared model: trunk on the position `x`, diffuse head, specular head on `[t, a]`.
+    Shared([NetShape; 3]),
+}
+
+/// The op over `(x [N, n_x], a [N, n_a], p)`: the network input (the Additive Shared trunk's position
+/// encoding), the angle encoding (read by the Additive Shared specular head only) and the networks'
+/// weights, laid out as [`super::network::network`] (one network) or
+/// [`super::additive_shared::additive_shared`] (three) take them. The batch's constants ride along.
+/// Its value is the loss; its gradient in `p`, computed with it, waits for the backward pass.
 struct Step {
-    shape: NetShape,
+    nets: Nets,
     head: Head,
     incident: Tensor,
     target: Tensor,
@@ -58,32 +72,49 @@ fn cpu<'a>(s: &'a candle_core::Storage, l: &Layout, op: &str) -> Result<&'a [f32
     data(c, l, op)
 }
 
-/// A task's buffers: every layer's output on its rows, the output's gradient, and the backward
-/// sweep's two gradient buffers.
+/// A task's buffers: the networks' layer outputs on its rows (`acts`), the packed raw outputs `u`
+/// and their gradient `du` (`[rows, k]`), a backward sweep's two gradient buffers, and the buffer that
+/// carries the Additive Shared heads' `∂t` to the trunk.
 #[derive(Default)]
 struct Scratch {
     acts: Vec<Vec<f32>>,
+    u: Vec<f32>,
     du: Vec<f32>,
     g: Vec<f32>,
     below: Vec<f32>,
+    dt: Vec<f32>,
 }
 
 impl Scratch {
-    /// Grows the buffers (never shrinks them) to a task of `layers` with `k` outputs and matrices of
-    /// at most `width` columns.
-    fn fit(&mut self, layers: &[(usize, usize)], k: usize, width: usize) {
+    /// Grows the buffers (never shrinks them) to a task of layers of `widths` outputs, `k` raw
+    /// outputs, matrices of at most `width` columns and a trunk of `n_t` outputs.
+    fn fit(&mut self, widths: &[usize], k: usize, width: usize, n_t: usize) {
         let grow = |v: &mut Vec<f32>, n: usize| {
             if v.len() < n {
                 v.resize(n, 0.0);
             }
         };
-        self.acts.resize_with(self.acts.len().max(layers.len()), Vec::new);
-        for (a, &(_, m)) in self.acts.iter_mut().zip(layers) {
+        self.acts.resize_with(self.acts.len().max(widths.len()), Vec::new);
+        for (a, &m) in self.acts.iter_mut().zip(widths) {
             grow(a, BACKWARD_ROWS * m);
         }
+        grow(&mut self.u, BACKWARD_ROWS * k);
         grow(&mut self.du, BACKWARD_ROWS * k);
         grow(&mut self.g, SWEEP_ROWS * width);
         grow(&mut self.below, SWEEP_ROWS * width);
+        grow(&mut self.dt, SWEEP_ROWS * n_t);
+    }
+
+    /// Where the forward pass writes buffer `i` of `ld` columns, from row `r` on.
+    fn dst(&mut self, i: usize, ld: usize, r: usize) -> Dst {
+        // SAFETY: `fit` sized every buffer for BACKWARD_ROWS rows; callers stay within a task's rows.
+        Dst { at: Shared(unsafe { self.acts[i].as_mut_ptr().add(r * ld) }), ld }
+    }
+
+    /// Buffer `i` of `ld` columns from row `r` on, to read.
+    fn mat(&self, i: usize, ld: usize, r: usize) -> Mat {
+        // SAFETY: as for `dst`.
+        unsafe { Mat::new(&self.acts[i], ld).at(r, 0) }
     }
 }
 
@@ -93,104 +124,191 @@ thread_local! {
     static SCRATCH: std::cell::RefCell<Scratch> = std::cell::RefCell::new(Scratch::default());
 }
 
-impl CustomOp2 for Step {
+/// The hidden layers' output widths of a network (its output goes to the task's `u`).
+fn hidden(shape: &NetShape) -> impl Iterator<Item = usize> + '_ {
+    shape.layers[..shape.layers.len().saturating_sub(1)].iter().map(|&(_, m)| m)
+}
+
+/// Runs the tasks of a step over `n` rows: per task, `forward(scratch, start, rows)` writes the raw
+/// outputs to `scratch.u`, the objective turns them into `scratch.du`, and `backward(scratch, start,
+/// rows, s0, first, dp)` runs sweep `s0` into the task's gradient `dp` (laid out as `p`, its bias
+/// blocks zeroed by `zero`). Returns the loss and `d loss / d p`, both summed in task order.
+#[allow(clippy::too_many_arguments)]
+fn run_tasks(
+    n: usize,
+    p_len: usize,
+    head: Head,
+    c: Constants<'_>,
+    fit: impl Fn(&mut Scratch) + Sync,
+    forward: impl Fn(&mut Scratch, usize, usize) + Sync,
+    zero: impl Fn(*mut f32) + Sync,
+    backward: impl Fn(&mut Scratch, usize, usize, usize, bool, *mut f32) + Sync,
+) -> (f64, Vec<f32>) {
+    let (k, scale) = (head.width(), objective::scale_of(n));
+    let parts: Vec<([f64; 3], Vec<f32>)> = (0..n.div_ceil(BACKWARD_ROWS))
+        .into_par_iter()
+        .map(|task| {
+            SCRATCH.with_borrow_mut(|sc| {
+                fit(sc);
+                let (start, end) = (task * BACKWARD_ROWS, ((task + 1) * BACKWARD_ROWS).min(n));
+                let rows = end - start;
+                for f0 in (0..rows).step_by(FORWARD_ROWS) {
+                    forward(sc, start + f0, FORWARD_ROWS.min(rows - f0));
+                }
+                let du = &mut sc.du[..rows * k];
+                du.fill(0.0);
+                let sums = objective::rows(head, &sc.u[..rows * k], du, c, start, scale);
+                // The matrices' blocks are written by the first sweep, the biases' blocks are added
+                // to from zero: no zero fill of a copy of every weight.
+                let mut part: Vec<f32> = Vec::with_capacity(p_len);
+                zero(part.as_mut_ptr());
+                for s0 in (0..rows).step_by(SWEEP_ROWS) {
+                    backward(sc, start, SWEEP_ROWS.min(rows - s0), s0, s0 == 0, part.as_mut_ptr());
+                }
+                // SAFETY: the first sweep wrote every matrix block and `zero` every bias block.
+                unsafe { part.set_len(p_len) };
+                (sums, part)
+            })
+        })
+        .collect();
+    let sums: Vec<[f64; 3]> = parts.iter().map(|(s, _)| *s).collect();
+    let grads: Vec<Vec<f32>> = parts.into_iter().map(|(_, g)| g).collect();
+    let mut dp = vec![0.0f32; p_len];
+    add_in_order(&mut dp, &grads);
+    (objective::loss_of(head, &sums, scale), dp)
+}
+
+impl CustomOp3 for Step {
     fn name(&self) -> &'static str {
-        "single-mlp-step"
+        "fused-step"
     }
 
-    fn cpu_fwd(&self, s1: &CpuStorage, l1: &Layout, s2: &CpuStorage, l2: &Layout) -> Result<(CpuStorage, Shape)> {
+    fn cpu_fwd(&self, s1: &CpuStorage, l1: &Layout, s2: &CpuStorage, l2: &Layout, s3: &CpuStorage, l3: &Layout) -> Result<(CpuStorage, Shape)> {
         let op = self.name();
-        let (x, p) = (data(s1, l1, op)?, data(s2, l2, op)?);
-        let (n, n_x) = dims2(l1, op)?;
-        let n_w: usize = self.shape.layers.iter().map(|&(i, o)| i * o).sum();
-        if p.len() < n_w {
-            candle_core::bail!("{op}: {} parameters for {:?}", p.len(), self.shape.layers)
-        }
-        let (w, b) = p.split_at(n_w);
-        let net = Net::new(&self.shape, w, b, 0, n_x, op)?;
-        let k = self.head.width();
-        if net.m() != k {
-            candle_core::bail!("{op}: a network of {} outputs for a head of {k}", net.m())
-        }
+        let (x, a, p) = (data(s1, l1, op)?, data(s2, l2, op)?, data(s3, l3, op)?);
+        let ((n, n_x), (n_a_rows, n_a)) = (dims2(l1, op)?, dims2(l2, op)?);
         let (si, li) = self.incident.storage_and_layout();
         let (st, lt) = self.target.storage_and_layout();
         let (sv, lv) = self.valid.storage_and_layout();
         let c = Constants { incident: cpu(&si, li, op)?, target: cpu(&st, lt, op)?, valid: cpu(&sv, lv, op)? };
-        if c.valid.len() != n || c.incident.len() != 3 * n || c.target.len() != 3 * n {
-            candle_core::bail!("{op}: {} incident, {} target and {} valid values for {n} samples", c.incident.len(), c.target.len(), c.valid.len())
+        if n_a_rows != n || c.valid.len() != n || c.incident.len() != 3 * n || c.target.len() != 3 * n {
+            candle_core::bail!("{op}: {n_a_rows} angle rows, {} incident, {} target and {} valid values for {n} samples", c.incident.len(), c.target.len(), c.valid.len())
         }
-        let (scale, head, layers) = (objective::scale_of(n), self.head, &self.shape.layers);
-        let wt = net.transposed();
-        let width = net.width();
-        let parts: Vec<([f64; 3], Vec<f32>)> = (0..n.div_ceil(BACKWARD_ROWS))
-            .into_par_iter()
-            .map(|task| SCRATCH.with_borrow_mut(|sc| {
-                sc.fit(layers, k, width);
-                let (start, end) = (task * BACKWARD_ROWS, ((task + 1) * BACKWARD_ROWS).min(n));
-                let rows = end - start;
-                // SAFETY: x holds n rows of n_x values (checked by `dims2` and the layout), read from
-                // row `start`; every scratch buffer holds BACKWARD_ROWS ≥ rows rows of its width,
-                // written by the forward sub-blocks in turn and then read; `part` has room for p.len()
-                // values: the biases are zeroed here, the matrices written by the first sweep.
-                unsafe {
-                    let xm = Mat::new(x, n_x).at(start, 0);
-                    for f0 in (0..rows).step_by(FORWARD_ROWS) {
-                        let dst: Vec<Dst> = sc.acts.iter_mut().zip(layers).map(|(a, &(_, m))| Dst { at: Shared(a.as_mut_ptr().add(f0 * m)), ld: m }).collect();
-                        net.forward_rows(FORWARD_ROWS.min(rows - f0), xm.at(f0, 0), xm, &dst);
-                    }
-                    let du = &mut sc.du[..rows * k];
-                    du.fill(0.0);
-                    let sums = objective::rows(head, &sc.acts[layers.len() - 1][..rows * k], du, c, start, scale);
-                    let mut part: Vec<f32> = Vec::with_capacity(p.len());
-                    let base = part.as_mut_ptr();
-                    std::ptr::write_bytes(base.add(n_w), 0, p.len() - n_w);
-                    let db = std::slice::from_raw_parts_mut(base.add(n_w), p.len() - n_w);
-                    for s0 in (0..rows).step_by(SWEEP_ROWS) {
-                        let acts: Vec<Mat> = sc.acts.iter().zip(layers).map(|(a, &(_, m))| Mat::new(a, m).at(s0, 0)).collect();
-                        let (hidden, y) = acts.split_at(acts.len() - 1);
-                        let dy = Mat::new(&sc.du, k).at(s0, 0);
-                        let sweep = SWEEP_ROWS.min(rows - s0);
-                        let scratch = (&mut sc.g, &mut sc.below);
-                        net.backward_rows(&wt, sweep, hidden, Some(y[0]), xm.at(s0, 0), xm, dy, base, db, s0 == 0, scratch, None, None);
-                    }
-                    part.set_len(p.len());
-                    (sums, part)
+        let (head, k) = (self.head, self.head.width());
+        // SAFETY (the closures below): x and a hold n rows (checked), read from a task's rows; the
+        // scratch buffers are sized by `fit` for a task; `dp` has room for p.len() values.
+        let (loss, dp) = match &self.nets {
+            Nets::Single(shape) => {
+                let n_w: usize = shape.layers.iter().map(|&(i, o)| i * o).sum();
+                if p.len() < n_w {
+                    candle_core::bail!("{op}: {} parameters for {:?}", p.len(), shape.layers)
                 }
-            }))
-            .collect();
-        let sums: Vec<[f64; 3]> = parts.iter().map(|(s, _)| *s).collect();
-        let grads: Vec<Vec<f32>> = parts.into_iter().map(|(_, g)| g).collect();
-        let mut dp = vec![0.0f32; p.len()];
-        add_in_order(&mut dp, &grads);
+                let (w, b) = p.split_at(n_w);
+                let net = Net::new(shape, w, b, 0, n_x, op)?;
+                if net.m() != k {
+                    candle_core::bail!("{op}: a network of {} outputs for a head of {k}", net.m())
+                }
+                let (wt, width, widths) = (net.transposed(), net.width(), hidden(shape).collect::<Vec<_>>());
+                let l = widths.len();
+                run_tasks(
+                    n,
+                    p.len(),
+                    head,
+                    c,
+                    |sc| sc.fit(&widths, k, width, 0),
+                    |sc, r, rows| unsafe {
+                        let r_task = r % BACKWARD_ROWS;
+                        let mut dst: Vec<Dst> = (0..l).map(|i| sc.dst(i, widths[i], r_task)).collect();
+                        dst.push(Dst { at: Shared(sc.u.as_mut_ptr().add(r_task * k)), ld: k });
+                        net.forward_rows(rows, Mat::new(x, n_x).at(r, 0), Mat::new(x, n_x).at(r, 0), &dst);
+                    },
+                    |dp| unsafe { std::ptr::write_bytes(dp.add(n_w), 0, p.len() - n_w) },
+                    |sc, start, rows, s0, first, dp| unsafe {
+                        let acts: Vec<Mat> = (0..l).map(|i| sc.mat(i, widths[i], s0)).collect();
+                        let (y, dy) = (Mat::new(&sc.u, k).at(s0, 0), Mat::new(&sc.du, k).at(s0, 0));
+                        let xm = Mat::new(x, n_x).at(start + s0, 0);
+                        let db = std::slice::from_raw_parts_mut(dp.add(n_w), p.len() - n_w);
+                        net.backward_rows(&wt, rows, &acts, Some(y), xm, xm, dy, dp, db, first, (&mut sc.g, &mut sc.below), None, None);
+                    },
+                )
+            }
+            Nets::Shared(shapes) => {
+                let three = Three::new([&shapes[0], &shapes[1], &shapes[2]], p, n_x, n_a, op)?;
+                if three.widths().1 != k {
+                    candle_core::bail!("{op}: heads of {} outputs for a head of {k}", three.widths().1)
+                }
+                let (wt, width, n_t) = (three.transposed(), three.width(), three.trunk.m());
+                let (wt_, wd, ws): (Vec<usize>, Vec<usize>, Vec<usize>) =
+                    (shapes[0].layers.iter().map(|&(_, m)| m).collect(), hidden(&shapes[1]).collect(), hidden(&shapes[2]).collect());
+                let widths: Vec<usize> = wt_.iter().chain(&wd).chain(&ws).copied().collect();
+                let (lt, ld) = (wt_.len(), wd.len());
+                run_tasks(
+                    n,
+                    p.len(),
+                    head,
+                    c,
+                    |sc| sc.fit(&widths, k, width, n_t),
+                    |sc, r, rows| unsafe {
+                        let r_task = r % BACKWARD_ROWS;
+                        let dst: Vec<Dst> = (0..widths.len()).map(|i| sc.dst(i, widths[i], r_task)).collect();
+                        let out = Dst { at: Shared(sc.u.as_mut_ptr().add(r_task * k)), ld: k };
+                        let (xm, am) = (Mat::new(x, n_x).at(r, 0), Mat::new(a, n_a).at(r, 0));
+                        three.forward_rows(rows, xm, am, &dst[..lt], &dst[lt..lt + ld], &dst[lt + ld..], out);
+                    },
+                    |dp| unsafe { three.zero_biases(dp) },
+                    |sc, start, rows, s0, first, dp| unsafe {
+                        let acts: Vec<Mat> = (0..widths.len()).map(|i| sc.mat(i, widths[i], s0)).collect();
+                        let (acts_t, rest) = acts.split_at(lt);
+                        let (acts_d, acts_s) = rest.split_at(ld);
+                        let (xm, am) = (Mat::new(x, n_x).at(start + s0, 0), Mat::new(a, n_a).at(start + s0, 0));
+                        let dy = Mat::new(&sc.du, k).at(s0, 0);
+                        let dt = sc.dt.as_mut_ptr();
+                        three.backward_rows(&wt, rows, (acts_t, acts_d, acts_s), xm, am, dy, dp, first, (&mut sc.g, &mut sc.below), dt);
+                    },
+                )
+            }
+        };
         *self.grad.lock().map_err(|_| candle_core::Error::Msg(format!("{op}: poisoned gradient")))? = dp;
-        Ok((CpuStorage::F32(vec![objective::loss_of(head, &sums, scale) as f32]), Shape::from(())))
+        Ok((CpuStorage::F32(vec![loss as f32]), Shape::from(())))
     }
 
-    fn bwd(&self, x: &Tensor, p: &Tensor, _loss: &Tensor, grad_loss: &Tensor) -> Result<(Option<Tensor>, Option<Tensor>)> {
+    fn bwd(&self, x: &Tensor, a: &Tensor, p: &Tensor, _loss: &Tensor, grad_loss: &Tensor) -> Result<(Option<Tensor>, Option<Tensor>, Option<Tensor>)> {
         let op = self.name();
-        if x.track_op() {
-            candle_core::bail!("{op}: the network input is an input of the batch; no gradient flows into it")
+        if x.track_op() || a.track_op() {
+            candle_core::bail!("{op}: the network inputs are inputs of the batch; no gradient flows into them")
         }
         let dp = self.grad.lock().map_err(|_| candle_core::Error::Msg(format!("{op}: poisoned gradient")))?.clone();
         if dp.len() != p.elem_count() {
             candle_core::bail!("{op}: backward without its forward pass")
         }
-        Ok((None, Some(Tensor::from_vec(dp, p.shape(), p.device())?.broadcast_mul(grad_loss)?)))
+        Ok((None, None, Some(Tensor::from_vec(dp, p.shape(), p.device())?.broadcast_mul(grad_loss)?)))
     }
 }
 
-/// The loss of a batch for a Single MLP `net` on its input `x` with the softplus head, and its
-/// gradient in the network's weights, as one op (the module docs).
+/// The loss of a batch and its gradient in the weights, as one op (the module docs): a Single MLP
+/// `net` on its input `x` with the softplus head.
 pub fn single_mlp_loss(net: &Mlp, x: &Tensor, incident: &Tensor, target: &Tensor, valid: &Tensor) -> Result<Tensor> {
     let (w, b) = net.flat()?;
     let p = Tensor::cat(&[&w, &b], 0)?;
-    let op = Step {
-        shape: net.net_shape(),
-        head: Head::Softplus,
-        incident: incident.contiguous()?,
-        target: target.contiguous()?,
-        valid: valid.contiguous()?,
-        grad: Arc::default(),
-    };
-    x.contiguous()?.apply_op2(&p, op)
+    let x = x.contiguous()?;
+    step(Nets::Single(net.net_shape()), Head::Softplus, &x, &x, &p, [incident, target, valid])
+}
+
+/// [`single_mlp_loss`] for the Additive Shared model: the trunk on the position encoding `x`, the
+/// heads on its features and the angle encoding `a`, with an additive (or enhanced) `head`.
+#[allow(clippy::too_many_arguments)]
+pub fn additive_shared_loss(trunk: &Mlp, diffuse: &Mlp, specular: &Mlp, head: Head, x: &Tensor, a: &Tensor, incident: &Tensor, target: &Tensor, valid: &Tensor) -> Result<Tensor> {
+    let mut parts = Vec::with_capacity(6);
+    for net in [trunk, diffuse, specular] {
+        let (w, b) = net.flat()?;
+        parts.extend([w, b]);
+    }
+    let p = Tensor::cat(&parts, 0)?;
+    let nets = Nets::Shared([trunk.net_shape(), diffuse.net_shape(), specular.net_shape()]);
+    step(nets, head, &x.contiguous()?, &a.contiguous()?, &p, [incident, target, valid])
+}
+
+fn step(nets: Nets, head: Head, x: &Tensor, a: &Tensor, p: &Tensor, [incident, target, valid]: [&Tensor; 3]) -> Result<Tensor> {
+    let op = Step { nets, head, incident: incident.contiguous()?, target: target.contiguous()?, valid: valid.contiguous()?, grad: Arc::default() };
+    x.apply_op3(a, p, op)
 }
