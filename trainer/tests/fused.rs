@@ -194,8 +194,8 @@ fn additive_shared_op_is_its_three_networks() {
 
 /// The training step as one op (forward, objective and backward on each block of rows,
 /// `models::step`) gives the loss and every weight's gradient of the network ops followed by the
-/// objective op, bit for bit: the Single MLP and the Additive Shared model, plain and enhanced (with
-/// its regularisers), on a batch that ends in a partial block.
+/// objective op, bit for bit: the Single MLP and both additive models, plain and enhanced (with their
+/// regularisers), on a batch that ends in a partial block.
 #[test]
 fn fused_step_is_the_network_and_objective_ops_bit_for_bit() {
     use trainer::models::step;
@@ -209,7 +209,7 @@ fn fused_step_is_the_network_and_objective_ops_bit_for_bit() {
     let incident: Vec<f32> = (0..n).flat_map(|i| [(i % 7) as f32 * 3.0 * obs.wi[i].z.max(0.0); 3]).collect();
     let target: Vec<f32> = obs.radiance.iter().flatten().map(|&v| trainer::loss::gamma(v)).collect();
     let opts = TrainOptions { lambda_diffuse: 0.3, lambda_specular: 0.2, ..Default::default() };
-    for (kind, enhanced) in [(Kind::SingleMlp, false), (Kind::AdditiveShared, false), (Kind::AdditiveShared, true)] {
+    for (kind, enhanced) in [(Kind::SingleMlp, false), (Kind::AdditiveSeparate, false), (Kind::AdditiveSeparate, true), (Kind::AdditiveShared, false), (Kind::AdditiveShared, true)] {
         let config = Config::paper(kind, enhanced, Reciprocity::Exact, position);
         let model = Model::init(config, 8, &dev).unwrap();
         let inputs = Inputs::build(&config, &RawBatch { position: &obs.position, wi: &obs.wi, wo: &obs.wo, swap: None }, &dev).unwrap();

@@ -46,8 +46,10 @@ pub fn fused_step() -> bool {
 
 /// The networks of a fused step.
 enum Nets {
-    /// A Single MLP on the joint input `x`.
-    Single(NetShape),
+    /// Networks side by side, each on `x` or (`true`) on `a`, their outputs side by side: the Single
+    /// MLP (one network on the joint input), Additive Separate (the diffuse network on the position
+    /// encoding, the specular one on the joint input).
+    Parallel(Vec<(NetShape, bool)>),
     /// The Additive Shared model: trunk on the position `x`, diffuse head, specular head on `[t, a]`.
     Shared([NetShape; 3]),
 }
@@ -125,8 +127,8 @@ thread_local! {
 }
 
 /// The hidden layers' output widths of a network (its output goes to the task's `u`).
-fn hidden(shape: &NetShape) -> impl Iterator<Item = usize> + '_ {
-    shape.layers[..shape.layers.len().saturating_sub(1)].iter().map(|&(_, m)| m)
+fn net_hidden(shape: &NetShape) -> Vec<usize> {
+    shape.layers[..shape.layers.len().saturating_sub(1)].iter().map(|&(_, m)| m).collect()
 }
 
 /// Runs the tasks of a step over `n` rows: per task, `forward(scratch, start, rows)` writes the raw
@@ -198,18 +200,29 @@ impl CustomOp3 for Step {
         // SAFETY (the closures below): x and a hold n rows (checked), read from a task's rows; the
         // scratch buffers are sized by `fit` for a task; `dp` has room for p.len() values.
         let (loss, dp) = match &self.nets {
-            Nets::Single(shape) => {
-                let n_w: usize = shape.layers.iter().map(|&(i, o)| i * o).sum();
-                if p.len() < n_w {
-                    candle_core::bail!("{op}: {} parameters for {:?}", p.len(), shape.layers)
+            Nets::Parallel(nets) => {
+                // Each network's blocks of p, its Net, and where its output starts in u.
+                let mut built = Vec::with_capacity(nets.len());
+                let (mut o, mut col) = (0, 0);
+                for (shape, on_a) in nets {
+                    let n_w: usize = shape.layers.iter().map(|&(i, o)| i * o).sum();
+                    let n_b: usize = shape.layers.iter().map(|&(_, o)| o).sum();
+                    let Some(block) = p.get(o..o + n_w + n_b) else { candle_core::bail!("{op}: {} parameters for {:?}", p.len(), shape.layers) };
+                    let net = Net::new(shape, &block[..n_w], &block[n_w..], 0, if *on_a { n_a } else { n_x }, op)?;
+                    let (m, at) = (net.m(), (o, o + n_w, n_b));
+                    built.push((net, *on_a, at, col, net_hidden(shape)));
+                    (o, col) = (o + n_w + n_b, col + m);
                 }
-                let (w, b) = p.split_at(n_w);
-                let net = Net::new(shape, w, b, 0, n_x, op)?;
-                if net.m() != k {
-                    candle_core::bail!("{op}: a network of {} outputs for a head of {k}", net.m())
+                if o != p.len() || col != k {
+                    candle_core::bail!("{op}: {} parameters and {col} outputs for networks of {o} and a head of {k}", p.len())
                 }
-                let (wt, width, widths) = (net.transposed(), net.width(), hidden(shape).collect::<Vec<_>>());
-                let l = widths.len();
+                let wt: Vec<Vec<Vec<f32>>> = built.iter().map(|b| b.0.transposed()).collect();
+                let width = built.iter().map(|b| b.0.width()).max().unwrap_or(0);
+                // The hidden layers' buffers of all networks in a row; network i's start at first[i].
+                let widths: Vec<usize> = built.iter().flat_map(|b| b.4.iter().copied()).collect();
+                let first: Vec<usize> = built.iter().scan(0, |at, b| Some(std::mem::replace(at, *at + b.4.len()))).collect();
+                // SAFETY (the closure): callers pass a row of the batch (a task's), within x and a.
+                let input = |on_a: bool, r: usize| unsafe { if on_a { Mat::new(a, n_a).at(r, 0) } else { Mat::new(x, n_x).at(r, 0) } };
                 run_tasks(
                     n,
                     p.len(),
@@ -218,17 +231,26 @@ impl CustomOp3 for Step {
                     |sc| sc.fit(&widths, k, width, 0),
                     |sc, r, rows| unsafe {
                         let r_task = r % BACKWARD_ROWS;
-                        let mut dst: Vec<Dst> = (0..l).map(|i| sc.dst(i, widths[i], r_task)).collect();
-                        dst.push(Dst { at: Shared(sc.u.as_mut_ptr().add(r_task * k)), ld: k });
-                        net.forward_rows(rows, Mat::new(x, n_x).at(r, 0), Mat::new(x, n_x).at(r, 0), &dst);
+                        for ((net, on_a, _, col, hid), &f) in built.iter().zip(&first) {
+                            let mut dst: Vec<Dst> = (0..hid.len()).map(|i| sc.dst(f + i, hid[i], r_task)).collect();
+                            dst.push(Dst { at: Shared(sc.u.as_mut_ptr().add(r_task * k + col)), ld: k });
+                            let xm = input(*on_a, r);
+                            net.forward_rows(rows, xm, xm, &dst);
+                        }
                     },
-                    |dp| unsafe { std::ptr::write_bytes(dp.add(n_w), 0, p.len() - n_w) },
-                    |sc, start, rows, s0, first, dp| unsafe {
-                        let acts: Vec<Mat> = (0..l).map(|i| sc.mat(i, widths[i], s0)).collect();
-                        let (y, dy) = (Mat::new(&sc.u, k).at(s0, 0), Mat::new(&sc.du, k).at(s0, 0));
-                        let xm = Mat::new(x, n_x).at(start + s0, 0);
-                        let db = std::slice::from_raw_parts_mut(dp.add(n_w), p.len() - n_w);
-                        net.backward_rows(&wt, rows, &acts, Some(y), xm, xm, dy, dp, db, first, (&mut sc.g, &mut sc.below), None, None);
+                    |dp| unsafe {
+                        for (_, _, (_, ob, nb), _, _) in &built {
+                            std::ptr::write_bytes(dp.add(*ob), 0, *nb);
+                        }
+                    },
+                    |sc, start, rows, s0, first_sweep, dp| unsafe {
+                        for (((net, on_a, (ow, ob, nb), col, hid), &f), wt) in built.iter().zip(&first).zip(&wt) {
+                            let acts: Vec<Mat> = (0..hid.len()).map(|i| sc.mat(f + i, hid[i], s0)).collect();
+                            let (y, dy) = (Mat::new(&sc.u, k).at(s0, *col), Mat::new(&sc.du, k).at(s0, *col));
+                            let xm = input(*on_a, start + s0);
+                            let db = std::slice::from_raw_parts_mut(dp.add(*ob), *nb);
+                            net.backward_rows(wt, rows, &acts, Some(y), xm, xm, dy, dp.add(*ow), db, first_sweep, (&mut sc.g, &mut sc.below), None, None);
+                        }
                     },
                 )
             }
@@ -239,7 +261,7 @@ impl CustomOp3 for Step {
                 }
                 let (wt, width, n_t) = (three.transposed(), three.width(), three.trunk.m());
                 let (wt_, wd, ws): (Vec<usize>, Vec<usize>, Vec<usize>) =
-                    (shapes[0].layers.iter().map(|&(_, m)| m).collect(), hidden(&shapes[1]).collect(), hidden(&shapes[2]).collect());
+                    (shapes[0].layers.iter().map(|&(_, m)| m).collect(), net_hidden(&shapes[1]), net_hidden(&shapes[2]));
                 let widths: Vec<usize> = wt_.iter().chain(&wd).chain(&ws).copied().collect();
                 let (lt, ld) = (wt_.len(), wd.len());
                 run_tasks(
@@ -285,25 +307,36 @@ impl CustomOp3 for Step {
     }
 }
 
+/// The weights of `nets` as the op takes them: each network's matrices, then its biases, in turn.
+fn flat(nets: &[&Mlp]) -> Result<Tensor> {
+    let mut parts = Vec::with_capacity(2 * nets.len());
+    for net in nets {
+        let (w, b) = net.flat()?;
+        parts.extend([w, b]);
+    }
+    Tensor::cat(&parts, 0)
+}
+
 /// The loss of a batch and its gradient in the weights, as one op (the module docs): a Single MLP
 /// `net` on its input `x` with the softplus head.
 pub fn single_mlp_loss(net: &Mlp, x: &Tensor, incident: &Tensor, target: &Tensor, valid: &Tensor) -> Result<Tensor> {
-    let (w, b) = net.flat()?;
-    let p = Tensor::cat(&[&w, &b], 0)?;
     let x = x.contiguous()?;
-    step(Nets::Single(net.net_shape()), Head::Softplus, &x, &x, &p, [incident, target, valid])
+    step(Nets::Parallel(vec![(net.net_shape(), false)]), Head::Softplus, &x, &x, &flat(&[net])?, [incident, target, valid])
+}
+
+/// [`single_mlp_loss`] for the Additive Separate model: the diffuse network on the position encoding
+/// `x`, the specular one on the joint input `joint`, with an additive (or enhanced) `head`.
+#[allow(clippy::too_many_arguments)]
+pub fn additive_separate_loss(diffuse: &Mlp, specular: &Mlp, head: Head, x: &Tensor, joint: &Tensor, incident: &Tensor, target: &Tensor, valid: &Tensor) -> Result<Tensor> {
+    let nets = Nets::Parallel(vec![(diffuse.net_shape(), false), (specular.net_shape(), true)]);
+    step(nets, head, &x.contiguous()?, &joint.contiguous()?, &flat(&[diffuse, specular])?, [incident, target, valid])
 }
 
 /// [`single_mlp_loss`] for the Additive Shared model: the trunk on the position encoding `x`, the
 /// heads on its features and the angle encoding `a`, with an additive (or enhanced) `head`.
 #[allow(clippy::too_many_arguments)]
 pub fn additive_shared_loss(trunk: &Mlp, diffuse: &Mlp, specular: &Mlp, head: Head, x: &Tensor, a: &Tensor, incident: &Tensor, target: &Tensor, valid: &Tensor) -> Result<Tensor> {
-    let mut parts = Vec::with_capacity(6);
-    for net in [trunk, diffuse, specular] {
-        let (w, b) = net.flat()?;
-        parts.extend([w, b]);
-    }
-    let p = Tensor::cat(&parts, 0)?;
+    let p = flat(&[trunk, diffuse, specular])?;
     let nets = Nets::Shared([trunk.net_shape(), diffuse.net_shape(), specular.net_shape()]);
     step(nets, head, &x.contiguous()?, &a.contiguous()?, &p, [incident, target, valid])
 }
