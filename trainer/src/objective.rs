@@ -251,6 +251,10 @@ pub fn objective(model: &Model, batch: &Batch, opts: &TrainOptions) -> Result<Te
     if network::whole_network() && step::fused_step() && nets.first().is_some_and(|n| n.desc.n_in > 0) {
         match (model.config.kind, nets) {
             (Kind::SingleMlp, [net]) => return step::single_mlp_loss(net, &x.joint, &batch.incident, &batch.target, &x.valid),
+            (Kind::Parametric(kind), [net]) => {
+                let object = model.object.as_ref().map(candle_core::Var::as_tensor);
+                return step::parametric_loss(net, kind, object, &x.pairs, &x.position, &batch.incident, &batch.target, &x.valid);
+            }
             (Kind::AdditiveSeparate, [d, s]) => {
                 let head = additive_head(model, opts);
                 return step::additive_separate_loss(d, s, head, &x.position, &x.joint, &batch.incident, &batch.target, &x.valid);

@@ -23,6 +23,8 @@ use super::additive_shared::Three;
 use super::mlp::Mlp;
 use super::network::{Dst, Net, NetShape, BACKWARD_ROWS, FORWARD_ROWS, SWEEP_ROWS};
 use crate::objective::{self, Constants, Head};
+use nbrdf::parametric::{Parametric, ParametricKind};
+use nbrdf::Vec3;
 
 // A task's rows must be one block of the objective's sums, so that the loss is the unfused op's.
 const _: () = assert!(BACKWARD_ROWS == ROW_BLOCK && BACKWARD_ROWS.is_multiple_of(FORWARD_ROWS));
@@ -52,6 +54,9 @@ enum Nets {
     Parallel(Vec<(NetShape, bool)>),
     /// The Additive Shared model: trunk on the position `x`, diffuse head, specular head on `[t, a]`.
     Shared([NetShape; 3]),
+    /// A parametric model: the network on the position `x` predicts the raw parameters of `kind`
+    /// at each sample's direction pair, `n_object` per-object parameters follow the weights in `p`.
+    Parametric { shape: NetShape, kind: ParametricKind, pairs: Arc<Vec<[Vec3; 2]>> },
 }
 
 /// The op over `(x [N, n_x], a [N, n_a], p)`: the network input (the Additive Shared trunk's position
@@ -254,6 +259,67 @@ impl CustomOp3 for Step {
                     },
                 )
             }
+            Nets::Parametric { shape, kind, pairs } => {
+                let (kind, n_raw, n_obj) = (*kind, kind.n_raw(), kind.n_object());
+                let n_w: usize = shape.layers.iter().map(|&(i, o)| i * o).sum();
+                let n_b: usize = shape.layers.iter().map(|&(_, o)| o).sum();
+                if p.len() != n_w + n_b + n_obj || pairs.len() != n || k != 3 {
+                    candle_core::bail!("{op}: {} parameters, {} direction pairs for {:?} ({kind:?}) on {n} samples", p.len(), pairs.len(), shape.layers)
+                }
+                let net = Net::new(shape, &p[..n_w], &p[n_w..n_w + n_b], 0, n_x, op)?;
+                if net.m() != n_raw {
+                    candle_core::bail!("{op}: a network of {} outputs for {kind:?}'s {n_raw} parameters", net.m())
+                }
+                let object = &p[n_w + n_b..];
+                let (wt, width) = (net.transposed(), net.width());
+                // The hidden layers' buffers, then the raw parameters' (`[rows, n_raw]`).
+                let mut widths = net_hidden(shape);
+                let l = widths.len();
+                widths.push(n_raw);
+                run_tasks(
+                    n,
+                    p.len(),
+                    head,
+                    c,
+                    |sc| sc.fit(&widths, k, width, n_raw),
+                    |sc, r, rows| unsafe {
+                        let r_task = r % BACKWARD_ROWS;
+                        let dst: Vec<Dst> = (0..=l).map(|i| sc.dst(i, widths[i], r_task)).collect();
+                        let xm = Mat::new(x, n_x).at(r, 0);
+                        net.forward_rows(rows, xm, xm, &dst);
+                        // The core's formula on each sample's raw parameters, as the parametric op.
+                        let raw = &sc.acts[l][r_task * n_raw..(r_task + rows) * n_raw];
+                        for ((f, raw), &[wi, wo]) in sc.u[r_task * 3..(r_task + rows) * 3].chunks_exact_mut(3).zip(raw.chunks_exact(n_raw)).zip(&pairs[r..r + rows]) {
+                            f.copy_from_slice(&Parametric::from_raw(kind, raw, object).eval(wi, wo));
+                        }
+                    },
+                    |dp| unsafe { std::ptr::write_bytes(dp.add(n_w), 0, n_b + n_obj) },
+                    |sc, start, rows, s0, first_sweep, dp| unsafe {
+                        // The gradient in the raw parameters and the object parameters from the core's
+                        // dual-number evaluation, as the parametric op's backward pass; the object
+                        // parameters' sums run over the rows in order.
+                        let d_object = std::slice::from_raw_parts_mut(dp.add(n_w + n_b), n_obj);
+                        for i in 0..rows {
+                            let r = s0 + i;
+                            let [wi, wo] = pairs[start + r];
+                            let d = Parametric::eval_grad(kind, &sc.acts[l][r * n_raw..(r + 1) * n_raw], object, wi, wo);
+                            let up = [sc.du[3 * r], sc.du[3 * r + 1], sc.du[3 * r + 2]];
+                            let dot = |v: [f32; 3]| up[0] * v[0] + up[1] * v[1] + up[2] * v[2];
+                            for (o, dj) in sc.dt[i * n_raw..(i + 1) * n_raw].iter_mut().zip(&d.d_raw) {
+                                *o = dot(*dj);
+                            }
+                            for (o, dk) in d_object.iter_mut().zip(&d.d_object) {
+                                *o += dot(*dk);
+                            }
+                        }
+                        let acts: Vec<Mat> = (0..l).map(|i| sc.mat(i, widths[i], s0)).collect();
+                        let y = sc.mat(l, n_raw, s0);
+                        let xm = Mat::new(x, n_x).at(start + s0, 0);
+                        let db = std::slice::from_raw_parts_mut(dp.add(n_w), n_b);
+                        net.backward_rows(&wt, rows, &acts, Some(y), xm, xm, Mat::new(&sc.dt, n_raw), dp, db, first_sweep, (&mut sc.g, &mut sc.below), None, None);
+                    },
+                )
+            }
             Nets::Shared(shapes) => {
                 let three = Three::new([&shapes[0], &shapes[1], &shapes[2]], p, n_x, n_a, op)?;
                 if three.widths().1 != k {
@@ -322,6 +388,20 @@ fn flat(nets: &[&Mlp]) -> Result<Tensor> {
 pub fn single_mlp_loss(net: &Mlp, x: &Tensor, incident: &Tensor, target: &Tensor, valid: &Tensor) -> Result<Tensor> {
     let x = x.contiguous()?;
     step(Nets::Parallel(vec![(net.net_shape(), false)]), Head::Softplus, &x, &x, &flat(&[net])?, [incident, target, valid])
+}
+
+/// [`single_mlp_loss`] for a parametric model: the network `net` on the position encoding `x`
+/// predicts the raw parameters of `kind`, evaluated at the batch's direction `pairs` with the
+/// per-object parameters `object` (none for most models) by the core's formula.
+#[allow(clippy::too_many_arguments)]
+pub fn parametric_loss(net: &Mlp, kind: ParametricKind, object: Option<&Tensor>, pairs: &Arc<Vec<[Vec3; 2]>>, x: &Tensor, incident: &Tensor, target: &Tensor, valid: &Tensor) -> Result<Tensor> {
+    let mut p = flat(&[net])?;
+    if let Some(o) = object {
+        p = Tensor::cat(&[&p, &o.flatten_all()?], 0)?;
+    }
+    let x = x.contiguous()?;
+    let nets = Nets::Parametric { shape: net.net_shape(), kind, pairs: pairs.clone() };
+    step(nets, Head::Brdf, &x, &x, &p, [incident, target, valid])
 }
 
 /// [`single_mlp_loss`] for the Additive Separate model: the diffuse network on the position encoding
