@@ -157,7 +157,7 @@ impl<'a> Three<'a> {
     ///
     /// # Safety
     /// As [`Net::forward_rows`] for each network.
-    pub unsafe fn forward_rows(&self, rows: usize, x: Mat, a: Mat, dst_t: &[Dst], dst_d: &[Dst], dst_s: &[Dst], out: Dst) {
+    pub unsafe fn forward_rows(&self, rows: usize, x: Mat, a: Mat, (dst_t, dst_d, dst_s): (&[Dst], &[Dst], &[Dst]), out: Dst) {
         let n_t = self.trunk.m();
         // SAFETY: the caller's contract.
         unsafe {
@@ -246,7 +246,7 @@ impl CustomOp3 for AdditiveShared {
             unsafe {
                 let (xm, am) = (Mat::new(x, n_p).at(r0, 0), Mat::new(a, n_a).at(r0, 0));
                 let out = Dst { at: Shared(o.add(r0 * k)), ld: k };
-                three.forward_rows(rows, xm, am, &from_row(&dt, r0), &from_row(&dd, r0), &from_row(&ds, r0), out);
+                three.forward_rows(rows, xm, am, (&from_row(&dt, r0), &from_row(&dd, r0), &from_row(&ds, r0)), out);
             }
         });
         for (v, m) in kt.iter_mut().chain(&mut kd).chain(&mut ks).zip(self.trunk.layers.iter().map(|l| l.1).chain(hidden(&self.d)).chain(hidden(&self.s))) {

@@ -341,7 +341,7 @@ impl CustomOp3 for Step {
                         let dst: Vec<Dst> = (0..widths.len()).map(|i| sc.dst(i, widths[i], r_task)).collect();
                         let out = Dst { at: Shared(sc.u.as_mut_ptr().add(r_task * k)), ld: k };
                         let (xm, am) = (Mat::new(x, n_x).at(r, 0), Mat::new(a, n_a).at(r, 0));
-                        three.forward_rows(rows, xm, am, &dst[..lt], &dst[lt..lt + ld], &dst[lt + ld..], out);
+                        three.forward_rows(rows, xm, am, (&dst[..lt], &dst[lt..lt + ld], &dst[lt + ld..]), out);
                     },
                     |dp| unsafe { three.zero_biases(dp) },
                     |sc, start, rows, s0, first, dp| unsafe {
