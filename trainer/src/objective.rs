@@ -20,7 +20,7 @@ use candle_core::{CpuStorage, CustomOp1, Layout, Result, Shape, Tensor};
 use nbrdf::kernels::{sigmoid_slice, softplus_slice};
 use rayon::prelude::*;
 
-use crate::models::fused::{data, ROW_BLOCK};
+use crate::models::fused::{data, storage_data, ROW_BLOCK};
 use crate::models::{network, step, Kind, Model, Raw};
 use crate::train::{Batch, TrainOptions};
 
@@ -89,6 +89,27 @@ pub(crate) struct Constants<'a> {
     pub incident: &'a [f32],
     pub target: &'a [f32],
     pub valid: &'a [f32],
+}
+
+/// The batch's constants as an op holds them, contiguous tensors.
+pub(crate) struct BatchConstants {
+    incident: Tensor,
+    target: Tensor,
+    valid: Tensor,
+}
+
+impl BatchConstants {
+    pub(crate) fn new(incident: &Tensor, target: &Tensor, valid: &Tensor) -> Result<Self> {
+        Ok(BatchConstants { incident: incident.contiguous()?, target: target.contiguous()?, valid: valid.contiguous()? })
+    }
+
+    /// `f` of the constants' values (CPU tensors only; their lengths are the caller's to check).
+    pub(crate) fn with<R>(&self, op: &str, f: impl FnOnce(Constants<'_>) -> Result<R>) -> Result<R> {
+        let (si, li) = self.incident.storage_and_layout();
+        let (st, lt) = self.target.storage_and_layout();
+        let (sv, lv) = self.valid.storage_and_layout();
+        f(Constants { incident: storage_data(&si, li, op)?, target: storage_data(&st, lt, op)?, valid: storage_data(&sv, lv, op)? })
+    }
 }
 
 /// The objective on one block of rows, the batch's rows `r0..` (`u`, `g`: `[rows, k]`, `g` zeroed):
@@ -176,18 +197,11 @@ pub(crate) fn loss_of(head: Head, sums: &[[f64; 3]], scale: f32) -> f64 {
 /// The op over the packed raw outputs `u [N, k]`; the batch constants ride along.
 struct Objective {
     head: Head,
-    incident: Tensor,
-    target: Tensor,
-    valid: Tensor,
+    batch: BatchConstants,
     /// `d loss / d u`, written by the forward pass (the backward scales it by the incoming gradient).
     grad: Arc<Mutex<Vec<f32>>>,
 }
 
-/// The contiguous f32 data of a CPU tensor that the op holds.
-fn cpu<'a>(s: &'a candle_core::Storage, l: &Layout, what: &str) -> Result<&'a [f32]> {
-    let candle_core::Storage::Cpu(c) = s else { candle_core::bail!("objective: {what} must be on the CPU") };
-    data(c, l, "objective")
-}
 
 impl CustomOp1 for Objective {
     fn name(&self) -> &'static str {
@@ -197,10 +211,23 @@ impl CustomOp1 for Objective {
     fn cpu_fwd(&self, s: &CpuStorage, l: &Layout) -> Result<(CpuStorage, Shape)> {
         let u = data(s, l, self.name())?;
         let k = self.head.width();
-        let (si, li) = self.incident.storage_and_layout();
-        let (st, lt) = self.target.storage_and_layout();
-        let (sv, lv) = self.valid.storage_and_layout();
-        let (inc, tgt, valid) = (cpu(&si, li, "incident")?, cpu(&st, lt, "target")?, cpu(&sv, lv, "valid")?);
+        self.batch.with(self.name(), |c| self.run(u, k, c))
+    }
+
+    fn bwd(&self, u: &Tensor, _loss: &Tensor, grad_loss: &Tensor) -> Result<Option<Tensor>> {
+        let g = self.grad.lock().map_err(|_| candle_core::Error::Msg("objective: poisoned gradient".into()))?.clone();
+        if g.len() != u.elem_count() {
+            candle_core::bail!("objective: backward without its forward pass")
+        }
+        Ok(Some(Tensor::from_vec(g, u.shape(), u.device())?.broadcast_mul(grad_loss)?))
+    }
+}
+
+impl Objective {
+    /// The loss of the packed raw outputs `u` (`k` columns) and the batch's constants `c`; keeps the
+    /// gradient for the backward pass.
+    fn run(&self, u: &[f32], k: usize, c: Constants<'_>) -> Result<(CpuStorage, Shape)> {
+        let (inc, tgt, valid) = (c.incident, c.target, c.valid);
         let n = valid.len();
         if u.len() != n * k || inc.len() != 3 * n || tgt.len() != 3 * n {
             candle_core::bail!("objective: {} raw outputs, {} incident, {} targets for {n} samples of {k}", u.len(), inc.len(), tgt.len())
@@ -213,32 +240,19 @@ impl CustomOp1 for Objective {
             .par_chunks_mut(ROW_BLOCK * k)
             .zip(u.par_chunks(ROW_BLOCK * k))
             .enumerate()
-            .map(|(b, (g, u))| rows(head, u, g, Constants { incident: inc, target: tgt, valid }, b * ROW_BLOCK, scale))
+            .map(|(b, (g, u))| rows(head, u, g, c, b * ROW_BLOCK, scale))
             .collect();
         let loss = loss_of(head, &sums, scale);
         *self.grad.lock().map_err(|_| candle_core::Error::Msg("objective: poisoned gradient".into()))? = grad;
         Ok((CpuStorage::F32(vec![loss as f32]), Shape::from(())))
     }
 
-    fn bwd(&self, u: &Tensor, _loss: &Tensor, grad_loss: &Tensor) -> Result<Option<Tensor>> {
-        let g = self.grad.lock().map_err(|_| candle_core::Error::Msg("objective: poisoned gradient".into()))?.clone();
-        if g.len() != u.elem_count() {
-            candle_core::bail!("objective: backward without its forward pass")
-        }
-        Ok(Some(Tensor::from_vec(g, u.shape(), u.device())?.broadcast_mul(grad_loss)?))
-    }
 }
 
 /// The loss of a batch from the packed raw outputs `u` (`[N, head.width()]`), the incident light
 /// `L_i cos θ_l` and the target `γ(L_GT)` (`[N, 3]`) and the valid-pair mask (`[N, 1]`).
 pub fn loss(u: &Tensor, head: Head, incident: &Tensor, target: &Tensor, valid: &Tensor) -> Result<Tensor> {
-    let op = Objective {
-        head,
-        incident: incident.contiguous()?,
-        target: target.contiguous()?,
-        valid: valid.contiguous()?,
-        grad: Arc::default(),
-    };
+    let op = Objective { head, batch: BatchConstants::new(incident, target, valid)?, grad: Arc::default() };
     u.contiguous()?.apply_op1(op)
 }
 

@@ -20,7 +20,7 @@ use candle_core::{CpuStorage, CustomOp3, Layout, Result, Shape, Tensor};
 use rayon::prelude::*;
 
 use super::dense::{Mat, Shared};
-use super::fused::{add_in_order, data, dims2};
+use super::fused::{add_in_order, data, dims2, storage_data};
 use super::mlp::Mlp;
 use super::network::{Dst, Grad, Net, NetShape, BACKWARD_ROWS, FORWARD_ROWS, SWEEP_ROWS};
 
@@ -46,12 +46,6 @@ struct AdditiveShared {
 /// Lengths of a network's concatenated matrices and biases.
 fn sizes(shape: &NetShape) -> (usize, usize) {
     (shape.layers.iter().map(|&(i, o)| i * o).sum(), shape.layers.iter().map(|&(_, o)| o).sum())
-}
-
-/// The contiguous f32 data of a CPU tensor.
-fn cpu<'a>(s: &'a candle_core::Storage, l: &Layout, op: &str) -> Result<&'a [f32]> {
-    let candle_core::Storage::Cpu(c) = s else { candle_core::bail!("{op}: CPU tensors only") };
-    data(c, l, op)
 }
 
 fn poisoned(op: &str) -> candle_core::Error {
@@ -270,7 +264,7 @@ impl CustomOp3 for AdditiveShared {
         let (as_, al) = a.storage_and_layout();
         let (ps, pl) = p.storage_and_layout();
         let (gs, gl) = dout.storage_and_layout();
-        let (x, a, p, dout) = (cpu(&xs, xl, op)?, cpu(&as_, al, op)?, cpu(&ps, pl, op)?, cpu(&gs, gl, op)?);
+        let (x, a, p, dout) = (storage_data(&xs, xl, op)?, storage_data(&as_, al, op)?, storage_data(&ps, pl, op)?, storage_data(&gs, gl, op)?);
         let three = self.nets(p, n_p, n_a, op)?;
         let (n_t, k) = (three.trunk.m(), three.widths().1);
         let kept = self.kept.lock().map_err(|_| poisoned(op))?;

@@ -34,6 +34,12 @@ pub(crate) fn data<'a>(s: &'a CpuStorage, l: &Layout, op: &str) -> Result<&'a [f
     Ok(&d[a..b])
 }
 
+/// The contiguous f32 data of a tensor's storage (from `storage_and_layout`), which must be on the CPU.
+pub(crate) fn storage_data<'a>(s: &'a candle_core::Storage, l: &Layout, op: &str) -> Result<&'a [f32]> {
+    let candle_core::Storage::Cpu(c) = s else { candle_core::bail!("{op}: CPU tensors only") };
+    data(c, l, op)
+}
+
 /// `[rows, cols]` of a rank-2 layout.
 pub(super) fn dims2(l: &Layout, op: &str) -> Result<(usize, usize)> {
     match l.shape().dims() {

@@ -22,7 +22,7 @@ use super::fused::{add_in_order, data, dims2, ROW_BLOCK};
 use super::additive_shared::Three;
 use super::mlp::Mlp;
 use super::network::{Dst, Net, NetShape, BACKWARD_ROWS, FORWARD_ROWS, SWEEP_ROWS};
-use crate::objective::{self, Constants, Head};
+use crate::objective::{self, BatchConstants, Constants, Head};
 use nbrdf::parametric::{Parametric, ParametricKind};
 use nbrdf::Vec3;
 
@@ -67,17 +67,10 @@ enum Nets {
 struct Step {
     nets: Nets,
     head: Head,
-    incident: Tensor,
-    target: Tensor,
-    valid: Tensor,
+    batch: BatchConstants,
     grad: Arc<Mutex<Vec<f32>>>,
 }
 
-/// The contiguous f32 data of a CPU tensor.
-fn cpu<'a>(s: &'a candle_core::Storage, l: &Layout, op: &str) -> Result<&'a [f32]> {
-    let candle_core::Storage::Cpu(c) = s else { candle_core::bail!("{op}: CPU tensors only") };
-    data(c, l, op)
-}
 
 /// A task's buffers: the networks' layer outputs on its rows (`acts`), the packed raw outputs `u`
 /// and their gradient `du` (`[rows, k]`), a backward sweep's two gradient buffers, and the buffer that
@@ -194,10 +187,27 @@ impl CustomOp3 for Step {
         let op = self.name();
         let (x, a, p) = (data(s1, l1, op)?, data(s2, l2, op)?, data(s3, l3, op)?);
         let ((n, n_x), (n_a_rows, n_a)) = (dims2(l1, op)?, dims2(l2, op)?);
-        let (si, li) = self.incident.storage_and_layout();
-        let (st, lt) = self.target.storage_and_layout();
-        let (sv, lv) = self.valid.storage_and_layout();
-        let c = Constants { incident: cpu(&si, li, op)?, target: cpu(&st, lt, op)?, valid: cpu(&sv, lv, op)? };
+        self.batch.with(op, |c| self.run(x, (n, n_x), a, (n_a_rows, n_a), p, c))
+    }
+
+    fn bwd(&self, x: &Tensor, a: &Tensor, p: &Tensor, _loss: &Tensor, grad_loss: &Tensor) -> Result<(Option<Tensor>, Option<Tensor>, Option<Tensor>)> {
+        let op = self.name();
+        if x.track_op() || a.track_op() {
+            candle_core::bail!("{op}: the network inputs are inputs of the batch; no gradient flows into them")
+        }
+        let dp = self.grad.lock().map_err(|_| candle_core::Error::Msg(format!("{op}: poisoned gradient")))?.clone();
+        if dp.len() != p.elem_count() {
+            candle_core::bail!("{op}: backward without its forward pass")
+        }
+        Ok((None, None, Some(Tensor::from_vec(dp, p.shape(), p.device())?.broadcast_mul(grad_loss)?)))
+    }
+}
+
+impl Step {
+    /// The loss of the batch `(x, a)` (their `[rows, cols]`) for the weights `p` and the batch's
+    /// constants `c`; keeps the gradient in `p` for the backward pass.
+    fn run(&self, x: &[f32], (n, n_x): (usize, usize), a: &[f32], (n_a_rows, n_a): (usize, usize), p: &[f32], c: Constants<'_>) -> Result<(CpuStorage, Shape)> {
+        let op = self.name();
         if n_a_rows != n || c.valid.len() != n || c.incident.len() != 3 * n || c.target.len() != 3 * n {
             candle_core::bail!("{op}: {n_a_rows} angle rows, {} incident, {} target and {} valid values for {n} samples", c.incident.len(), c.target.len(), c.valid.len())
         }
@@ -360,17 +370,6 @@ impl CustomOp3 for Step {
         Ok((CpuStorage::F32(vec![loss as f32]), Shape::from(())))
     }
 
-    fn bwd(&self, x: &Tensor, a: &Tensor, p: &Tensor, _loss: &Tensor, grad_loss: &Tensor) -> Result<(Option<Tensor>, Option<Tensor>, Option<Tensor>)> {
-        let op = self.name();
-        if x.track_op() || a.track_op() {
-            candle_core::bail!("{op}: the network inputs are inputs of the batch; no gradient flows into them")
-        }
-        let dp = self.grad.lock().map_err(|_| candle_core::Error::Msg(format!("{op}: poisoned gradient")))?.clone();
-        if dp.len() != p.elem_count() {
-            candle_core::bail!("{op}: backward without its forward pass")
-        }
-        Ok((None, None, Some(Tensor::from_vec(dp, p.shape(), p.device())?.broadcast_mul(grad_loss)?)))
-    }
 }
 
 /// The weights of `nets` as the op takes them: each network's matrices, then its biases, in turn.
@@ -422,6 +421,6 @@ pub fn additive_shared_loss(trunk: &Mlp, diffuse: &Mlp, specular: &Mlp, head: He
 }
 
 fn step(nets: Nets, head: Head, x: &Tensor, a: &Tensor, p: &Tensor, [incident, target, valid]: [&Tensor; 3]) -> Result<Tensor> {
-    let op = Step { nets, head, incident: incident.contiguous()?, target: target.contiguous()?, valid: valid.contiguous()?, grad: Arc::default() };
+    let op = Step { nets, head, batch: BatchConstants::new(incident, target, valid)?, grad: Arc::default() };
     x.apply_op3(a, p, op)
 }
