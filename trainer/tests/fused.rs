@@ -240,3 +240,23 @@ fn fused_step_is_the_network_and_objective_ops_bit_for_bit() {
         }
     }
 }
+
+/// The fused step names a batch whose constants do not match its inputs instead of reading past them.
+#[test]
+fn fused_step_rejects_a_mismatched_batch() {
+    use trainer::objective::objective;
+    use trainer::train::{Batch, TrainOptions};
+    let dev = Device::Cpu;
+    let position = PositionEncoding::Intrinsic { k: 6 };
+    let n = 300;
+    let obs = trainer::toy::observations(n, position, 3);
+    for kind in [Kind::SingleMlp, Kind::AdditiveShared, Kind::Parametric(ParametricKind::Disney)] {
+        let config = Config::paper(kind, false, Reciprocity::Exact, position);
+        let model = Model::init(config, 1, &dev).unwrap();
+        let inputs = Inputs::build(&config, &RawBatch { position: &obs.position, wi: &obs.wi, wo: &obs.wo, swap: None }, &dev).unwrap();
+        // One incident row short.
+        let batch = Batch { inputs, incident: Tensor::ones((n - 1, 3), DType::F32, &dev).unwrap(), target: Tensor::zeros((n, 3), DType::F32, &dev).unwrap() };
+        let e = objective(&model, &batch, &TrainOptions::default()).unwrap_err().to_string();
+        assert!(e.contains("fused-step") && e.contains(&format!("{} incident", 3 * (n - 1))) && e.contains(&format!("for {n} samples")), "{}: {e}", config.name());
+    }
+}
