@@ -202,7 +202,6 @@ struct Objective {
     grad: Arc<Mutex<Vec<f32>>>,
 }
 
-
 impl CustomOp1 for Objective {
     fn name(&self) -> &'static str {
         "objective"
@@ -215,12 +214,18 @@ impl CustomOp1 for Objective {
     }
 
     fn bwd(&self, u: &Tensor, _loss: &Tensor, grad_loss: &Tensor) -> Result<Option<Tensor>> {
-        let g = self.grad.lock().map_err(|_| candle_core::Error::Msg("objective: poisoned gradient".into()))?.clone();
-        if g.len() != u.elem_count() {
-            candle_core::bail!("objective: backward without its forward pass")
-        }
-        Ok(Some(Tensor::from_vec(g, u.shape(), u.device())?.broadcast_mul(grad_loss)?))
+        kept_gradient(&self.grad, u, grad_loss, self.name()).map(Some)
     }
+}
+
+/// The backward pass of an op whose forward pass computed a scalar loss and kept its gradient in the
+/// input `x`: that gradient times the incoming `grad_loss`.
+pub(crate) fn kept_gradient(grad: &Mutex<Vec<f32>>, x: &Tensor, grad_loss: &Tensor, op: &str) -> Result<Tensor> {
+    let g = grad.lock().map_err(|_| candle_core::Error::Msg(format!("{op}: poisoned gradient")))?.clone();
+    if g.len() != x.elem_count() {
+        candle_core::bail!("{op}: backward without its forward pass")
+    }
+    Tensor::from_vec(g, x.shape(), x.device())?.broadcast_mul(grad_loss)
 }
 
 impl Objective {
@@ -246,7 +251,6 @@ impl Objective {
         *self.grad.lock().map_err(|_| candle_core::Error::Msg("objective: poisoned gradient".into()))? = grad;
         Ok((CpuStorage::F32(vec![loss as f32]), Shape::from(())))
     }
-
 }
 
 /// The loss of a batch from the packed raw outputs `u` (`[N, head.width()]`), the incident light
@@ -256,8 +260,9 @@ pub fn loss(u: &Tensor, head: Head, incident: &Tensor, target: &Tensor, valid: &
     u.contiguous()?.apply_op1(op)
 }
 
-/// The objective of one batch: Eq. 10, plus the Sec. 4.4 regularisers for enhanced models; the
-/// networks as their ops, everything after them as one [`loss`] op.
+/// The objective of one batch: Eq. 10, plus the Sec. 4.4 regularisers for enhanced models. The
+/// networks, head and loss run as one fused step ([`step`]) where the networks read an input; else
+/// the networks as their ops and everything after them as one [`loss`] op.
 pub fn objective(model: &Model, batch: &Batch, opts: &TrainOptions) -> Result<Tensor> {
     // The networks, the head and the loss in one op where the networks feed the head directly (and
     // read an input; a uniform material's position-only trunk is a bias).

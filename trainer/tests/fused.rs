@@ -16,6 +16,11 @@ fn rel_err(a: &Tensor, b: &Tensor) -> f32 {
     a.iter().zip(&b).fold(0.0f32, |m, (x, y)| m.max((x - y).abs())) / scale
 }
 
+/// The bit patterns of a tensor's values, for comparisons to the last bit.
+fn bits(t: &Tensor) -> Vec<u32> {
+    t.flatten_all().unwrap().to_vec1::<f32>().unwrap().into_iter().map(f32::to_bits).collect()
+}
+
 fn random(rng: &mut ChaCha8Rng, n: usize) -> Vec<f32> {
     (0..n).map(|_| rng.random_range(-1.0f32..1.0)).collect()
 }
@@ -181,7 +186,6 @@ fn additive_shared_op_is_its_three_networks() {
         let d_ref = n_nets[1].forward(&t, &x.ones).unwrap();
         let s_ref = n_nets[2].forward(&Tensor::cat(&[&t, &x.angles], 1).unwrap(), &x.ones).unwrap();
         let g_ref = loss(&d_ref, &s_ref).backward().unwrap();
-        let bits = |t: &Tensor| t.flatten_all().unwrap().to_vec1::<f32>().unwrap().into_iter().map(f32::to_bits).collect::<Vec<_>>();
         assert!(bits(&d) == bits(&d_ref) && bits(&s) == bits(&s_ref), "{}: outputs differ", config.name());
         for (j, v) in model.vars().iter().enumerate() {
             let (a, e) = (g.get(v.as_tensor()).unwrap(), g_ref.get(v.as_tensor()).unwrap());
@@ -227,7 +231,6 @@ fn fused_step_is_the_network_and_objective_ops_bit_for_bit() {
         let name = config.name();
         assert!(loss > 0.0, "{name}");
         assert_eq!(loss.to_bits(), loss_ref.to_bits(), "{name}: loss {loss} vs {loss_ref}");
-        let bits = |t: &Tensor| t.flatten_all().unwrap().to_vec1::<f32>().unwrap().into_iter().map(f32::to_bits).collect::<Vec<_>>();
         for (j, v) in model.vars().iter().enumerate() {
             let (a, e) = (g.get(v.as_tensor()).unwrap(), g_ref.get(v.as_tensor()).unwrap());
             if model.object.as_ref().is_some_and(|o| o.as_tensor().id() == v.as_tensor().id()) {

@@ -43,20 +43,15 @@ struct AdditiveShared {
     kept: Arc<Mutex<Kept>>,
 }
 
-/// Lengths of a network's concatenated matrices and biases.
-fn sizes(shape: &NetShape) -> (usize, usize) {
-    (shape.layers.iter().map(|&(i, o)| i * o).sum(), shape.layers.iter().map(|&(_, o)| o).sum())
-}
-
 fn poisoned(op: &str) -> candle_core::Error {
     candle_core::Error::Msg(format!("{op}: poisoned activations"))
 }
 
 /// `[n, m]` buffers, uninitialised, one per layer width in `widths`, and where their rows go.
-fn buffers(widths: impl Iterator<Item = usize>, n: usize) -> (Vec<Vec<f32>>, Vec<Dst>) {
+fn buffers(widths: &[usize], n: usize) -> (Vec<Vec<f32>>, Vec<Dst>) {
     let mut v: Vec<Vec<f32>> = Vec::new();
     let mut d = Vec::new();
-    for m in widths {
+    for &m in widths {
         let mut b = Vec::with_capacity(n * m);
         d.push(Dst { at: Shared(b.as_mut_ptr()), ld: m });
         v.push(b);
@@ -96,19 +91,19 @@ pub(super) struct Three<'a> {
 
 impl<'a> Three<'a> {
     pub fn new(shapes: [&'a NetShape; 3], p: &'a [f32], n_p: usize, n_a: usize, op: &str) -> Result<Self> {
-        let total: usize = shapes.iter().map(|s| sizes(s).0 + sizes(s).1).sum();
+        let total: usize = shapes.iter().map(|s| s.sizes().0 + s.sizes().1).sum();
         if p.len() != total {
             candle_core::bail!("{op}: {} parameters for networks of {total}", p.len())
         }
         let mut at = [(0, 0, 0); 3];
         let mut o = 0;
         for (a, s) in at.iter_mut().zip(shapes) {
-            let (w, b) = sizes(s);
+            let (w, b) = s.sizes();
             *a = (o, o + w, b);
             o += w + b;
         }
         let block = |i: usize| {
-            let (w, b) = sizes(shapes[i]);
+            let (w, b) = shapes[i].sizes();
             (&p[at[i].0..at[i].0 + w], &p[at[i].1..at[i].1 + b])
         };
         let trunk = Net::new(shapes[0], block(0).0, block(0).1, 0, n_p, op)?;
@@ -227,10 +222,10 @@ impl CustomOp3 for AdditiveShared {
         }
         let three = self.nets(p, n_p, n_a, op)?;
         let k = three.widths().1;
-        let hidden = |shape: &NetShape| shape.layers[..shape.layers.len() - 1].iter().map(|&(_, m)| m).collect::<Vec<_>>();
-        let (mut kt, dt) = buffers(self.trunk.layers.iter().map(|&(_, m)| m), n);
-        let (mut kd, dd) = buffers(hidden(&self.d).into_iter(), n);
-        let (mut ks, ds) = buffers(hidden(&self.s).into_iter(), n);
+        let widths = [self.trunk.widths(), self.d.inner_widths(), self.s.inner_widths()];
+        let (mut kt, dt) = buffers(&widths[0], n);
+        let (mut kd, dd) = buffers(&widths[1], n);
+        let (mut ks, ds) = buffers(&widths[2], n);
         let mut out: Vec<f32> = Vec::with_capacity(n * k);
         let o = Shared(out.as_mut_ptr());
         (0..n.div_ceil(FORWARD_ROWS)).into_par_iter().for_each(|blk| {
@@ -243,7 +238,7 @@ impl CustomOp3 for AdditiveShared {
                 three.forward_rows(rows, xm, am, (&from_row(&dt, r0), &from_row(&dd, r0), &from_row(&ds, r0)), out);
             }
         });
-        for (v, m) in kt.iter_mut().chain(&mut kd).chain(&mut ks).zip(self.trunk.layers.iter().map(|l| l.1).chain(hidden(&self.d)).chain(hidden(&self.s))) {
+        for (v, &m) in kt.iter_mut().chain(&mut kd).chain(&mut ks).zip(widths.iter().flatten()) {
             // SAFETY: the tasks above wrote all n rows of every buffer.
             unsafe { v.set_len(n * m) };
         }

@@ -200,10 +200,11 @@ unsafe fn portable_product(rows: usize, cols: usize, a1: Mat, p1: usize, a2: Mat
 #[cfg(target_arch = "x86_64")]
 mod x86 {
     //! The AVX-512 kernels: a tile of up to 6 rows × 4 vectors (64 columns) of accumulators, 24 of
-    //! the 32 registers (24 rows × 1 vector where the columns are one vector, `NARROW_MR`); per inner index 4 loads of `B`, 6 broadcasts of `A` and 24 FMAs, which keeps
-    //! Zen 4's one 512-bit FMA per cycle busy (~94% of peak in cache), and an Intel Xeon's two at
-    //! 150-165 GFLOP/s per core in cache (256 rows by a 128 × 128 matrix; the same tile in C: 174).
-    //! Edge tiles use masks; full ones do not (see `load!`).
+    //! the 32 registers (24 rows × 1 vector where the columns are one vector, `NARROW_MR`); per inner
+    //! index 4 loads of `B`, 6 broadcasts of `A` and 24 FMAs, which keeps Zen 4's one 512-bit FMA per
+    //! cycle busy (~94% of peak in cache), and an Intel Xeon's two at 150-165 GFLOP/s per core in cache
+    //! (256 rows by a 128 × 128 matrix; the same tile in C: 174). Edge tiles use masks; full ones do
+    //! not (see `load!`).
     use super::{Epilogue, Mat};
     use std::arch::x86_64::*;
 
@@ -551,4 +552,3 @@ mod tests {
         }
     }
 }
-

@@ -10,7 +10,7 @@ use candle_core::{CpuStorage, CustomOp3, Layout, Result, Shape, Tensor};
 use rayon::prelude::*;
 
 use super::dense::{self, Epilogue, Mat, Shared};
-use super::fused::{add_in_order, data, dims2};
+use super::fused::{add_in_order, data, dims2, storage_data};
 
 /// What [`network`] needs to know of a network: layer sizes, which layers end in a ReLU, and the skip.
 #[derive(Clone, Debug)]
@@ -21,6 +21,23 @@ pub struct NetShape {
     pub hidden: usize,
     /// The layer that reads `[h, x]` (the previous activation and the network input), if any.
     pub skip: Option<usize>,
+}
+
+impl NetShape {
+    /// Lengths of the concatenated matrices and biases: `(Σ in · out, Σ out)`.
+    pub fn sizes(&self) -> (usize, usize) {
+        (self.layers.iter().map(|&(i, o)| i * o).sum(), self.layers.iter().map(|&(_, o)| o).sum())
+    }
+
+    /// Output widths of the layers, in order.
+    pub fn widths(&self) -> Vec<usize> {
+        self.layers.iter().map(|&(_, m)| m).collect()
+    }
+
+    /// Output widths of the layers before the last: the activations a backward pass reads.
+    pub fn inner_widths(&self) -> Vec<usize> {
+        self.layers[..self.layers.len().saturating_sub(1)].iter().map(|&(_, m)| m).collect()
+    }
 }
 
 thread_local! {
@@ -137,8 +154,7 @@ impl<'a> Net<'a> {
     /// `shape` with its concatenated matrices `w` and biases `b` (file order), read from an input of
     /// `n_lead + n_x` columns; an error names what does not fit.
     pub fn new(shape: &'a NetShape, w: &'a [f32], b: &'a [f32], n_lead: usize, n_x: usize, op: &str) -> Result<Self> {
-        let n_w: usize = shape.layers.iter().map(|&(i, o)| i * o).sum();
-        let n_b: usize = shape.layers.iter().map(|&(_, o)| o).sum();
+        let (n_w, n_b) = shape.sizes();
         if w.len() != n_w || b.len() != n_b || shape.layers.first().is_none_or(|&(i, _)| i != n_lead + n_x) {
             candle_core::bail!("{op}: an input of {n_lead} + {n_x} columns, {} weights and {} biases do not fit {:?}", w.len(), b.len(), shape.layers)
         }
@@ -207,7 +223,7 @@ impl<'a> Net<'a> {
             candle_core::bail!("{op}: {} and {} input values for {n} rows of {} and {} columns", x.len(), lead.len(), self.n_x, self.n_lead)
         }
         let mut outs: Vec<Vec<f32>> = self.shape.layers.iter().map(|&(_, m)| Vec::with_capacity(n * m)).collect();
-        let m_of: Vec<usize> = self.shape.layers.iter().map(|&(_, m)| m).collect();
+        let m_of = self.shape.widths();
         let dst: Vec<Dst> = outs.iter_mut().zip(&m_of).map(|(o, &m)| Dst { at: Shared(o.as_mut_ptr()), ld: m }).collect();
         (0..n.div_ceil(FORWARD_ROWS)).into_par_iter().for_each(|t| {
             let (r0, rows) = (t * FORWARD_ROWS, FORWARD_ROWS.min(n - t * FORWARD_ROWS));
@@ -425,16 +441,12 @@ impl CustomOp3 for NetworkGrad {
             candle_core::bail!("{op}: output gradient of {} values for [{n}, {m_out}]", dy.len())
         }
         let ((w_storage, w_layout), (b_storage, b_layout)) = (self.w.storage_and_layout(), self.b.storage_and_layout());
-        let (candle_core::Storage::Cpu(w_cpu), candle_core::Storage::Cpu(b_cpu)) = (&*w_storage, &*b_storage) else {
-            candle_core::bail!("{op}: CPU tensors only")
-        };
-        let (w, b) = (data(w_cpu, w_layout, op)?, data(b_cpu, b_layout, op)?);
+        let (w, b) = (storage_data(&w_storage, w_layout, op)?, storage_data(&b_storage, b_layout, op)?);
         let saved = self.saved.lock().map_err(|_| candle_core::Error::Msg(format!("{op}: poisoned activations")))?;
         if saved.len() + 1 != layers.len() {
             candle_core::bail!("{op}: backward without its forward pass")
         }
-        let n_w: usize = layers.iter().map(|&(i, o)| i * o).sum();
-        let n_b: usize = layers.iter().map(|&(_, o)| o).sum();
+        let (n_w, n_b) = self.shape.sizes();
         let mut out = vec![0.0f32; n_w + n_b + if self.want_dx { n * n_x } else { 0 }];
         let (dw_all, rest) = out.split_at_mut(n_w);
         let (db_all, dx) = rest.split_at_mut(n_b);

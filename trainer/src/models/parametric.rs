@@ -101,16 +101,8 @@ impl CustomOp2 for ParametricOp {
                 let mut go = [0.0f32; nbrdf::parametric::MAX_OBJECT];
                 for (i, out) in out.chunks_mut(n_raw).enumerate() {
                     let s = b * BLOCK + i;
-                    let [wi, wo] = self.pairs[s];
-                    let d = Parametric::eval_grad(kind, &raw_v[s * n_raw..(s + 1) * n_raw], obj, wi, wo);
                     let up = [g[3 * s], g[3 * s + 1], g[3 * s + 2]];
-                    let dot = |v: [f32; 3]| up[0] * v[0] + up[1] * v[1] + up[2] * v[2];
-                    for (o, dj) in out.iter_mut().zip(&d.d_raw) {
-                        *o = dot(*dj);
-                    }
-                    for (o, dk) in go.iter_mut().zip(&d.d_object[..n_obj]) {
-                        *o += dot(*dk);
-                    }
+                    backward_sample(kind, &raw_v[s * n_raw..(s + 1) * n_raw], obj, self.pairs[s], up, out, &mut go[..n_obj]);
                 }
                 go
             })
@@ -120,6 +112,19 @@ impl CustomOp2 for ParametricOp {
         let g_raw = Tensor::from_vec(g_raw, raw.shape(), raw.device())?;
         let g_obj = Tensor::from_vec(g_obj_v, object.shape(), object.device())?;
         Ok((Some(g_raw), Some(g_obj)))
+    }
+}
+
+/// One sample's backward pass through the formula: `d_raw ← upᵀ ∂f/∂raw` and `d_object += upᵀ ∂f/∂object`
+/// for the gradient `up` of its BRDF value, from the core's dual-number evaluation at (`wi`, `wo`).
+pub(super) fn backward_sample(kind: ParametricKind, raw: &[f32], object: &[f32], [wi, wo]: [Vec3; 2], up: [f32; 3], d_raw: &mut [f32], d_object: &mut [f32]) {
+    let d = Parametric::eval_grad(kind, raw, object, wi, wo);
+    let dot = |v: [f32; 3]| up[0] * v[0] + up[1] * v[1] + up[2] * v[2];
+    for (o, dj) in d_raw.iter_mut().zip(&d.d_raw) {
+        *o = dot(*dj);
+    }
+    for (o, dk) in d_object.iter_mut().zip(&d.d_object) {
+        *o += dot(*dk);
     }
 }
 

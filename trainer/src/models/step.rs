@@ -23,6 +23,7 @@ use super::additive_shared::Three;
 use super::mlp::Mlp;
 use super::network::{Dst, Net, NetShape, BACKWARD_ROWS, FORWARD_ROWS, SWEEP_ROWS};
 use crate::objective::{self, BatchConstants, Constants, Head};
+use super::parametric;
 use nbrdf::parametric::{Parametric, ParametricKind};
 use nbrdf::Vec3;
 
@@ -124,11 +125,6 @@ thread_local! {
     static SCRATCH: std::cell::RefCell<Scratch> = std::cell::RefCell::new(Scratch::default());
 }
 
-/// The hidden layers' output widths of a network (its output goes to the task's `u`).
-fn net_hidden(shape: &NetShape) -> Vec<usize> {
-    shape.layers[..shape.layers.len().saturating_sub(1)].iter().map(|&(_, m)| m).collect()
-}
-
 /// Runs the tasks of a step over `n` rows: per task, `forward(scratch, start, rows)` writes the raw
 /// outputs to `scratch.u`, the objective turns them into `scratch.du`, and `backward(scratch, start,
 /// rows, s0, first, dp)` runs sweep `s0` into the task's gradient `dp` (laid out as `p`, its bias
@@ -195,11 +191,7 @@ impl CustomOp3 for Step {
         if x.track_op() || a.track_op() {
             candle_core::bail!("{op}: the network inputs are inputs of the batch; no gradient flows into them")
         }
-        let dp = self.grad.lock().map_err(|_| candle_core::Error::Msg(format!("{op}: poisoned gradient")))?.clone();
-        if dp.len() != p.elem_count() {
-            candle_core::bail!("{op}: backward without its forward pass")
-        }
-        Ok((None, None, Some(Tensor::from_vec(dp, p.shape(), p.device())?.broadcast_mul(grad_loss)?)))
+        Ok((None, None, Some(objective::kept_gradient(&self.grad, p, grad_loss, op)?)))
     }
 }
 
@@ -220,12 +212,11 @@ impl Step {
                 let mut built = Vec::with_capacity(nets.len());
                 let (mut o, mut col) = (0, 0);
                 for (shape, on_a) in nets {
-                    let n_w: usize = shape.layers.iter().map(|&(i, o)| i * o).sum();
-                    let n_b: usize = shape.layers.iter().map(|&(_, o)| o).sum();
+                    let (n_w, n_b) = shape.sizes();
                     let Some(block) = p.get(o..o + n_w + n_b) else { candle_core::bail!("{op}: {} parameters for {:?}", p.len(), shape.layers) };
                     let net = Net::new(shape, &block[..n_w], &block[n_w..], 0, if *on_a { n_a } else { n_x }, op)?;
                     let (m, at) = (net.m(), (o, o + n_w, n_b));
-                    built.push((net, *on_a, at, col, net_hidden(shape)));
+                    built.push((net, *on_a, at, col, shape.inner_widths()));
                     (o, col) = (o + n_w + n_b, col + m);
                 }
                 if o != p.len() || col != k {
@@ -271,8 +262,7 @@ impl Step {
             }
             Nets::Parametric { shape, kind, pairs } => {
                 let (kind, n_raw, n_obj) = (*kind, kind.n_raw(), kind.n_object());
-                let n_w: usize = shape.layers.iter().map(|&(i, o)| i * o).sum();
-                let n_b: usize = shape.layers.iter().map(|&(_, o)| o).sum();
+                let (n_w, n_b) = shape.sizes();
                 if p.len() != n_w + n_b + n_obj || pairs.len() != n || k != 3 {
                     candle_core::bail!("{op}: {} parameters, {} direction pairs for {:?} ({kind:?}) on {n} samples", p.len(), pairs.len(), shape.layers)
                 }
@@ -283,7 +273,7 @@ impl Step {
                 let object = &p[n_w + n_b..];
                 let (wt, width) = (net.transposed(), net.width());
                 // The hidden layers' buffers, then the raw parameters' (`[rows, n_raw]`).
-                let mut widths = net_hidden(shape);
+                let mut widths = shape.inner_widths();
                 let l = widths.len();
                 widths.push(n_raw);
                 run_tasks(
@@ -311,16 +301,9 @@ impl Step {
                         let d_object = std::slice::from_raw_parts_mut(dp.add(n_w + n_b), n_obj);
                         for i in 0..rows {
                             let r = s0 + i;
-                            let [wi, wo] = pairs[start + r];
-                            let d = Parametric::eval_grad(kind, &sc.acts[l][r * n_raw..(r + 1) * n_raw], object, wi, wo);
                             let up = [sc.du[3 * r], sc.du[3 * r + 1], sc.du[3 * r + 2]];
-                            let dot = |v: [f32; 3]| up[0] * v[0] + up[1] * v[1] + up[2] * v[2];
-                            for (o, dj) in sc.dt[i * n_raw..(i + 1) * n_raw].iter_mut().zip(&d.d_raw) {
-                                *o = dot(*dj);
-                            }
-                            for (o, dk) in d_object.iter_mut().zip(&d.d_object) {
-                                *o += dot(*dk);
-                            }
+                            let raw = &sc.acts[l][r * n_raw..(r + 1) * n_raw];
+                            parametric::backward_sample(kind, raw, object, pairs[start + r], up, &mut sc.dt[i * n_raw..(i + 1) * n_raw], d_object);
                         }
                         let acts: Vec<Mat> = (0..l).map(|i| sc.mat(i, widths[i], s0)).collect();
                         let y = sc.mat(l, n_raw, s0);
@@ -336,10 +319,9 @@ impl Step {
                     candle_core::bail!("{op}: heads of {} outputs for a head of {k}", three.widths().1)
                 }
                 let (wt, width, n_t) = (three.transposed(), three.width(), three.trunk.m());
-                let (wt_, wd, ws): (Vec<usize>, Vec<usize>, Vec<usize>) =
-                    (shapes[0].layers.iter().map(|&(_, m)| m).collect(), net_hidden(&shapes[1]), net_hidden(&shapes[2]));
-                let widths: Vec<usize> = wt_.iter().chain(&wd).chain(&ws).copied().collect();
-                let (lt, ld) = (wt_.len(), wd.len());
+                // Every trunk layer's buffer (the last is `t`), then each head's hidden layers'.
+                let parts = [shapes[0].widths(), shapes[1].inner_widths(), shapes[2].inner_widths()];
+                let (lt, ld, widths) = (parts[0].len(), parts[1].len(), parts.concat());
                 run_tasks(
                     n,
                     p.len(),
@@ -369,7 +351,6 @@ impl Step {
         *self.grad.lock().map_err(|_| candle_core::Error::Msg(format!("{op}: poisoned gradient")))? = dp;
         Ok((CpuStorage::F32(vec![loss as f32]), Shape::from(())))
     }
-
 }
 
 /// The weights of `nets` as the op takes them: each network's matrices, then its biases, in turn.
