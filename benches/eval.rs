@@ -159,6 +159,11 @@ fn bench_models(c: &mut Criterion<Clock>) {
                 g.bench_function(BenchmarkId::new(format!("batch-1024/{lname}"), &name), |b| {
                     b.iter(|| m.eval_many(&prepared, black_box(&wi), black_box(&wo), &mut out))
                 });
+                if level == Level::Avx512 && m.half_math() {
+                    g.bench_function(BenchmarkId::new(format!("batch-1024-half-math/{lname}"), &name), |b| {
+                        b.iter(|| m.eval_many_half(&prepared, black_box(&wi), black_box(&wo), &mut out))
+                    });
+                }
             }
             set_level(None);
         }

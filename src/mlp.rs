@@ -65,6 +65,19 @@ impl Weight for half::f16 {
     }
 }
 
+/// The arithmetic of [`forward_packet`]'s hidden layers.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Arithmetic {
+    /// f32 multiply-adds (f16 weights widened as they are read): the same bits as one query at a
+    /// time, at every level up to FMA rounding.
+    #[default]
+    F32,
+    /// f16 multiply-adds in the hidden layers of half-weight networks where the CPU has AVX512-FP16
+    /// ([`crate::kernels::packet_half_math`]): twice the multiply-adds per instruction, each product
+    /// and partial sum rounded to f16. The output layer, f32 weights and other CPUs: as [`F32`](Self::F32).
+    HalfHidden,
+}
+
 /// Shape of one network: `Mlp(n_in, width, hidden, n_out, skip)` of `docs/models.md`.
 ///
 /// ```
@@ -253,6 +266,7 @@ pub fn partial<W: Weight>(net: &Net<'_, W>, head: &[f32]) -> Partial {
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn run<W: Weight, const Q: usize>(
+    math: Arithmetic,
     net: &Net<'_, W>,
     partial: &Partial,
     tail: &[f32],
@@ -264,10 +278,11 @@ fn run<W: Weight, const Q: usize>(
     t: &mut [f32],
 ) {
     let k = kernels::<W>();
+    let half = math == Arithmetic::HalfHidden;
     let layer = |l: &Dense<'_, W>, out: &mut [f32], os: usize| {
         if Q == 1 {
             k.one(l, out)
-        } else {
+        } else if !(half && l.relu && W::packet_half_math(l, out, os)) {
             k.packet(l, out, os)
         }
     };
@@ -326,7 +341,7 @@ pub fn forward<W: Weight>(net: &Net<'_, W>, partial: &Partial, tail: &[f32], out
     }
     let mut h = [0.0f32; MAX_WIDTH];
     let mut t = [0.0f32; MAX_WIDTH];
-    run::<W, 1>(net, partial, tail, 0, tail.len(), out, 0, &mut h, &mut t);
+    run::<W, 1>(Arithmetic::F32, net, partial, tail, 0, tail.len(), out, 0, &mut h, &mut t);
 }
 
 /// [`forward`] in one kernel call ([`Chain`]) where the level has the kernel and the network its shape
@@ -372,12 +387,14 @@ fn forward_chain<W: Weight>(net: &Net<'_, W>, partial: &Partial, tail: &[f32], o
 /// [`forward`] for a packet of [`PACKET`] queries at one prepared point: query `q`'s tail is
 /// `tails[q * tail_stride..][..n_tail]`, its `desc.output_len()` outputs go to `out[q * out_stride..]`.
 ///
-/// Each weight row is read once per packet. Every query gets the same bits as [`forward`] on its own
-/// tail (see [`crate::kernels`], "Determinism").
+/// Each weight row is read once per packet. With [`Arithmetic::F32`] every query gets the same bits as
+/// [`forward`] on its own tail (see [`crate::kernels`], "Determinism").
 ///
 /// Panics when `tails` or `out` is too short for the packet.
 #[inline]
+#[allow(clippy::too_many_arguments)]
 pub fn forward_packet<W: Weight>(
+    math: Arithmetic,
     net: &Net<'_, W>,
     partial: &Partial,
     tails: &[f32],
@@ -388,7 +405,7 @@ pub fn forward_packet<W: Weight>(
 ) {
     let mut h = [0.0f32; PACKET * MAX_WIDTH];
     let mut t = [0.0f32; PACKET * MAX_WIDTH];
-    run::<W, PACKET>(net, partial, tails, tail_stride, n_tail, out, out_stride, &mut h, &mut t);
+    run::<W, PACKET>(math, net, partial, tails, tail_stride, n_tail, out, out_stride, &mut h, &mut t);
 }
 
 /// Runs the network on its whole input `x` (no precomputed head).

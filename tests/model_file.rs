@@ -508,6 +508,47 @@ fn batched_evaluation_equals_single_queries_bit_for_bit() {
     }
 }
 
+/// `eval_many_half`: f32 models, and CPUs without AVX512-FP16, get exactly `eval_many`; f16 models on
+/// AVX512-FP16 get f16 hidden layers, within a few tenths of a percent of `eval_many` here, each
+/// pair's value still independent of the batch around it (a pair alone gives the same bits).
+#[test]
+fn half_math_batches_stay_close_to_f32_and_independent_of_their_neighbours() {
+    for kind in [ModelKind::SingleMlp, ModelKind::AdditiveSeparate, ModelKind::AdditiveShared] {
+        for precision in [Precision::F32, Precision::F16] {
+            let mut h = ModelHeader::paper(kind, kind.is_additive(), Reciprocity::Exact, PositionEncoding::Intrinsic { k: 6 }, 3);
+            h.precision = precision;
+            let buf = ModelBuf::from_bytes(&encode(&h, &weights(h.n_weights(), 9, 0.15), None).unwrap()).unwrap();
+            let model = buf.model();
+            let half = model.half_math();
+            assert_eq!(half, precision == Precision::F16 && nbrdf::kernels::half_math_available());
+            let p = model.prepare(&[0.1, 0.5, -0.3, 0.2, 0.0, 0.9]);
+            let n = 203;
+            let (wi, wo) = pairs(n, 21);
+            let (mut exact, mut fast) = (vec![[f32::NAN; 3]; n], vec![[f32::NAN; 3]; n]);
+            model.eval_many(&p, &wi, &wo, &mut exact);
+            model.eval_many_half(&p, &wi, &wo, &mut fast);
+            if !half {
+                assert_eq!(fast, exact, "{kind:?} {precision:?}: no half arithmetic, the same bits");
+                continue;
+            }
+            let (mut worst, mut differ) = (0.0f32, 0);
+            for i in 0..n {
+                let mut alone = [[f32::NAN; 3]];
+                model.eval_many_half(&p, &wi[i..=i], &wo[i..=i], &mut alone);
+                assert_eq!(alone[0].map(f32::to_bits), fast[i].map(f32::to_bits), "{kind:?} pair {i} alone");
+                for c in 0..3 {
+                    let (e, f) = (exact[i][c], fast[i][c]);
+                    assert_eq!(e == 0.0, f == 0.0, "{kind:?} pair {i}: the invalid pairs are 0, the others not");
+                    worst = worst.max((f - e).abs() / e.max(1e-3));
+                    differ += (f != e) as usize;
+                }
+            }
+            assert!(worst < 0.01, "{kind:?}: worst relative difference {worst}");
+            assert!(differ > n, "{kind:?}: the hidden layers ran in half precision ({differ} values differ)");
+        }
+    }
+}
+
 #[test]
 fn batched_parametric_models_and_invalid_points_match_single_queries() {
     let h = ModelHeader::paper(ModelKind::Parametric(ParametricKind::Phong), false, Reciprocity::None, PositionEncoding::Intrinsic { k: 4 }, 0);

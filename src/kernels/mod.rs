@@ -22,6 +22,8 @@
 //! pre-activation is erased by the ReLU (`max(acc, 0)` returns `+0`) and by every output map.
 //! Levels differ from each other by rounding only (FMA versus multiply-then-add).
 
+#[cfg(target_arch = "x86_64")]
+mod half_math;
 mod output_map;
 mod portable;
 mod sincos;
@@ -340,11 +342,20 @@ pub trait KernelWeight: Sized + 'static {
     /// The kernels of `level`, which must be at most [`detected`] (lower levels are always safe).
     #[doc(hidden)]
     fn table(level: Level) -> &'static Kernels<Self>;
+
+    /// [`packet_half_math`] for this weight type: `false` (nothing run) but for half weights.
+    #[doc(hidden)]
+    fn packet_half_math(layer: &Dense<'_, Self>, out: &mut [f32], out_stride: usize) -> bool;
 }
 
 macro_rules! tables {
-    ($w:ty, $avx2:ident, $avx512:ident) => {
+    ($w:ty, $avx2:ident, $avx512:ident, $half:expr) => {
         impl KernelWeight for $w {
+            #[inline]
+            fn packet_half_math(layer: &Dense<'_, $w>, out: &mut [f32], out_stride: usize) -> bool {
+                $half(layer, out, out_stride)
+            }
+
             #[inline]
             fn table(level: Level) -> &'static Kernels<$w> {
                 static PORTABLE: Kernels<$w> =
@@ -368,8 +379,41 @@ macro_rules! tables {
         }
     };
 }
-tables!(f32, avx2_f32, avx512_f32);
-tables!(half::f16, avx2_f16, avx512_f16);
+tables!(f32, avx2_f32, avx512_f32, |_: &Dense<'_, f32>, _: &mut [f32], _: usize| false);
+tables!(half::f16, avx2_f16, avx512_f16, packet_half_math);
+
+/// Whether [`packet_half_math`] runs here: the CPU has AVX512-FP16 (x86-64: Sapphire Rapids and
+/// later Intel cores; detected at run time with `std`) and [`level`] is AVX-512.
+#[inline]
+pub fn half_math_available() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        level() == Level::Avx512 && half_math::available()
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
+/// Runs a layer of half weights for [`PACKET`] queries (as [`Kernels::packet`]) with every
+/// multiply-add in half precision, where [`half_math_available`]; returns `false` and writes nothing
+/// elsewhere. Twice the multiply-adds per instruction of the f32 kernels, each product and partial
+/// sum rounded to f16 (11 significant bits; beyond ±65504 a sum becomes infinite): see
+/// `half_math.rs` and [`crate::Model::eval_many_half`]. Not bitwise equal to [`Kernels::packet`].
+#[inline]
+pub fn packet_half_math(layer: &Dense<'_, half::f16>, out: &mut [f32], out_stride: usize) -> bool {
+    if !half_math_available() {
+        return false;
+    }
+    layer.check(PACKET, out.len(), out_stride);
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: `half_math_available` checked the CPU features; `check` verified every extent.
+    unsafe {
+        half_math::packet(layer, out.as_mut_ptr(), out_stride);
+    }
+    true
+}
 
 /// The kernels of the active [`level`] for weights `W`.
 #[inline]
@@ -453,6 +497,74 @@ mod tests {
         check_shapes::<f32>(&w[..]);
         let h: [half::f16; N] = core::array::from_fn(|i| half::f16::from_f32(w[i]));
         check_shapes::<half::f16>(&h[..]);
+    }
+
+    /// The half-precision packet kernel against the f64 reference, within the classic bound of a
+    /// sum of `n` products in a precision of unit roundoff `u = 2^-11`: `|ŷ - y| ≤ γ (|init| +
+    /// Σ |x_i w_i|)` with `γ = (n + 2) u / (1 - (n + 2) u)` (the inputs and `init` rounded once more;
+    /// Higham, "Accuracy and Stability of Numerical Algorithms", Sec. 3.1). Every shape of
+    /// `check_shapes`, the layers with more than 256 inputs in two passes included.
+    #[test]
+    fn half_math_packets_are_within_the_f16_error_bound_of_the_exact_sums() {
+        if !half_math_available() {
+            std::eprintln!("skipped: this CPU has no AVX512-FP16 (half-precision packets fall back to f32)");
+            return;
+        }
+        let w = values(N, 17, 0);
+        let h: [half::f16; N] = core::array::from_fn(|i| half::f16::from_f32(w[i]));
+        let u = 2f64.powi(-11);
+        for &(n_out, n1, n2, relu) in &[(32, 6, 0, true), (17, 9, 5, true), (128, 64, 36, true), (130, 12, 3, false), (40, 250, 9, true)] {
+            let stride = 330;
+            let x1 = values(PACKET * stride, n_out as u32, 3);
+            let x2 = values(PACKET * stride, 99 + n1 as u32, 4);
+            let init = values(n_out, 5, 0);
+            let seg1 = Segment { x: &x1[..], stride, n: n1, rows: &h[..n1 * n_out] };
+            let seg2 = Segment { x: &x2[..], stride, n: n2, rows: &h[n1 * n_out..(n1 + n2) * n_out] };
+            let layer = Dense { init: &init[..n_out], segs: [seg1, seg2], n_segs: if n2 > 0 { 2 } else { 1 }, n_out, relu };
+            let os = n_out + 3;
+            let mut out = [f32::NAN; PACKET * 260];
+            assert!(packet_half_math(&layer, &mut out, os));
+            let gamma = (n1 + n2 + 2) as f64 * u / (1.0 - (n1 + n2 + 2) as f64 * u);
+            let mut worst = 0.0f64;
+            for q in 0..PACKET {
+                let want = reference(&layer, q);
+                for o in 0..n_out {
+                    let mut mag = (init[o] as f64).abs();
+                    for s in &layer.segs[..layer.n_segs] {
+                        for i in 0..s.n {
+                            mag += (s.x[q * s.stride + i] as f64 * s.rows[i * n_out + o].to_f64()).abs();
+                        }
+                    }
+                    let got = out[q * os + o] as f64;
+                    assert!((got - want[o]).abs() <= gamma * mag, "n_out {n_out} q {q} o {o}: {got} vs {}", want[o]);
+                    worst = worst.max((got - want[o]).abs() / mag);
+                }
+                assert!(out[q * os + n_out].is_nan(), "nothing written past the outputs");
+            }
+            // The arithmetic is half precision: errors far above f32 rounding.
+            assert!(worst > 1e-5, "n_out {n_out}: worst relative error {worst}");
+        }
+    }
+
+    /// Half-precision sums round as f16 does: 2048 + 1 is 2048 (the halves near 2048 are 2 apart,
+    /// and the tie goes to the even significand), where an f32 kernel gives 2049.
+    #[test]
+    fn half_math_rounds_each_sum_to_f16() {
+        if !half_math_available() {
+            std::eprintln!("skipped: this CPU has no AVX512-FP16");
+            return;
+        }
+        let one = [half::f16::ONE; 32];
+        let x = [1.0f32; PACKET];
+        let init = [2048.0f32; 32];
+        let seg = Segment { x: &x[..], stride: 1, n: 1, rows: &one[..] };
+        let layer = Dense { init: &init[..], segs: [seg, seg], n_segs: 1, n_out: 32, relu: true };
+        let mut half = [0.0f32; PACKET * 32];
+        assert!(packet_half_math(&layer, &mut half, 32));
+        assert!(half.iter().all(|&v| v == 2048.0));
+        let mut full = [0.0f32; PACKET * 32];
+        kernels::<half::f16>().packet(&layer, &mut full, 32);
+        assert!(full.iter().all(|&v| v == 2049.0));
     }
 
     /// A chain against the same layers run one by one through `Kernels::one`: every tail length

@@ -2,7 +2,7 @@
 
 use crate::kernels::{map_outputs, sigmoid_slice};
 use crate::math::{sanitize, INV_PI};
-use crate::mlp::{forward, forward_packet, Net, Partial, Weight, MAX_WIDTH, PACKET};
+use crate::mlp::{forward, forward_packet, Arithmetic, Net, Partial, Weight, MAX_WIDTH, PACKET};
 use crate::Rgb;
 
 /// Lambertian diffuse term from the diffuse network's raw outputs: `σ(d) / π` (Sec. 4.1.2), so the
@@ -76,9 +76,12 @@ pub fn eval<W: Weight>(specular: &Net<'_, W>, f_d: Rgb, prepared: &Partial, angl
     mix(f_d, &s, enhanced)
 }
 
-/// [`eval`] for [`PACKET`] queries: query `q`'s encoded angles at `angles[q * stride..][..n]`.
+/// [`eval`] for [`PACKET`] queries: query `q`'s encoded angles at `angles[q * stride..][..n]`, the
+/// hidden layers in `math`.
 #[inline]
+#[allow(clippy::too_many_arguments)]
 pub fn eval_packet<W: Weight>(
+    math: Arithmetic,
     specular: &Net<'_, W>,
     f_d: Rgb,
     prepared: &Partial,
@@ -89,7 +92,7 @@ pub fn eval_packet<W: Weight>(
 ) -> [Rgb; PACKET] {
     const S: usize = super::single_mlp::OUT_STRIDE;
     let mut s = [0.0f32; PACKET * S];
-    forward_packet(specular, prepared, angles, stride, n, &mut s, S);
+    forward_packet(math, specular, prepared, angles, stride, n, &mut s, S);
     map_split(&mut s, enhanced);
     core::array::from_fn(|q| mix(f_d, &s[q * S..(q + 1) * S], enhanced))
 }

@@ -1,0 +1,215 @@
+//! The packet kernel in half-precision arithmetic (x86-64 AVX512-FP16): `PACKET` queries through one
+//! hidden layer of half weights, every multiply-add in f16.
+//!
+//! An f16 multiply-add covers 32 lanes where an f32 one covers 16, so a core does twice the work per
+//! instruction: the way past the f32 FMA rate, which bounds the f32 packet kernels (`docs/speed.md`).
+//! The price is accuracy, and it is the caller's choice ([`crate::Model::eval_many_half`]): every
+//! product and partial sum is rounded to f16 (11 significant bits, largest finite value 65504).
+//! Inputs and starting accumulators are rounded to f16 on the way in, results widened to f32 on the
+//! way out (ReLU after widening), so layers still hand each other f32 buffers and the output layer
+//! (3 outputs, no ReLU) stays with the f32 kernels.
+//!
+//! Register tile: the 16 queries × 32 outputs (one vector of halves each) in 16 accumulators; per
+//! input row one weight vector and 16 multiply-adds whose input is broadcast from a transposed copy
+//! of the inputs (`vfmadd231ph m16{1to32}`, one fused micro-op on Intel cores), as the f32 tile.
+
+use core::arch::x86_64::*;
+
+use super::x86::transpose16;
+use super::{Dense, PACKET};
+
+/// Inputs per pass (`XT_CAP × PACKET` halves, 8 KB on the stack): every layer of the paper-size
+/// networks (at most 128 + 36 inputs) in one pass, as in the f32 kernel.
+const XT_CAP: usize = 256;
+
+/// Outputs per register tile: one vector of halves.
+const TILE: usize = 32;
+
+/// Whether the CPU has AVX512-FP16 (with the AVX-512 base the tile needs): detected once with
+/// `std`, the compile-time target features without it.
+pub(super) fn available() -> bool {
+    #[cfg(feature = "std")]
+    {
+        use core::sync::atomic::{AtomicU8, Ordering};
+        static HAS: AtomicU8 = AtomicU8::new(0);
+        match HAS.load(Ordering::Relaxed) {
+            0 => {
+                let has = std::is_x86_feature_detected!("avx512fp16")
+                    && std::is_x86_feature_detected!("avx512f")
+                    && std::is_x86_feature_detected!("avx512bw")
+                    && std::is_x86_feature_detected!("avx512vl");
+                HAS.store(if has { 2 } else { 1 }, Ordering::Relaxed);
+                has
+            }
+            v => v == 2,
+        }
+    }
+    #[cfg(not(feature = "std"))]
+    {
+        cfg!(all(
+            target_feature = "avx512fp16",
+            target_feature = "avx512f",
+            target_feature = "avx512bw",
+            target_feature = "avx512vl"
+        ))
+    }
+}
+
+/// Consecutive inputs of one segment, transposed and rounded: rows `rows[i * n_out..]` for the
+/// inputs at `xt[(start + i) * PACKET..][..PACKET]`, `i < n`.
+#[derive(Clone, Copy)]
+struct Piece {
+    rows: *const u16,
+    start: usize,
+    n: usize,
+}
+
+/// Writes inputs `x[q * stride + i]`, `i < n`, of the `PACKET` queries feature-major to
+/// `xt[i * PACKET + q]`, rounded to f16 (to nearest, ties to even): 16 × 16 blocks transposed in
+/// registers, then one conversion per column.
+///
+/// # Safety
+/// Each query's `n` inputs are readable from `x + q * stride`; `xt` has room for `n * PACKET` values.
+#[inline]
+#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
+unsafe fn transpose_inputs(x: *const f32, stride: usize, n: usize, xt: *mut u16) {
+    const { assert!(PACKET == 16) };
+    let mut i = 0;
+    while i < n {
+        let m: __mmask16 = if n - i >= 16 { 0xffff } else { (1u16 << (n - i)) - 1 };
+        // SAFETY: lanes `i + j < n` only are read; columns `j < n - i` only are written.
+        unsafe {
+            let rows: [__m512; 16] = core::array::from_fn(|q| _mm512_maskz_loadu_ps(m, x.add(q * stride + i)));
+            let cols = transpose16(rows);
+            for (j, c) in cols.iter().enumerate().take(n - i) {
+                let h = _mm512_cvtps_ph::<{ _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC }>(*c);
+                _mm256_storeu_si256(xt.add((i + j) * PACKET).cast::<__m256i>(), h);
+            }
+        }
+        i += 16;
+    }
+}
+
+/// 32 f32 values from `p` (lanes outside `m` zero) rounded to one vector of halves.
+///
+/// # Safety
+/// The lanes in `m` are readable from `p`.
+#[inline]
+#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
+unsafe fn load_rounded(p: *const f32, m: __mmask32) -> __m512i {
+    const R: i32 = _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC;
+    // SAFETY: masked loads read only the lanes in `m` (contract).
+    unsafe {
+        let lo = _mm512_cvtps_ph::<R>(_mm512_maskz_loadu_ps(m as __mmask16, p));
+        let hi = _mm512_cvtps_ph::<R>(_mm512_maskz_loadu_ps((m >> 16) as __mmask16, p.add(16)));
+        _mm512_inserti64x4::<1>(_mm512_castsi256_si512(lo), hi)
+    }
+}
+
+/// Outputs `o .. o + 32` (the lanes of `m`) of the packet over the pieces in `xt`, starting from
+/// `init` (the first pass) or from the partial sums in `out`; ReLU where `relu`.
+///
+/// # Safety
+/// `xt` holds the inputs of every piece (`PACKET` halves each, feature-major); each piece's rows hold
+/// `n_out` halves per input; `out` and `init` as in `Dense::check`; `m` masks the valid outputs from `o`.
+#[inline]
+#[target_feature(enable = "avx512fp16,avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
+#[allow(clippy::too_many_arguments)]
+unsafe fn tile<const MASKED: bool>(
+    l: &Dense<'_, half::f16>,
+    xt: *const u16,
+    pieces: &[Piece],
+    first: bool,
+    relu: bool,
+    out: *mut f32,
+    os: usize,
+    o: usize,
+    m: __mmask32,
+) {
+    let n = l.n_out;
+    // SAFETY (whole body): query `q < PACKET` at `q * os` of the outputs, lanes in `m` only; every
+    // input read lies in `xt`'s listed pieces, every row in its checked segment (contract).
+    unsafe {
+        let mut acc: [__m512h; PACKET] = if first {
+            [_mm512_castsi512_ph(load_rounded(l.init.as_ptr().add(o), m)); PACKET]
+        } else {
+            core::array::from_fn(|q| _mm512_castsi512_ph(load_rounded(out.add(q * os + o), m)))
+        };
+        for piece in pieces {
+            // Moving pointers, as in the f32 tile: the broadcasts address `x + 2q`.
+            let mut x = xt.add(piece.start * PACKET);
+            let mut r = piece.rows.add(o);
+            for _ in 0..piece.n {
+                let w = _mm512_castsi512_ph(if MASKED {
+                    _mm512_maskz_loadu_epi16(m, r.cast::<i16>())
+                } else {
+                    _mm512_loadu_si512(r.cast::<__m512i>())
+                });
+                for (q, a) in acc.iter_mut().enumerate() {
+                    let xb = _mm512_castsi512_ph(_mm512_set1_epi16(*x.add(q) as i16));
+                    *a = _mm512_fmadd_ph(xb, w, *a);
+                }
+                x = x.add(PACKET);
+                r = r.add(n);
+            }
+        }
+        let zero = _mm512_setzero_ps();
+        for (q, a) in acc.iter().enumerate() {
+            let a = _mm512_castph_si512(*a);
+            let lo = _mm512_cvtph_ps(_mm512_castsi512_si256(a));
+            let hi = _mm512_cvtph_ps(_mm512_extracti64x4_epi64::<1>(a));
+            let (lo, hi) = if relu { (_mm512_max_ps(lo, zero), _mm512_max_ps(hi, zero)) } else { (lo, hi) };
+            let p = out.add(q * os + o);
+            _mm512_mask_storeu_ps(p, m as __mmask16, lo);
+            _mm512_mask_storeu_ps(p.add(16), (m >> 16) as __mmask16, hi);
+        }
+    }
+}
+
+/// `PACKET` queries through the layer in f16 arithmetic, every input row.
+///
+/// # Safety
+/// The CPU has AVX512-FP16, F, BW and VL ([`available`]); the layer passed `check(PACKET, ..)`.
+#[target_feature(enable = "avx512fp16,avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
+pub(super) unsafe fn packet(l: &Dense<'_, half::f16>, out: *mut f32, os: usize) {
+    let n = l.n_out;
+    let mut xt = [core::mem::MaybeUninit::<__m256i>::uninit(); XT_CAP];
+    let xt = xt.as_mut_ptr().cast::<u16>();
+    let tiles = |pieces: &[Piece], first: bool, last: bool| {
+        let relu = last && l.relu;
+        let mut o = 0;
+        // SAFETY: each tile stays below `n_out` (full tiles by the loop bounds, the rest masked);
+        // the pieces lie in `xt` and in their checked segments.
+        unsafe {
+            while o + TILE <= n {
+                tile::<false>(l, xt, pieces, first, relu, out, os, o, u32::MAX);
+                o += TILE;
+            }
+            if o < n {
+                tile::<true>(l, xt, pieces, first, relu, out, os, o, (1u32 << (n - o)) - 1);
+            }
+        }
+    };
+    // Up to `XT_CAP` inputs at a time, in segment order; a longer layer passes its partial sums
+    // through `out` (rounded to f16 again when they are read back: exact, they are halves already).
+    let mut pieces = [Piece { rows: core::ptr::null(), start: 0, n: 0 }; 2];
+    let (mut np, mut used, mut first) = (0, 0, true);
+    for s in &l.segs[..l.n_segs] {
+        let mut i0 = 0;
+        while i0 < s.n {
+            if used == XT_CAP {
+                tiles(&pieces[..np], first, false);
+                (np, used, first) = (0, 0, false);
+            }
+            let c = (s.n - i0).min(XT_CAP - used);
+            // SAFETY: inputs `i0 .. i0 + c` of every query lie in the checked segment; `xt` has room
+            // for `used + c ≤ XT_CAP` rows.
+            unsafe {
+                transpose_inputs(s.x.as_ptr().add(i0), s.stride, c, xt.add(used * PACKET));
+                pieces[np] = Piece { rows: s.rows.as_ptr().add(i0 * n).cast::<u16>(), start: used, n: c };
+            }
+            (np, used, i0) = (np + 1, used + c, i0 + c);
+        }
+    }
+    tiles(&pieces[..np], first, true);
+}
