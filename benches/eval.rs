@@ -160,6 +160,15 @@ fn bench_models(c: &mut Criterion<Clock>) {
                     b.iter(|| m.eval_many(&prepared, black_box(&wi), black_box(&wo), &mut out))
                 });
                 if level == Level::Avx512 && m.half_math() {
+                    g.throughput(Throughput::Elements(1));
+                    g.bench_function(BenchmarkId::new(format!("single-half-math/{lname}"), &name), |b| {
+                        let mut i = 0;
+                        b.iter(|| {
+                            i = (i + 1) & 1023;
+                            black_box(m.eval_half(&prepared, black_box(wi[i]), black_box(wo[i])))
+                        })
+                    });
+                    g.throughput(Throughput::Elements(wi.len() as u64));
                     g.bench_function(BenchmarkId::new(format!("batch-1024-half-math/{lname}"), &name), |b| {
                         b.iter(|| m.eval_many_half(&prepared, black_box(&wi), black_box(&wo), &mut out))
                     });

@@ -281,7 +281,9 @@ fn run<W: Weight, const Q: usize>(
     let half = math == Arithmetic::HalfHidden;
     let layer = |l: &Dense<'_, W>, out: &mut [f32], os: usize| {
         if Q == 1 {
-            k.one(l, out)
+            if !(half && l.relu && W::one_half_math(l, out)) {
+                k.one(l, out)
+            }
         } else if !(half && l.relu && W::packet_half_math(l, out, os)) {
             k.packet(l, out, os)
         }
@@ -336,12 +338,21 @@ fn run<W: Weight, const Q: usize>(
 /// `desc.output_len()` values to the front of `out` (which must hold them; `MAX_WIDTH` always does).
 #[inline]
 pub fn forward<W: Weight>(net: &Net<'_, W>, partial: &Partial, tail: &[f32], out: &mut [f32]) {
-    if forward_chain(net, partial, tail, out) {
+    forward_with(Arithmetic::F32, net, partial, tail, out)
+}
+
+/// [`forward`] with the hidden layers in `math` ([`Arithmetic::HalfHidden`]: the one-query kernel
+/// [`crate::kernels::one_half_math`] where it applies).
+#[inline]
+pub fn forward_with<W: Weight>(math: Arithmetic, net: &Net<'_, W>, partial: &Partial, tail: &[f32], out: &mut [f32]) {
+    // The chain kernel is f32 arithmetic: the half path runs layer by layer.
+    let half = math == Arithmetic::HalfHidden && W::HALF && crate::kernels::half_math_available();
+    if !half && forward_chain(net, partial, tail, out) {
         return;
     }
     let mut h = [0.0f32; MAX_WIDTH];
     let mut t = [0.0f32; MAX_WIDTH];
-    run::<W, 1>(Arithmetic::F32, net, partial, tail, 0, tail.len(), out, 0, &mut h, &mut t);
+    run::<W, 1>(math, net, partial, tail, 0, tail.len(), out, 0, &mut h, &mut t);
 }
 
 /// [`forward`] in one kernel call ([`Chain`]) where the level has the kernel and the network its shape

@@ -262,6 +262,36 @@ impl<'a> Model<'a> {
     /// model) `eval(p, wi, wo) == eval(p, wo, wi)` bit for bit.
     #[inline]
     pub fn eval(&self, prepared: &Prepared, wi: Vec3, wo: Vec3) -> Rgb {
+        self.eval_in(Arithmetic::F32, prepared, wi, wo)
+    }
+
+    /// [`Model::eval`] with half-precision arithmetic in the hidden layers where [`Model::half_math`]
+    /// says it applies; elsewhere exactly [`Model::eval`]. A single query streams its weight rows from
+    /// cache: half weights without widening halve those bytes (`docs/speed.md`). Rounding as in
+    /// [`Model::eval_many_half`], not bitwise equal to it (the one-query kernel sums in another order).
+    ///
+    /// ```
+    /// use nbrdf::file::{encode, ModelBuf, ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity};
+    /// use nbrdf::Vec3;
+    /// let pos = PositionEncoding::Intrinsic { k: 64 };
+    /// let mut h = ModelHeader::paper(ModelKind::AdditiveShared, false, Reciprocity::Exact, pos, 4);
+    /// h.precision = Precision::F16;
+    /// let w: Vec<f32> = (0..h.n_weights()).map(|i| ((i * 7919 % 1000) as f32 - 500.0) * 2e-4).collect();
+    /// let buf = ModelBuf::from_bytes(&encode(&h, &w, None).unwrap()).unwrap();
+    /// let (model, p) = (buf.model(), buf.model().prepare(&[0.1; 64]));
+    /// let (wi, wo) = (Vec3::new(0.3, 0.1, 0.9).normalize(), Vec3::new(-0.2, 0.4, 0.8).normalize());
+    /// let (exact, fast) = (model.eval(&p, wi, wo), model.eval_half(&p, wi, wo));
+    /// for c in 0..3 {
+    ///     assert!((exact[c] - fast[c]).abs() <= 0.02 * exact[c] + 1e-4);
+    /// }
+    /// ```
+    #[inline]
+    pub fn eval_half(&self, prepared: &Prepared, wi: Vec3, wo: Vec3) -> Rgb {
+        self.eval_in(Arithmetic::HalfHidden, prepared, wi, wo)
+    }
+
+    #[inline(always)]
+    fn eval_in(&self, math: Arithmetic, prepared: &Prepared, wi: Vec3, wo: Vec3) -> Rgb {
         // 0.83x the time of an FMBRDF query in a loop of independent ones (see `load_pair`).
         let (wi, wo) = crate::math::load_pair(&wi, &wo);
         if !prepared.valid {
@@ -278,8 +308,8 @@ impl<'a> Model<'a> {
             return BLACK;
         };
         let f = match self.weights {
-            Weights::F32(w) => self.eval_with(&self.nets(w), prepared, &enc[..n]),
-            Weights::F16(w) => self.eval_with(&self.nets(w), prepared, &enc[..n]),
+            Weights::F32(w) => self.eval_with(math, &self.nets(w), prepared, &enc[..n]),
+            Weights::F16(w) => self.eval_with(math, &self.nets(w), prepared, &enc[..n]),
         };
         sanitize(f)
     }
@@ -353,7 +383,7 @@ impl<'a> Model<'a> {
         self.eval_many_by(Arithmetic::HalfHidden, prepared, n, |i| (wi[i], wo[i]), |i, f| out[i] = f);
     }
 
-    /// Whether [`Model::eval_many_half`] computes in half precision for this model on this CPU: a
+    /// Whether [`Model::eval_half`] and [`Model::eval_many_half`] compute in half precision for this model on this CPU: a
     /// neural model with f16 weights, and [`crate::kernels::half_math_available`].
     pub fn half_math(&self) -> bool {
         matches!(self.weights, Weights::F16(_))
@@ -459,13 +489,15 @@ impl<'a> Model<'a> {
     }
 
     #[inline]
-    fn eval_with<W: Weight>(&self, nets: &[Net<'a, W>; MAX_NETS], p: &Prepared, angles: &[f32]) -> Rgb {
+    fn eval_with<W: Weight>(&self, math: Arithmetic, nets: &[Net<'a, W>; MAX_NETS], p: &Prepared, angles: &[f32]) -> Rgb {
         let enhanced = self.header.enhanced;
         match self.header.kind {
             ModelKind::Parametric(_) => BLACK,
-            ModelKind::SingleMlp => single_mlp::eval(&nets[self.header.n_nets as usize - 1], &p.partial, angles),
-            ModelKind::AdditiveSeparate => additive_separate::eval(&nets[1], p.diffuse, &p.partial, angles, enhanced),
-            ModelKind::AdditiveShared => additive_shared::eval(&nets[2], p.diffuse, &p.partial, angles, enhanced),
+            ModelKind::SingleMlp => single_mlp::eval(math, &nets[self.header.n_nets as usize - 1], &p.partial, angles),
+            ModelKind::AdditiveSeparate => {
+                additive_separate::eval(math, &nets[1], p.diffuse, &p.partial, angles, enhanced)
+            }
+            ModelKind::AdditiveShared => additive_shared::eval(math, &nets[2], p.diffuse, &p.partial, angles, enhanced),
         }
     }
 

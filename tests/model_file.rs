@@ -508,9 +508,10 @@ fn batched_evaluation_equals_single_queries_bit_for_bit() {
     }
 }
 
-/// `eval_many_half`: f32 models, and CPUs without AVX512-FP16, get exactly `eval_many`; f16 models on
-/// AVX512-FP16 get f16 hidden layers, within a few tenths of a percent of `eval_many` here, each
-/// pair's value still independent of the batch around it (a pair alone gives the same bits).
+/// `eval_many_half` and `eval_half`: f32 models, and CPUs without AVX512-FP16, get exactly `eval_many`
+/// and `eval`; f16 models on AVX512-FP16 get f16 hidden layers, within a few tenths of a percent of
+/// the f32 arithmetic here, each pair's value still independent of the batch around it (a pair alone
+/// gives the same bits).
 #[test]
 fn half_math_batches_stay_close_to_f32_and_independent_of_their_neighbours() {
     for kind in [ModelKind::SingleMlp, ModelKind::AdditiveSeparate, ModelKind::AdditiveShared] {
@@ -529,6 +530,9 @@ fn half_math_batches_stay_close_to_f32_and_independent_of_their_neighbours() {
             model.eval_many_half(&p, &wi, &wo, &mut fast);
             if !half {
                 assert_eq!(fast, exact, "{kind:?} {precision:?}: no half arithmetic, the same bits");
+                for i in 0..n {
+                    assert_eq!(model.eval_half(&p, wi[i], wo[i]), exact[i], "{kind:?} {precision:?} pair {i}");
+                }
                 continue;
             }
             let (mut worst, mut differ) = (0.0f32, 0);
@@ -536,10 +540,12 @@ fn half_math_batches_stay_close_to_f32_and_independent_of_their_neighbours() {
                 let mut alone = [[f32::NAN; 3]];
                 model.eval_many_half(&p, &wi[i..=i], &wo[i..=i], &mut alone);
                 assert_eq!(alone[0].map(f32::to_bits), fast[i].map(f32::to_bits), "{kind:?} pair {i} alone");
+                let one = model.eval_half(&p, wi[i], wo[i]);
                 for c in 0..3 {
                     let (e, f) = (exact[i][c], fast[i][c]);
                     assert_eq!(e == 0.0, f == 0.0, "{kind:?} pair {i}: the invalid pairs are 0, the others not");
-                    worst = worst.max((f - e).abs() / e.max(1e-3));
+                    assert_eq!(e == 0.0, one[c] == 0.0, "{kind:?} pair {i}: a single query likewise");
+                    worst = worst.max((f - e).abs() / e.max(1e-3)).max((one[c] - e).abs() / e.max(1e-3));
                     differ += (f != e) as usize;
                 }
             }

@@ -15,7 +15,7 @@
 
 use core::arch::x86_64::*;
 
-use super::x86::transpose16;
+use super::x86::{compress, mask16, transpose16};
 use super::{Dense, PACKET};
 
 /// Inputs per pass (`XT_CAP × PACKET` halves, 8 KB on the stack): every layer of the paper-size
@@ -76,7 +76,7 @@ unsafe fn transpose_inputs(x: *const f32, stride: usize, n: usize, xt: *mut u16)
     const { assert!(PACKET == 16) };
     let mut i = 0;
     while i < n {
-        let m: __mmask16 = if n - i >= 16 { 0xffff } else { (1u16 << (n - i)) - 1 };
+        let m = mask16(n - i);
         // SAFETY: lanes `i + j < n` only are read; columns `j < n - i` only are written.
         unsafe {
             let rows: [__m512; 16] = core::array::from_fn(|q| _mm512_maskz_loadu_ps(m, x.add(q * stride + i)));
@@ -212,4 +212,112 @@ pub(super) unsafe fn packet(l: &Dense<'_, half::f16>, out: *mut f32, os: usize) 
         }
     }
     tiles(&pieces[..np], first, true);
+}
+
+/// Inputs gathered per step of [`one`]: the nonzero values of up to this many inputs of a segment
+/// (and their row offsets) on the stack.
+const GATHER: usize = 256;
+
+/// Outputs per pass of [`one`]: 4 vectors of halves.
+const ONE_TILE: usize = 128;
+
+/// One query through the layer in f16 arithmetic: its nonzero inputs (half of the activations after
+/// a ReLU, and every nonzero encoded angle) gathered with their row offsets, then per gathered input
+/// one multiply-add per vector of 32 outputs. A single query streams its weight rows from L2 (see
+/// `docs/speed.md`); half weights and no widening halve the bytes and the instructions per row.
+///
+/// # Safety
+/// The CPU has AVX512-FP16, F, BW and VL ([`available`]); the layer passed `check(1, ..)`.
+#[target_feature(enable = "avx512fp16,avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
+pub(super) unsafe fn one(l: &Dense<'_, half::f16>, out: *mut f32) {
+    let n = l.n_out;
+    let mut o = 0;
+    // SAFETY: each tile stays below `n_out` (full tiles by the loop bound, the rest masked).
+    unsafe {
+        while o + ONE_TILE <= n {
+            one_tile::<false>(l, out, o, [u32::MAX; 4]);
+            o += ONE_TILE;
+        }
+        if o < n {
+            let rem = n - o;
+            let m = core::array::from_fn(|k| match rem.saturating_sub(32 * k) {
+                0 => 0,
+                r if r >= 32 => u32::MAX,
+                r => (1u32 << r) - 1,
+            });
+            one_tile::<true>(l, out, o, m);
+        }
+    }
+}
+
+/// Outputs `o .. o + 128` (the lanes of `m`, vector by vector) of [`one`]. Rows alternate between two
+/// sets of accumulators, summed at the end, so that the chain of multiply-adds does not wait four
+/// cycles per row.
+///
+/// # Safety
+/// As [`one`]; the lanes in `m` lie below `n_out`.
+#[inline]
+#[target_feature(enable = "avx512fp16,avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
+unsafe fn one_tile<const MASKED: bool>(l: &Dense<'_, half::f16>, out: *mut f32, o: usize, m: [__mmask32; 4]) {
+    const R: i32 = _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC;
+    let n = l.n_out;
+    let mut xs = [core::mem::MaybeUninit::<__m512>::uninit(); GATHER / 16];
+    let mut offs = [core::mem::MaybeUninit::<__m512i>::uninit(); GATHER / 16];
+    let mut hx = [core::mem::MaybeUninit::<__m256i>::uninit(); GATHER / 16];
+    let (xs, offs, hx) = (xs.as_mut_ptr().cast::<f32>(), offs.as_mut_ptr().cast::<u32>(), hx.as_mut_ptr().cast::<u16>());
+    // SAFETY (whole body): `init` and `out` hold `n_out` values and the masks stay below it; every
+    // gathered input lies in its checked segment, every row offset within its rows; the gather
+    // buffers have room for `GATHER` entries (`compress` stores whole vectors) and only entries
+    // below `len` are read.
+    unsafe {
+        let zero = _mm512_castsi512_ph(_mm512_setzero_si512());
+        let mut a0: [__m512h; 4] = core::array::from_fn(|k| _mm512_castsi512_ph(load_rounded(l.init.as_ptr().add(o + 32 * k), m[k])));
+        let mut a1: [__m512h; 4] = [zero; 4];
+        for s in &l.segs[..l.n_segs] {
+            let mut i0 = 0;
+            while i0 < s.n {
+                let c = (s.n - i0).min(GATHER);
+                let len = compress(s.x.as_ptr().add(i0), c, (2 * n) as u32, xs, offs);
+                let mut j = 0;
+                while j < len {
+                    let h = _mm512_cvtps_ph::<R>(_mm512_maskz_loadu_ps(mask16(len - j), xs.add(j)));
+                    _mm256_storeu_si256(hx.add(j).cast::<__m256i>(), h);
+                    j += 16;
+                }
+                let base = s.rows.as_ptr().add(i0 * n + o).cast::<u8>();
+                let row = |j: usize, a: &mut [__m512h; 4]| {
+                    let r = base.add(*offs.add(j) as usize).cast::<i16>();
+                    let xb = _mm512_castsi512_ph(_mm512_set1_epi16(*hx.add(j) as i16));
+                    for (k, a) in a.iter_mut().enumerate() {
+                        let w = if MASKED {
+                            _mm512_maskz_loadu_epi16(m[k], r.add(32 * k))
+                        } else {
+                            _mm512_loadu_si512(r.add(32 * k).cast::<__m512i>())
+                        };
+                        *a = _mm512_fmadd_ph(xb, _mm512_castsi512_ph(w), *a);
+                    }
+                };
+                let mut j = 0;
+                while j + 2 <= len {
+                    row(j, &mut a0);
+                    row(j + 1, &mut a1);
+                    j += 2;
+                }
+                if j < len {
+                    row(j, &mut a0);
+                }
+                i0 += c;
+            }
+        }
+        let zero = _mm512_setzero_ps();
+        for k in 0..4 {
+            let a = _mm512_castph_si512(_mm512_add_ph(a0[k], a1[k]));
+            let lo = _mm512_cvtph_ps(_mm512_castsi512_si256(a));
+            let hi = _mm512_cvtph_ps(_mm512_extracti64x4_epi64::<1>(a));
+            let (lo, hi) = if l.relu { (_mm512_max_ps(lo, zero), _mm512_max_ps(hi, zero)) } else { (lo, hi) };
+            let p = out.add(o + 32 * k);
+            _mm512_mask_storeu_ps(p, m[k] as __mmask16, lo);
+            _mm512_mask_storeu_ps(p.add(16), (m[k] >> 16) as __mmask16, hi);
+        }
+    }
 }

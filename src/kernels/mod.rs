@@ -346,14 +346,29 @@ pub trait KernelWeight: Sized + 'static {
     /// [`packet_half_math`] for this weight type: `false` (nothing run) but for half weights.
     #[doc(hidden)]
     fn packet_half_math(layer: &Dense<'_, Self>, out: &mut [f32], out_stride: usize) -> bool;
+
+    /// Whether the half-precision kernels take this weight type (half weights).
+    #[doc(hidden)]
+    const HALF: bool;
+
+    /// [`one_half_math`] for this weight type: `false` (nothing run) but for half weights.
+    #[doc(hidden)]
+    fn one_half_math(layer: &Dense<'_, Self>, out: &mut [f32]) -> bool;
 }
 
 macro_rules! tables {
-    ($w:ty, $avx2:ident, $avx512:ident, $half:expr) => {
+    ($w:ty, $avx2:ident, $avx512:ident, $is_half:expr, $half:expr, $half_one:expr) => {
         impl KernelWeight for $w {
+            const HALF: bool = $is_half;
+
             #[inline]
             fn packet_half_math(layer: &Dense<'_, $w>, out: &mut [f32], out_stride: usize) -> bool {
                 $half(layer, out, out_stride)
+            }
+
+            #[inline]
+            fn one_half_math(layer: &Dense<'_, $w>, out: &mut [f32]) -> bool {
+                $half_one(layer, out)
             }
 
             #[inline]
@@ -379,10 +394,10 @@ macro_rules! tables {
         }
     };
 }
-tables!(f32, avx2_f32, avx512_f32, |_: &Dense<'_, f32>, _: &mut [f32], _: usize| false);
-tables!(half::f16, avx2_f16, avx512_f16, packet_half_math);
+tables!(f32, avx2_f32, avx512_f32, false, |_: &Dense<'_, f32>, _: &mut [f32], _: usize| false, |_: &Dense<'_, f32>, _: &mut [f32]| false);
+tables!(half::f16, avx2_f16, avx512_f16, true, packet_half_math, one_half_math);
 
-/// Whether [`packet_half_math`] runs here: the CPU has AVX512-FP16 (x86-64: Sapphire Rapids and
+/// Whether [`packet_half_math`] and [`one_half_math`] run here: the CPU has AVX512-FP16 (x86-64: Sapphire Rapids and
 /// later Intel cores; detected at run time with `std`) and [`level`] is AVX-512.
 #[inline]
 pub fn half_math_available() -> bool {
@@ -411,6 +426,24 @@ pub fn packet_half_math(layer: &Dense<'_, half::f16>, out: &mut [f32], out_strid
     // SAFETY: `half_math_available` checked the CPU features; `check` verified every extent.
     unsafe {
         half_math::packet(layer, out.as_mut_ptr(), out_stride);
+    }
+    true
+}
+
+/// Runs a layer of half weights for one query (as [`Kernels::one`]) with every multiply-add in half
+/// precision, where [`half_math_available`]; returns `false` and writes nothing elsewhere. Half the
+/// bytes a single query streams from cache, without the f16-to-f32 widening; rounding as
+/// [`packet_half_math`] (not bitwise equal to it: rows alternate between two sets of accumulators).
+#[inline]
+pub fn one_half_math(layer: &Dense<'_, half::f16>, out: &mut [f32]) -> bool {
+    if !half_math_available() {
+        return false;
+    }
+    layer.check(1, out.len(), 0);
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: `half_math_available` checked the CPU features; `check` verified every extent.
+    unsafe {
+        half_math::one(layer, out.as_mut_ptr());
     }
     true
 }
@@ -502,10 +535,10 @@ mod tests {
     /// The half-precision packet kernel against the f64 reference, within the classic bound of a
     /// sum of `n` products in a precision of unit roundoff `u = 2^-11`: `|ŷ - y| ≤ γ (|init| +
     /// Σ |x_i w_i|)` with `γ = (n + 2) u / (1 - (n + 2) u)` (the inputs and `init` rounded once more;
-    /// Higham, "Accuracy and Stability of Numerical Algorithms", Sec. 3.1). Every shape of
-    /// `check_shapes`, the layers with more than 256 inputs in two passes included.
+    /// Higham, "Accuracy and Stability of Numerical Algorithms", Sec. 3.1), for packets and for single
+    /// queries: wide and narrow layers, two segments, a layer of more than 256 inputs (two passes).
     #[test]
-    fn half_math_packets_are_within_the_f16_error_bound_of_the_exact_sums() {
+    fn half_math_kernels_are_within_the_f16_error_bound_of_the_exact_sums() {
         if !half_math_available() {
             std::eprintln!("skipped: this CPU has no AVX512-FP16 (half-precision packets fall back to f32)");
             return;
@@ -513,7 +546,7 @@ mod tests {
         let w = values(N, 17, 0);
         let h: [half::f16; N] = core::array::from_fn(|i| half::f16::from_f32(w[i]));
         let u = 2f64.powi(-11);
-        for &(n_out, n1, n2, relu) in &[(32, 6, 0, true), (17, 9, 5, true), (128, 64, 36, true), (130, 12, 3, false), (40, 250, 9, true)] {
+        for &(n_out, n1, n2, relu) in &[(32, 6, 0, true), (17, 9, 5, true), (128, 64, 36, true), (130, 12, 3, false), (40, 250, 9, true), (17, 300, 20, true), (200, 70, 0, true)] {
             let stride = 330;
             let x1 = values(PACKET * stride, n_out as u32, 3);
             let x2 = values(PACKET * stride, 99 + n1 as u32, 4);
@@ -528,6 +561,12 @@ mod tests {
             let mut worst = 0.0f64;
             for q in 0..PACKET {
                 let want = reference(&layer, q);
+                // The same query alone, through the one-query kernel.
+                let mut l1 = layer;
+                l1.segs[0].x = &x1[q * stride..];
+                l1.segs[1].x = &x2[q * stride..];
+                let mut single = [f32::NAN; 260];
+                assert!(one_half_math(&l1, &mut single));
                 for o in 0..n_out {
                     let mut mag = (init[o] as f64).abs();
                     for s in &layer.segs[..layer.n_segs] {
@@ -538,8 +577,10 @@ mod tests {
                     let got = out[q * os + o] as f64;
                     assert!((got - want[o]).abs() <= gamma * mag, "n_out {n_out} q {q} o {o}: {got} vs {}", want[o]);
                     worst = worst.max((got - want[o]).abs() / mag);
+                    let got = single[o] as f64;
+                    assert!((got - want[o]).abs() <= gamma * mag, "one query: n_out {n_out} q {q} o {o}: {got} vs {}", want[o]);
                 }
-                assert!(out[q * os + n_out].is_nan(), "nothing written past the outputs");
+                assert!(out[q * os + n_out].is_nan() && single[n_out].is_nan(), "nothing written past the outputs");
             }
             // The arithmetic is half precision: errors far above f32 rounding.
             assert!(worst > 1e-5, "n_out {n_out}: worst relative error {worst}");

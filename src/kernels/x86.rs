@@ -118,7 +118,7 @@ fn lane_mask(m: usize) -> __m256i {
 
 /// The AVX-512 mask selecting lanes `0..m`.
 #[inline(always)]
-fn mask16(m: usize) -> __mmask16 {
+pub(super) fn mask16(m: usize) -> __mmask16 {
     if m >= 16 {
         0xffff
     } else {
@@ -145,7 +145,7 @@ struct Compressed {
 /// stored); `n * row_bytes < 2^31`.
 #[inline]
 #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
-unsafe fn compress(x: *const f32, n: usize, row_bytes: u32, xs: *mut f32, offs: *mut u32) -> usize {
+pub(super) unsafe fn compress(x: *const f32, n: usize, row_bytes: u32, xs: *mut f32, offs: *mut u32) -> usize {
     let mut len = 0;
     let (mut off, step) = row_offsets(row_bytes);
     let mut i = 0;

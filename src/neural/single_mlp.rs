@@ -3,7 +3,7 @@
 //! trunk runs first and the angles join the trunk's features.
 
 use crate::kernels::softplus_slice;
-use crate::mlp::{self, forward, forward_packet, Arithmetic, partial, Net, Partial, Weight, MAX_WIDTH, PACKET};
+use crate::mlp::{self, forward_packet, forward_with, Arithmetic, partial, Net, Partial, Weight, MAX_WIDTH, PACKET};
 use crate::Rgb;
 
 /// Position-only work: the position rows of the network (one network), or the trunk and the head's
@@ -23,9 +23,9 @@ pub fn prepare<W: Weight>(nets: &[Net<'_, W>], pos: &[f32]) -> Partial {
 
 /// `softplus` of the network output for the encoded angles.
 #[inline]
-pub fn eval<W: Weight>(net: &Net<'_, W>, prepared: &Partial, angles: &[f32]) -> Rgb {
+pub fn eval<W: Weight>(math: Arithmetic, net: &Net<'_, W>, prepared: &Partial, angles: &[f32]) -> Rgb {
     let mut out = [0.0f32; MAX_WIDTH];
-    forward(net, prepared, angles, &mut out);
+    forward_with(math, net, prepared, angles, &mut out);
     softplus_slice(&mut out[..3]);
     [out[0], out[1], out[2]]
 }

@@ -2,7 +2,7 @@
 
 use crate::kernels::{map_outputs, sigmoid_slice};
 use crate::math::{sanitize, INV_PI};
-use crate::mlp::{forward, forward_packet, Arithmetic, Net, Partial, Weight, MAX_WIDTH, PACKET};
+use crate::mlp::{forward_packet, forward_with, Arithmetic, Net, Partial, Weight, MAX_WIDTH, PACKET};
 use crate::Rgb;
 
 /// Lambertian diffuse term from the diffuse network's raw outputs: `σ(d) / π` (Sec. 4.1.2), so the
@@ -69,9 +69,16 @@ fn mix(f_d: Rgb, m: &[f32], enhanced: bool) -> Rgb {
 /// The specular network of an additive model on the encoded angles, combined with `f_d` by
 /// [`combine`]: `f_d + f_s`, or Eq. 8 when `enhanced`. Shared by both additive architectures.
 #[inline]
-pub fn eval<W: Weight>(specular: &Net<'_, W>, f_d: Rgb, prepared: &Partial, angles: &[f32], enhanced: bool) -> Rgb {
+pub fn eval<W: Weight>(
+    math: Arithmetic,
+    specular: &Net<'_, W>,
+    f_d: Rgb,
+    prepared: &Partial,
+    angles: &[f32],
+    enhanced: bool,
+) -> Rgb {
     let mut s = [0.0f32; MAX_WIDTH];
-    forward(specular, prepared, angles, &mut s);
+    forward_with(math, specular, prepared, angles, &mut s);
     map_split(&mut s[..8], enhanced);
     mix(f_d, &s, enhanced)
 }
