@@ -383,6 +383,39 @@ impl<'a> Model<'a> {
         self.eval_many_by(Arithmetic::HalfHidden, prepared, n, |i| (wi[i], wo[i]), |i, f| out[i] = f);
     }
 
+    /// The model re-encoded with f16 network weights ([`Precision::F16`]: half the weight bytes, and
+    /// the half-precision arithmetic of [`Model::eval_half`] where the CPU has it), as the bytes of a
+    /// `.nbrdf` file. Object parameters and the position table stay f32, as the file format keeps
+    /// them; the header is unchanged apart from the precision. Feature `alloc`.
+    ///
+    /// Errors: [`Error::InvalidValue`] when the weights are f16 already; [`Error::NonFinite`] for a
+    /// weight beyond ±65504 (it would round to infinity).
+    ///
+    /// ```
+    /// use nbrdf::file::{encode, ModelBuf, ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity};
+    /// let h = ModelHeader::paper(ModelKind::SingleMlp, false, Reciprocity::Exact, PositionEncoding::Uniform, 2);
+    /// let f32_file = encode(&h, &vec![0.01; h.n_weights()], None).unwrap();
+    /// let f16_file = ModelBuf::from_bytes(&f32_file).unwrap().model().to_f16().unwrap();
+    /// let half = ModelBuf::from_bytes(&f16_file).unwrap();
+    /// assert_eq!(half.header().precision, Precision::F16);
+    /// assert!(f16_file.len() < f32_file.len());
+    /// assert!(half.model().to_f16().is_err());
+    /// ```
+    #[cfg(feature = "alloc")]
+    pub fn to_f16(&self) -> Result<alloc::vec::Vec<u8>, Error> {
+        let Weights::F32(net) = self.weights else {
+            return Err(Error::InvalidValue { what: "model precision", reason: "the weights are f16 already" });
+        };
+        let mut weights = net.to_vec();
+        weights.extend_from_slice(self.object_parameters());
+        let mut header = self.header;
+        header.precision = Precision::F16;
+        // `encode` sets the vertex count from the table.
+        header.n_vertices = 0;
+        let table = self.position_table();
+        crate::file::encode(&header, &weights, (!table.is_empty()).then_some(table))
+    }
+
     /// Whether [`Model::eval_half`] and [`Model::eval_many_half`] compute in half precision for this model on this CPU: a
     /// neural model with f16 weights, and [`crate::kernels::half_math_available`].
     pub fn half_math(&self) -> bool {

@@ -3,7 +3,7 @@
 //!
 //! An f16 multiply-add covers 32 lanes where an f32 one covers 16, so a core does twice the work per
 //! instruction: the way past the f32 FMA rate, which bounds the f32 packet kernels (`docs/speed.md`).
-//! The price is accuracy, and it is the caller's choice ([`crate::Model::eval_many_half`]): every
+//! The price is accuracy, and it is the caller's choice ([`crate::model::Model::eval_many_half`]): every
 //! product and partial sum is rounded to f16 (11 significant bits, largest finite value 65504).
 //! Inputs and starting accumulators are rounded to f16 on the way in, results widened to f32 on the
 //! way out (ReLU after widening), so layers still hand each other f32 buffers and the output layer

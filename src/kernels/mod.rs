@@ -415,7 +415,7 @@ pub fn half_math_available() -> bool {
 /// multiply-add in half precision, where [`half_math_available`]; returns `false` and writes nothing
 /// elsewhere. Twice the multiply-adds per instruction of the f32 kernels, each product and partial
 /// sum rounded to f16 (11 significant bits; beyond ±65504 a sum becomes infinite): see
-/// `half_math.rs` and [`crate::Model::eval_many_half`]. Not bitwise equal to [`Kernels::packet`].
+/// `half_math.rs` and [`crate::model::Model::eval_many_half`]. Not bitwise equal to [`Kernels::packet`].
 #[inline]
 pub fn packet_half_math(layer: &Dense<'_, half::f16>, out: &mut [f32], out_stride: usize) -> bool {
     if !half_math_available() {

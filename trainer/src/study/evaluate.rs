@@ -9,9 +9,9 @@
 
 use std::time::Instant;
 
-use nbrdf::file::{ModelBuf, Precision};
+use nbrdf::file::ModelBuf;
 use nbrdf::image::{read_exr, RgbImage};
-use nbrdf::model::{Model, Prepared, Weights};
+use nbrdf::model::{Model, Prepared};
 use nbrdf::scene::render::{render_view, RenderOptions, SurfaceSample};
 use nbrdf::{Rgb, Vec3};
 use serde::{Deserialize, Serialize};
@@ -178,25 +178,12 @@ pub fn first_test_image(ds: &Dataset, model_path: &std::path::Path) -> Result<(R
     Ok((reference, test, view.mask.clone()))
 }
 
-/// The bytes of `buf` re-encoded with f16 network weights (the core's [`Precision::F16`]: half the
-/// weight bytes, widened to f32 as they are read), for the f32-versus-f16 comparison without retraining.
-/// Object parameters and the position table stay f32, as the file format keeps them; the header
-/// (architecture, encodings, sampling proxy) is unchanged apart from the precision.
+/// The bytes of `buf` re-encoded with f16 network weights ([`nbrdf::model::Model::to_f16`]), for the
+/// f32-versus-f16 comparison without retraining; checked to keep the header apart from the precision.
 pub fn to_f16(buf: &ModelBuf) -> Result<Vec<u8>> {
-    let model = buf.model();
-    let header = *model.header();
-    let Weights::F32(net) = model.weights() else {
-        return Err(Error::Invalid("the model already has f16 weights".into()));
-    };
-    let mut weights = net.to_vec();
-    weights.extend_from_slice(model.object_parameters());
-    let table = model.position_table();
-    let mut h16 = header;
-    h16.precision = Precision::F16;
-    // `encode` recomputes the vertex count from the table.
-    h16.n_vertices = 0;
-    let out = nbrdf::file::encode(&h16, &weights, (!table.is_empty()).then_some(table)).map_err(Error::Core)?;
+    let out = buf.model().to_f16().map_err(Error::Core)?;
     let check = ModelBuf::from_bytes(&out).map_err(Error::Core)?;
+    let header = buf.header();
     if check.header().n_vertices != header.n_vertices || check.header().nets() != header.nets() {
         return Err(Error::Invalid("f16 re-encoding changed the model header".into()));
     }
@@ -206,7 +193,7 @@ pub fn to_f16(buf: &ModelBuf) -> Result<Vec<u8>> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use nbrdf::file::{encode, ModelHeader, ModelKind, PositionEncoding, Reciprocity};
+    use nbrdf::file::{encode, ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity};
 
     /// The f16 copy of a model with object parameters and a position table evaluates within f16
     /// rounding of the f32 one, is smaller, and keeps the table (same point features).
