@@ -308,8 +308,14 @@ unsafe fn stream_rows(w: &[f32], rows: &[(usize, bool)]) -> f32 {
     for &(off, full) in rows {
         // SAFETY: the row lies in `w` (contract).
         let r = unsafe { base.add(off).cast::<f32>() };
-        for (k, a) in acc.iter_mut().enumerate().take(if full { 8 } else { 1 }) {
-            *a = _mm512_fmadd_ps(x, unsafe { _mm512_loadu_ps(r.add(16 * k)) }, *a);
+        // Constant trip counts, so that the accumulators stay in registers (a loop of `full ? 8 : 1`
+        // steps kept them on the stack, each FMA waiting on the last one's store).
+        if full {
+            for (k, a) in acc.iter_mut().enumerate() {
+                *a = _mm512_fmadd_ps(x, unsafe { _mm512_loadu_ps(r.add(16 * k)) }, *a);
+            }
+        } else {
+            acc[0] = _mm512_fmadd_ps(x, unsafe { _mm512_loadu_ps(r) }, acc[0]);
         }
     }
     let s = acc.iter().fold(_mm512_setzero_ps(), |s, a| _mm512_add_ps(s, *a));
