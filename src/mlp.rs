@@ -345,9 +345,9 @@ pub fn forward<W: Weight>(net: &Net<'_, W>, partial: &Partial, tail: &[f32], out
 /// [`crate::kernels::one_half_math`] where it applies).
 #[inline]
 pub fn forward_with<W: Weight>(math: Arithmetic, net: &Net<'_, W>, partial: &Partial, tail: &[f32], out: &mut [f32]) {
-    // The chain kernel is f32 arithmetic: the half path runs layer by layer.
     let half = math == Arithmetic::HalfHidden && W::HALF && crate::kernels::half_math_available();
-    if !half && forward_chain(net, partial, tail, out) {
+    let math = if half { math } else { Arithmetic::F32 };
+    if forward_chain(math, net, partial, tail, out) {
         return;
     }
     let mut h = [0.0f32; MAX_WIDTH];
@@ -357,13 +357,21 @@ pub fn forward_with<W: Weight>(math: Arithmetic, net: &Net<'_, W>, partial: &Par
 
 /// [`forward`] in one kernel call ([`Chain`]) where the level has the kernel and the network its shape
 /// (hidden width [`CHAIN_WIDTH`], at most [`CHAIN_OUT_MAX`] outputs); `false` where it ran nothing.
+/// In half arithmetic the chain kernel runs the hidden layers and [`Kernels::one`] the output layer
+/// (f32 arithmetic, as in packets).
 #[inline]
-fn forward_chain<W: Weight>(net: &Net<'_, W>, partial: &Partial, tail: &[f32], out: &mut [f32]) -> bool {
+fn forward_chain<W: Weight>(math: Arithmetic, net: &Net<'_, W>, partial: &Partial, tail: &[f32], out: &mut [f32]) -> bool {
     let k = kernels::<W>();
+    let half = math == Arithmetic::HalfHidden;
     let d = &net.desc;
     let (width, n_in, head) = (d.width as usize, d.n_in as usize, partial.head_len);
     let n_tail = tail.len().min(n_in - head);
-    if !k.has_chain() || width != CHAIN_WIDTH || d.n_out as usize > CHAIN_OUT_MAX || d.hidden == 0 || d.hidden as usize > MAX_HIDDEN || n_tail > CHAIN_TAIL_MAX
+    if !(half || k.has_chain())
+        || width != CHAIN_WIDTH
+        || d.n_out as usize > CHAIN_OUT_MAX
+        || d.hidden == 0
+        || d.hidden as usize > MAX_HIDDEN
+        || n_tail > CHAIN_TAIL_MAX
     {
         return false;
     }
@@ -385,14 +393,30 @@ fn forward_chain<W: Weight>(net: &Net<'_, W>, partial: &Partial, tail: &[f32], o
         let off = d.layer_offset(d.hidden as usize);
         (&w[off + width * n_out..off + (width + 1) * n_out], &w[off..off + width * n_out], n_out)
     });
-    let chain = Chain {
+    let mut chain = Chain {
         tail: &tail[..n_tail],
         first_init: &partial.layer0[..width],
         first_rows: &w[head * width..(head + n_tail) * width],
         hidden: &hidden[1..d.hidden as usize],
         out: out_layer,
     };
-    k.chain(&chain, out)
+    if !half {
+        return k.chain(&chain, out);
+    }
+    chain.out = None;
+    let Some((bias, rows, n_out)) = out_layer else {
+        return W::chain_half_math(&chain, out);
+    };
+    let mut h = [0.0f32; CHAIN_WIDTH];
+    if !W::chain_half_math(&chain, &mut h) {
+        return false;
+    }
+    let mut init = [0.0f32; CHAIN_OUT_MAX];
+    W::widen(bias, &mut init[..n_out]);
+    let hs = Segment { x: &h[..], stride: 0, n: CHAIN_WIDTH, rows };
+    let lo = Dense { init: &init[..n_out], segs: [hs, none()], n_segs: 1, n_out, relu: false };
+    k.one(&lo, out);
+    true
 }
 
 /// [`forward`] for a packet of [`PACKET`] queries at one prepared point: query `q`'s tail is

@@ -15,8 +15,8 @@
 
 use core::arch::x86_64::*;
 
-use super::x86::{compress, mask16, transpose16};
-use super::{Dense, PACKET};
+use super::x86::{compress, compress8, mask16, transpose16};
+use super::{Chain, Dense, Init, CHAIN_TAIL_MAX, CHAIN_WIDTH, PACKET};
 
 /// Inputs per pass (`XT_CAP × PACKET` halves, 8 KB on the stack): every layer of the paper-size
 /// networks (at most 128 + 36 inputs) in one pass, as in the f32 kernel.
@@ -318,6 +318,121 @@ unsafe fn one_tile<const MASKED: bool>(l: &Dense<'_, half::f16>, out: *mut f32, 
             let p = out.add(o + 32 * k);
             _mm512_mask_storeu_ps(p, m[k] as __mmask16, lo);
             _mm512_mask_storeu_ps(p.add(16), (m[k] >> 16) as __mmask16, hi);
+        }
+    }
+}
+
+/// The f16 copies of a compressed list of inputs: `xs[..len]` rounded into `hx` (whole vectors of
+/// 16; lanes past `len` are not read).
+///
+/// # Safety
+/// `xs` holds `len` values; `hx` has room for `len` rounded up to 16.
+#[inline]
+#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
+unsafe fn round_list(xs: *const f32, len: usize, hx: *mut u16) {
+    const R: i32 = _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC;
+    let mut j = 0;
+    while j < len {
+        // SAFETY: lanes below `len` only are read; whole vectors stored within the room (contract).
+        unsafe {
+            let h = _mm512_cvtps_ph::<R>(_mm512_maskz_loadu_ps(mask16(len - j), xs.add(j)));
+            _mm256_storeu_si256(hx.add(j).cast::<__m256i>(), h);
+        }
+        j += 16;
+    }
+}
+
+/// `Σ_j x_j row_j` in f16 over a compressed list (f16 inputs `hx`, row byte offsets `offs` from
+/// `base`), 128 outputs, the rows alternating between `acc[0]` and `acc[1]` (added when the layer is
+/// done: the order of [`one_tile`], so that a chain gives the bits of its layers run one by one).
+///
+/// # Safety
+/// Each listed offset from `base` starts a row of at least 128 halves; `len` entries.
+#[inline]
+#[target_feature(enable = "avx512fp16,avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
+unsafe fn accumulate4(acc: &mut [[__m512h; 4]; 2], hx: *const u16, offs: *const u32, base: *const u8, len: usize) {
+    // SAFETY: see the contract.
+    unsafe {
+        let row = |j: usize, a: &mut [__m512h; 4]| {
+            let r = base.add(*offs.add(j) as usize).cast::<__m512i>();
+            let xb = _mm512_castsi512_ph(_mm512_set1_epi16(*hx.add(j) as i16));
+            for (k, a) in a.iter_mut().enumerate() {
+                *a = _mm512_fmadd_ph(xb, _mm512_castsi512_ph(_mm512_loadu_si512(r.add(k))), *a);
+            }
+        };
+        let [a0, a1] = acc;
+        let mut j = 0;
+        while j + 2 <= len {
+            row(j, a0);
+            row(j + 1, a1);
+            j += 2;
+        }
+        if j < len {
+            row(j, a0);
+        }
+    }
+}
+
+/// The sums of the two sets of [`accumulate4`] widened to f32, after ReLU where `relu`.
+#[inline]
+#[target_feature(enable = "avx512fp16,avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
+fn widen8(h: &[[__m512h; 4]; 2], relu: bool) -> [__m512; 8] {
+    let zero = _mm512_setzero_ps();
+    core::array::from_fn(|k| {
+        let a = _mm512_castph_si512(_mm512_add_ph(h[0][k / 2], h[1][k / 2]));
+        let v = _mm512_cvtph_ps(if k % 2 == 0 { _mm512_castsi512_si256(a) } else { _mm512_extracti64x4_epi64::<1>(a) });
+        if relu { _mm512_max_ps(v, zero) } else { v }
+    })
+}
+
+/// One query through the hidden layers of a [`Chain`] of half weights in f16 arithmetic, the
+/// activations in registers from one layer to the next (as the f32 chain kernel); writes the last
+/// hidden layer's 128 activations (f32, after ReLU) to `out`. The output layer is the caller's.
+///
+/// # Safety
+/// As [`one`]; the chain passed `Chain::check` and has no output layer.
+#[target_feature(enable = "avx512fp16,avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
+pub(super) unsafe fn chain(c: &Chain<'_, half::f16>, out: *mut f32) {
+    const { assert!(CHAIN_WIDTH == 128) };
+    let row_bytes = (CHAIN_WIDTH * 2) as u32;
+    let mut txs = [core::mem::MaybeUninit::<f32>::uninit(); CHAIN_TAIL_MAX + 16];
+    let mut toffs = [core::mem::MaybeUninit::<u32>::uninit(); CHAIN_TAIL_MAX + 16];
+    let mut thx = [core::mem::MaybeUninit::<u16>::uninit(); CHAIN_TAIL_MAX + 16];
+    let mut xs = [core::mem::MaybeUninit::<f32>::uninit(); CHAIN_WIDTH];
+    let mut offs = [core::mem::MaybeUninit::<u32>::uninit(); CHAIN_WIDTH];
+    let mut hx = [core::mem::MaybeUninit::<u16>::uninit(); CHAIN_WIDTH];
+    let (tx, to, th) = (txs.as_mut_ptr().cast::<f32>(), toffs.as_mut_ptr().cast::<u32>(), thx.as_mut_ptr().cast::<u16>());
+    let (xp, op, hp) = (xs.as_mut_ptr().cast::<f32>(), offs.as_mut_ptr().cast::<u32>(), hx.as_mut_ptr().cast::<u16>());
+    // SAFETY: `check` verified every extent: 128 starting values per layer, `tail.len()` (≤
+    // CHAIN_TAIL_MAX, the lists' room less the rounding) rows of 128 for layer 0 and the skip rows,
+    // 128 rows of 128 per hidden layer, 128 outputs.
+    unsafe {
+        let tlen = compress(c.tail.as_ptr(), c.tail.len(), row_bytes, tx, to);
+        round_list(tx, tlen, th);
+        let zero = _mm512_castsi512_ph(_mm512_setzero_si512());
+        let init = |i: &Init<'_, half::f16>| -> [[__m512h; 4]; 2] {
+            let a = core::array::from_fn(|k| {
+                _mm512_castsi512_ph(match i {
+                    Init::F32(s) => load_rounded(s.as_ptr().add(32 * k), u32::MAX),
+                    Init::Bias(s) => _mm512_loadu_si512(s.as_ptr().add(32 * k).cast::<__m512i>()),
+                })
+            });
+            [a, [zero; 4]]
+        };
+        let mut h = init(&Init::F32(c.first_init));
+        accumulate4(&mut h, th, to, c.first_rows.as_ptr().cast(), tlen);
+        for l in c.hidden {
+            let len = compress8(&widen8(&h, true), row_bytes, xp, op);
+            round_list(xp, len, hp);
+            let mut acc = init(&l.init);
+            accumulate4(&mut acc, hp, op, l.rows.as_ptr().cast(), len);
+            if let Some(t) = l.tail_rows {
+                accumulate4(&mut acc, th, to, t.as_ptr().cast(), tlen);
+            }
+            h = acc;
+        }
+        for (k, v) in widen8(&h, true).iter().enumerate() {
+            _mm512_storeu_ps(out.add(16 * k), *v);
         }
     }
 }

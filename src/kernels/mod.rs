@@ -354,10 +354,14 @@ pub trait KernelWeight: Sized + 'static {
     /// [`one_half_math`] for this weight type: `false` (nothing run) but for half weights.
     #[doc(hidden)]
     fn one_half_math(layer: &Dense<'_, Self>, out: &mut [f32]) -> bool;
+
+    /// [`chain_half_math`] for this weight type: `false` (nothing run) but for half weights.
+    #[doc(hidden)]
+    fn chain_half_math(chain: &Chain<'_, Self>, out: &mut [f32]) -> bool;
 }
 
 macro_rules! tables {
-    ($w:ty, $avx2:ident, $avx512:ident, $is_half:expr, $half:expr, $half_one:expr) => {
+    ($w:ty, $avx2:ident, $avx512:ident, $is_half:expr, $half:expr, $half_one:expr, $half_chain:expr) => {
         impl KernelWeight for $w {
             const HALF: bool = $is_half;
 
@@ -369,6 +373,11 @@ macro_rules! tables {
             #[inline]
             fn one_half_math(layer: &Dense<'_, $w>, out: &mut [f32]) -> bool {
                 $half_one(layer, out)
+            }
+
+            #[inline]
+            fn chain_half_math(chain: &Chain<'_, $w>, out: &mut [f32]) -> bool {
+                $half_chain(chain, out)
             }
 
             #[inline]
@@ -394,10 +403,18 @@ macro_rules! tables {
         }
     };
 }
-tables!(f32, avx2_f32, avx512_f32, false, |_: &Dense<'_, f32>, _: &mut [f32], _: usize| false, |_: &Dense<'_, f32>, _: &mut [f32]| false);
-tables!(half::f16, avx2_f16, avx512_f16, true, packet_half_math, one_half_math);
+tables!(
+    f32,
+    avx2_f32,
+    avx512_f32,
+    false,
+    |_: &Dense<'_, f32>, _: &mut [f32], _: usize| false,
+    |_: &Dense<'_, f32>, _: &mut [f32]| false,
+    |_: &Chain<'_, f32>, _: &mut [f32]| false
+);
+tables!(half::f16, avx2_f16, avx512_f16, true, packet_half_math, one_half_math, chain_half_math);
 
-/// Whether [`packet_half_math`] and [`one_half_math`] run here: the CPU has AVX512-FP16 (x86-64: Sapphire Rapids and
+/// Whether [`packet_half_math`], [`one_half_math`] and [`chain_half_math`] run here: the CPU has AVX512-FP16 (x86-64: Sapphire Rapids and
 /// later Intel cores; detected at run time with `std`) and [`level`] is AVX-512.
 #[inline]
 pub fn half_math_available() -> bool {
@@ -426,6 +443,29 @@ pub fn packet_half_math(layer: &Dense<'_, half::f16>, out: &mut [f32], out_strid
     // SAFETY: `half_math_available` checked the CPU features; `check` verified every extent.
     unsafe {
         half_math::packet(layer, out.as_mut_ptr(), out_stride);
+    }
+    true
+}
+
+/// Runs one query through the hidden layers of a [`Chain`] of half weights (which must have no
+/// output layer: `out: None`) with every multiply-add in half precision, where
+/// [`half_math_available`]; writes the last hidden layer's [`CHAIN_WIDTH`] activations to `out` and
+/// returns `true`, or returns `false` and writes nothing elsewhere. The activations stay in registers
+/// between the layers, as in [`Kernels::chain`]; rounding as [`one_half_math`] (the sums of a layer
+/// with two input segments in another order).
+///
+/// Panics where the chain has an output layer.
+#[inline]
+pub fn chain_half_math(chain: &Chain<'_, half::f16>, out: &mut [f32]) -> bool {
+    if !half_math_available() {
+        return false;
+    }
+    assert!(chain.out.is_none(), "the half chain runs the hidden layers only");
+    chain.check(out.len());
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: `half_math_available` checked the CPU features; `check` verified every extent.
+    unsafe {
+        half_math::chain(chain, out.as_mut_ptr());
     }
     true
 }
@@ -685,6 +725,63 @@ mod tests {
         check_chain::<f32>(&w[..]);
         let h: [half::f16; N] = core::array::from_fn(|i| half::f16::from_f32(w[i]));
         check_chain::<half::f16>(&h[..]);
+    }
+
+    /// The half chain against its layers run one by one through `one_half_math`: the same bits
+    /// (the same roundings in the same order), with and without a skip layer, every tail length.
+    #[test]
+    fn a_half_chain_gives_the_bits_of_its_half_layers_run_one_by_one() {
+        if !half_math_available() {
+            std::eprintln!("skipped: this CPU has no AVX512-FP16");
+            return;
+        }
+        const C: usize = CHAIN_WIDTH;
+        let w = values(N, 23, 0);
+        let w: [half::f16; N] = core::array::from_fn(|i| half::f16::from_f32(w[i]));
+        let f32_init = values(C, 3, 0);
+        let skip_init = values(C, 4, 0);
+        for &(n_tail, n_hidden, skip) in &[(0, 1, None), (5, 2, Some(0)), (36, 5, Some(1)), (40, 3, None), (120, 4, Some(3)), (17, 1, Some(0))] {
+            let tail = values(n_tail, 7 + n_tail as u32, 3);
+            let mut at = 0;
+            let mut take = |n: usize| {
+                let start = at % (w.len() - n + 1);
+                at += 977;
+                &w[start..start + n]
+            };
+            let first_rows = take(n_tail * C);
+            let layers: [ChainLayer<'_, half::f16>; 5] = core::array::from_fn(|l| ChainLayer {
+                init: if skip == Some(l) { Init::F32(&skip_init[..C]) } else { Init::Bias(take(C)) },
+                rows: take(C * C),
+                tail_rows: (skip == Some(l)).then(|| take(n_tail * C)),
+            });
+            let hidden = &layers[..n_hidden];
+            let chain = Chain { tail: &tail[..n_tail], first_init: &f32_init[..C], first_rows, hidden, out: None };
+            let mut got = [f32::NAN; C + 1];
+            assert!(chain_half_math(&chain, &mut got));
+
+            let none = Segment { x: &[], stride: 0, n: 0, rows: &[] };
+            let ts = |rows| Segment { x: &tail[..n_tail], stride: 0, n: n_tail, rows };
+            let (mut h, mut t) = ([0.0f32; C], [0.0f32; C]);
+            assert!(one_half_math(&Dense { init: &f32_init[..C], segs: [ts(first_rows), none], n_segs: 1, n_out: C, relu: true }, &mut h));
+            for l in hidden {
+                let mut bias = [0.0f32; C];
+                let init = match l.init {
+                    Init::F32(s) => s,
+                    Init::Bias(b) => {
+                        <half::f16 as crate::mlp::Weight>::widen(b, &mut bias);
+                        &bias[..]
+                    }
+                };
+                let hs = Segment { x: &h[..], stride: 0, n: C, rows: l.rows };
+                let segs = [hs, l.tail_rows.map_or(none, ts)];
+                assert!(one_half_math(&Dense { init, segs, n_segs: 1 + l.tail_rows.is_some() as usize, n_out: C, relu: true }, &mut t));
+                core::mem::swap(&mut h, &mut t);
+            }
+            for o in 0..C {
+                assert_eq!(got[o].to_bits(), h[o].to_bits(), "tail {n_tail} hidden {n_hidden} skip {skip:?}: output {o}");
+            }
+            assert!(got[C].is_nan(), "nothing written past the outputs");
+        }
     }
 
     #[test]

@@ -170,7 +170,7 @@ pub(super) unsafe fn compress(x: *const f32, n: usize, row_bytes: u32, xs: *mut 
 /// `xs` and `offs` have room for 128 entries; `128 * row_bytes < 2^31`.
 #[inline]
 #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
-unsafe fn compress8(h: &[__m512; 8], row_bytes: u32, xs: *mut f32, offs: *mut u32) -> usize {
+pub(super) unsafe fn compress8(h: &[__m512; 8], row_bytes: u32, xs: *mut f32, offs: *mut u32) -> usize {
     let mut len = 0;
     let (mut off, step) = row_offsets(row_bytes);
     for v in h {

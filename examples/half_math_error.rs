@@ -1,0 +1,102 @@
+//! What half-precision arithmetic costs in accuracy and saves in time, on a trained model.
+//!
+//! ```text
+//! cargo run --release --example half_math_error -- fitted.nbrdf
+//! ```
+//! The model (f32 weights, e.g. `trainer fit`'s output) is re-encoded with f16 weights
+//! (`Model::to_f16`), then evaluated at 64 of its mesh's vertices (its stored intrinsic encoding; a
+//! fixed point without one) for 1024 cosine-distributed direction pairs each, three ways: f32
+//! weights, f16 weights in f32 arithmetic (`eval_many`), and f16 weights in f16 arithmetic
+//! (`eval_many_half`, `eval_half`). It prints the relative differences of the colour values (RMS, 99th
+//! percentile, maximum; values below 1e-3 compared absolutely) and the time per pair, best of three.
+//! Without AVX512-FP16 the half entry points are the f32 ones, and the program says so.
+
+use std::time::Instant;
+
+use nbrdf::file::ModelBuf;
+use nbrdf::{Rgb, Vec3};
+
+/// Relative differences `(b - a) / max(|a|, 1e-3)` of every colour value.
+fn differences(a: &[Rgb], b: &[Rgb], out: &mut Vec<f64>) {
+    for (a, b) in a.iter().zip(b) {
+        for c in 0..3 {
+            out.push(((b[c] - a[c]) / a[c].abs().max(1e-3)) as f64);
+        }
+    }
+}
+
+fn summary(name: &str, d: &mut [f64]) {
+    let rms = (d.iter().map(|x| x * x).sum::<f64>() / d.len() as f64).sqrt();
+    d.sort_by(|x, y| x.abs().total_cmp(&y.abs()));
+    let p99 = d[d.len() * 99 / 100].abs();
+    let max = d.last().map_or(0.0, |x| x.abs());
+    println!("{name:<44} RMS {rms:.2e}   p99 {p99:.2e}   max {max:.2e}");
+}
+
+/// Seconds of the fastest of three runs of `f`.
+fn best_of_three(mut f: impl FnMut()) -> f64 {
+    (0..3)
+        .map(|_| {
+            let t = Instant::now();
+            f();
+            t.elapsed().as_secs_f64()
+        })
+        .fold(f64::MAX, f64::min)
+}
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let path = std::env::args().nth(1).ok_or("usage: half_math_error MODEL.nbrdf (f32 weights)")?;
+    let b32 = ModelBuf::load(&path)?;
+    let m32 = b32.model();
+    let b16 = ModelBuf::from_bytes(&m32.to_f16()?)?;
+    let m16 = b16.model();
+    if !m16.half_math() {
+        println!("half arithmetic does not apply here (needs AVX512-FP16 and a neural model): the half entry points are the f32 ones");
+    }
+    let n_vertices = m32.header().n_vertices;
+    let mut seed = 0x2545f4914f6cdd1du64;
+    let mut uniform = move || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        (seed >> 40) as f32 / (1u64 << 24) as f32
+    };
+    let n = 1024;
+    let (mut storage, mut math, mut total, mut single) = (vec![], vec![], vec![], vec![]);
+    let mut times = [0.0f64; 6];
+    for v in 0..64u32 {
+        let mut point = vec![0.1f32; m32.position_len()];
+        if n_vertices > 0 {
+            let vertex = (v * 7919) % n_vertices;
+            m32.position_features([vertex; 3], [1.0, 0.0, 0.0], &mut point)?;
+        }
+        let (p32, p16) = (m32.prepare(&point), m16.prepare(&point));
+        let mut direction = || {
+            let (u, phi) = (uniform(), std::f32::consts::TAU * uniform());
+            Vec3::new(u.sqrt() * phi.cos(), u.sqrt() * phi.sin(), (1.0 - u).max(1e-4).sqrt())
+        };
+        let (wi, wo): (Vec<Vec3>, Vec<Vec3>) = (0..n).map(|_| (direction(), direction())).unzip();
+        let (mut f32_w, mut f16_w, mut half, mut one) = (vec![[0.0; 3]; n], vec![[0.0; 3]; n], vec![[0.0; 3]; n], vec![[0.0; 3]; n]);
+        times[0] += best_of_three(|| m32.eval_many(&p32, &wi, &wo, &mut f32_w));
+        times[1] += best_of_three(|| m16.eval_many(&p16, &wi, &wo, &mut f16_w));
+        times[2] += best_of_three(|| m16.eval_many_half(&p16, &wi, &wo, &mut half));
+        let mut sink = 0.0;
+        times[3] += best_of_three(|| wi.iter().zip(&wo).for_each(|(a, b)| sink += m32.eval(&p32, *a, *b)[0]));
+        times[4] += best_of_three(|| wi.iter().zip(&wo).for_each(|(a, b)| sink += m16.eval(&p16, *a, *b)[0]));
+        times[5] += best_of_three(|| one.iter_mut().zip(wi.iter().zip(&wo)).for_each(|(o, (a, b))| *o = m16.eval_half(&p16, *a, *b)));
+        std::hint::black_box(sink);
+        differences(&f32_w, &f16_w, &mut storage);
+        differences(&f16_w, &half, &mut math);
+        differences(&f32_w, &half, &mut total);
+        differences(&f16_w, &one, &mut single);
+    }
+    println!("{} colour values at 64 points:", storage.len());
+    summary("f16 weights against f32 weights", &mut storage);
+    summary("half arithmetic against f16 weights (batch)", &mut math);
+    summary("half arithmetic against f32 weights (batch)", &mut total);
+    summary("half arithmetic against f16 weights (single)", &mut single);
+    let per = |t: f64| t / (64 * n) as f64 * 1e6;
+    println!("µs per pair, batches of {n}: f32 {:.3}, f16 {:.3}, f16 half arithmetic {:.3} ({:.2}x f32)", per(times[0]), per(times[1]), per(times[2]), times[2] / times[0]);
+    println!("µs per pair, single queries: f32 {:.3}, f16 {:.3}, f16 half arithmetic {:.3} ({:.2}x f32)", per(times[3]), per(times[4]), per(times[5]), times[5] / times[3]);
+    Ok(())
+}
