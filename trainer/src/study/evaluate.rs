@@ -11,6 +11,7 @@ use std::time::Instant;
 
 use nbrdf::file::ModelBuf;
 use nbrdf::image::{read_exr, RgbImage};
+use nbrdf::mlp::Arithmetic;
 use nbrdf::model::{Model, Prepared};
 use nbrdf::scene::render::{render_view, RenderOptions, SurfaceSample};
 use nbrdf::{Rgb, Vec3};
@@ -62,9 +63,15 @@ pub fn evaluate(
     model_path: &std::path::Path,
     lpips: &std::result::Result<Lpips, String>,
     config: &super::StudyConfig,
+    math: Arithmetic,
 ) -> Result<Evaluation> {
     let buf = ModelBuf::load(model_path).map_err(Error::Core)?;
     let model = buf.model();
+    // Every query of the evaluation, in the arithmetic under test.
+    let eval = |p: &Prepared, wi: Vec3, wo: Vec3| match math {
+        Arithmetic::F32 => model.eval(p, wi, wo),
+        Arithmetic::HalfHidden => model.eval_half(p, wi, wo),
+    };
     let mut image_metrics = Vec::new();
     let (mut pred_brdf, mut ref_brdf, mut keep) = (Vec::<Rgb>::new(), Vec::<Rgb>::new(), Vec::new());
     for view in ds.views.iter().filter(|v| v.split == Split::Test) {
@@ -74,7 +81,7 @@ pub fn evaluate(
             &ds.geometry,
             cam,
             &lights,
-            |s, wi, wo| model.eval(&prepare_at(&model, ds, s), wi, wo),
+            |s, wi, wo| eval(&prepare_at(&model, ds, s), wi, wo),
             &RenderOptions::default(),
         );
         for (im, out) in view.images.iter().zip(&rendered.images) {
@@ -111,7 +118,7 @@ pub fn evaluate(
         .enumerate()
         .map(|(k, &i)| DirectionPair { point: k, wi: Vec3::from_array(s.wi[i]), wo: Vec3::from_array(s.wo[i]) })
         .collect();
-    let reciprocity = reciprocity_rmse(&pairs, |k, wi, wo| model.eval(&recip_prepared[k], wi, wo));
+    let reciprocity = reciprocity_rmse(&pairs, |k, wi, wo| eval(&recip_prepared[k], wi, wo));
 
     let energy_prepared: Vec<Prepared> = energy_idx.iter().map(|&i| prep(i)).collect();
     let light_pairs: Vec<LightPair> = energy_idx
@@ -121,32 +128,32 @@ pub fn evaluate(
         .collect();
     let ecfg = EnergyConfig { samples: config.energy_samples, seed: config.seed, ..EnergyConfig::default() };
     let energy =
-        energy::energy_analysis(&light_pairs, |k, wi, wo| model.eval(&energy_prepared[k], wi, wo), &ecfg);
+        energy::energy_analysis(&light_pairs, |k, wi, wo| eval(&energy_prepared[k], wi, wo), &ecfg);
 
     Ok(Evaluation {
         image: ImageMetrics::mean(&image_metrics),
         brdf_rmse_cbrt: brdf_rmse::cube_root_rmse(&pred_brdf, &ref_brdf, &keep),
         reciprocity_rmse: reciprocity,
         energy,
-        eval_ns_per_query: time_eval(&model, &recip_prepared, &pairs),
+        eval_ns_per_query: time_eval(&eval, &recip_prepared, &pairs),
     })
 }
 
 /// Mean ns per `eval` over the pairs, repeated to at least ~200k queries so the timer resolution and
 /// the first cold calls do not dominate.
-fn time_eval(model: &Model<'_>, prepared: &[Prepared], pairs: &[DirectionPair]) -> f64 {
+fn time_eval(eval: &impl Fn(&Prepared, Vec3, Vec3) -> Rgb, prepared: &[Prepared], pairs: &[DirectionPair]) -> f64 {
     if pairs.is_empty() {
         return f64::NAN;
     }
     let rounds = (200_000 / pairs.len()).max(1);
     let mut sink = 0.0f32;
     for p in pairs.iter().take(1000) {
-        sink += model.eval(&prepared[p.point], p.wi, p.wo)[0];
+        sink += eval(&prepared[p.point], p.wi, p.wo)[0];
     }
     let t = Instant::now();
     for _ in 0..rounds {
         for p in pairs {
-            sink += model.eval(&prepared[p.point], std::hint::black_box(p.wi), p.wo)[1];
+            sink += eval(&prepared[p.point], std::hint::black_box(p.wi), p.wo)[1];
         }
     }
     let ns = t.elapsed().as_nanos() as f64 / (rounds * pairs.len()) as f64;

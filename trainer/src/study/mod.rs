@@ -18,6 +18,7 @@ pub mod report;
 
 use std::path::{Path, PathBuf};
 
+use nbrdf::mlp::Arithmetic;
 use serde::{Deserialize, Serialize};
 
 pub use config::{ModelSpec, SceneConfig, StudyConfig};
@@ -50,6 +51,10 @@ pub struct JobResult {
     pub eval_f16: Option<Evaluation>,
     #[serde(default)]
     pub size_bytes_f16: Option<u64>,
+    /// The f16 copy evaluated in half-precision arithmetic (`Model::eval_half`), where the machine
+    /// has it (AVX512-FP16).
+    #[serde(default)]
+    pub eval_f16_half: Option<Evaluation>,
 }
 
 /// Which jobs this process runs: job `j` (in scene-major order) belongs to shard `j % count`.
@@ -208,16 +213,19 @@ pub fn run(config: &StudyConfig, out: &Path, shard: Option<Shard>, progress: boo
             let log = fit::run(model_config, t.obs.clone(), &opts, &jdir, false, false, t.position_table.as_deref())?;
             bar.doing(format!("{} / {name}: evaluating", scene.id()));
             let model_path = fit::Outputs::in_dir(&jdir, &model_config).model;
-            let eval = evaluate::evaluate(&ds, &model_path, &lpips, config)?;
+            let eval = evaluate::evaluate(&ds, &model_path, &lpips, config, Arithmetic::F32)?;
             let size_bytes = std::fs::metadata(&model_path).map_err(|e| Error::io(&model_path, e))?.len();
-            let (eval_f16, size_bytes_f16) = if config::is_parametric(&spec.model) {
-                (None, None)
+            let (eval_f16, size_bytes_f16, eval_f16_half) = if config::is_parametric(&spec.model) {
+                (None, None, None)
             } else {
                 let buf = nbrdf::file::ModelBuf::load(&model_path).map_err(Error::Core)?;
                 let path16 = model_path.with_extension("f16.nbrdf");
                 let bytes = evaluate::to_f16(&buf)?;
                 crate::train::write_atomic(&path16, &bytes)?;
-                (Some(evaluate::evaluate(&ds, &path16, &lpips, config)?), Some(bytes.len() as u64))
+                let f16 = evaluate::evaluate(&ds, &path16, &lpips, config, Arithmetic::F32)?;
+                let half = nbrdf::file::ModelBuf::from_bytes(&bytes).map_err(Error::Core)?.model().half_math();
+                let half = half.then(|| evaluate::evaluate(&ds, &path16, &lpips, config, Arithmetic::HalfHidden)).transpose()?;
+                (Some(f16), Some(bytes.len() as u64), half)
             };
             let r = JobResult {
                 scene: scene.id(),
@@ -231,6 +239,7 @@ pub fn run(config: &StudyConfig, out: &Path, shard: Option<Shard>, progress: boo
                 eval,
                 eval_f16,
                 size_bytes_f16,
+                eval_f16_half,
             };
             let json = serde_json::to_vec_pretty(&r).map_err(|e| Error::io(&result_path, e))?;
             crate::train::write_atomic(&result_path, &json)?;

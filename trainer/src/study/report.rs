@@ -10,7 +10,7 @@ use serde::Serialize;
 
 use super::config::is_parametric;
 use super::figures::{self, Comparison, CostPoint};
-use super::{JobResult, StudyConfig};
+use super::{Evaluation, JobResult, StudyConfig};
 use crate::{Error, Result};
 
 /// Per-model means over the objects (scenes); fields as in [`JobResult`].
@@ -35,6 +35,8 @@ pub struct ModelSummary {
     pub size_bytes: u64,
     /// The f16-weight copies (purely neural models; `None` when some object has none).
     pub f16: Option<F16Summary>,
+    /// The f16-weight copies in half-precision arithmetic (`None` unless every object has it).
+    pub f16_half: Option<F16Summary>,
 }
 
 /// Means over the objects of the f16-weight copies of a model.
@@ -80,20 +82,21 @@ pub fn summarize(results: &[JobResult]) -> Vec<ModelSummary> {
                 eval_ns_per_query: mean(rs.iter().map(|r| r.eval.eval_ns_per_query)),
                 n_weights: rs[0].n_weights,
                 size_bytes: rs[0].size_bytes,
-                f16: rs
-                    .iter()
-                    .map(|r| r.eval_f16.as_ref().zip(r.size_bytes_f16))
-                    .collect::<Option<Vec<_>>>()
-                    .filter(|v| !v.is_empty())
-                    .map(|v| F16Summary {
-                        psnr: mean(v.iter().map(|(e, _)| e.image.psnr)),
-                        brdf_rmse_cbrt: mean(v.iter().map(|(e, _)| e.brdf_rmse_cbrt.value)),
-                        eval_ns_per_query: mean(v.iter().map(|(e, _)| e.eval_ns_per_query)),
-                        size_bytes: v[0].1,
-                    }),
+                f16: f16_summary(rs.iter().map(|r| r.eval_f16.as_ref().zip(r.size_bytes_f16))),
+                f16_half: f16_summary(rs.iter().map(|r| r.eval_f16_half.as_ref().zip(r.size_bytes_f16))),
             }
         })
         .collect()
+}
+
+/// Means over the objects of f16 evaluations, `None` unless every object has one.
+fn f16_summary<'a>(v: impl Iterator<Item = Option<(&'a Evaluation, u64)>>) -> Option<F16Summary> {
+    v.collect::<Option<Vec<_>>>().filter(|v| !v.is_empty()).map(|v| F16Summary {
+        psnr: mean(v.iter().map(|(e, _)| e.image.psnr)),
+        brdf_rmse_cbrt: mean(v.iter().map(|(e, _)| e.brdf_rmse_cbrt.value)),
+        eval_ns_per_query: mean(v.iter().map(|(e, _)| e.eval_ns_per_query)),
+        size_bytes: v[0].1,
+    })
 }
 
 fn opt(v: Option<f64>, scale: f64, digits: usize) -> String {
@@ -243,13 +246,15 @@ pub fn pareto_plots(out: &Path, config: &StudyConfig, results: &[JobResult]) -> 
         full.iter().map(|m| CostPoint { label: short_label(&m.model, config), cost: m.train_wall_s, accuracy: m.psnr }).collect();
     let mut eval: Vec<CostPoint> =
         full.iter().map(|m| CostPoint { label: short_label(&m.model, config), cost: m.eval_ns_per_query, accuracy: m.psnr }).collect();
-    eval.extend(full.iter().filter_map(|m| {
-        m.f16.as_ref().map(|f| CostPoint {
-            label: format!("{} f16", short_label(&m.model, config)),
-            cost: f.eval_ns_per_query,
-            accuracy: f.psnr,
-        })
-    }));
+    for (suffix, pick) in [("f16", (|m: &ModelSummary| m.f16.as_ref()) as fn(&ModelSummary) -> Option<&F16Summary>), ("f16 half", |m| m.f16_half.as_ref())] {
+        eval.extend(full.iter().filter_map(|m| {
+            pick(m).map(|f| CostPoint {
+                label: format!("{} {suffix}", short_label(&m.model, config)),
+                cost: f.eval_ns_per_query,
+                accuracy: f.psnr,
+            })
+        }));
+    }
     let plots = [
         ("PSNR against training wall time", "figures/pareto-train.png", "training wall time (s, log)", train),
         ("PSNR against evaluation cost", "figures/pareto-eval.png", "core eval ns per query (log)", eval),
@@ -415,7 +420,8 @@ pub fn markdown(
         md,
         "Every variant. Training wall time on this machine (CPU, shared), core evaluation ns per query (one thread, point \
          prepared), model file size; `f16` rows are the same fit re-encoded with f16 network weights (no retraining), \
-         evaluated the same way. Means over the objects column.\n"
+         evaluated the same way; `f16, half arithmetic` rows evaluate that copy with `Model::eval_half` (f16 multiply-adds, \
+         on CPUs with AVX512-FP16 only). Means over the objects column.\n"
     );
     let _ = writeln!(md, "| model | weights | objects | train s | eval ns/query | parameters | size (KiB) | PSNR ↑ | RMSE ∛ ×100 ↓ |");
     let _ = writeln!(md, "|---|---|---:|---:|---:|---:|---:|---:|---:|");
@@ -432,10 +438,11 @@ pub fn markdown(
             m.psnr,
             m.brdf_rmse_cbrt * 100.0
         );
-        if let Some(f) = &m.f16 {
+        for (weights, f) in [("f16", &m.f16), ("f16, half arithmetic", &m.f16_half)] {
+            let Some(f) = f else { continue };
             let _ = writeln!(
                 md,
-                "| {} | f16 | {} | {:.1} | {:.0} | {} | {:.1} | {:.2} | {:.2} |",
+                "| {} | {weights} | {} | {:.1} | {:.0} | {} | {:.1} | {:.2} | {:.2} |",
                 m.model,
                 m.objects,
                 m.train_wall_s,
@@ -496,15 +503,17 @@ pub fn csv(results: &[JobResult]) -> String {
     let mut out = String::from(
         "scene,model,psnr,dssim,lpips,flip,brdf_rmse_cbrt,brdf_samples,reciprocity_rmse,energy_share_above_one,\
          energy_median_above_one,energy_mean_albedo,train_wall_s,eval_ns_per_query,n_weights,size_bytes,steps,final_loss,\
-         psnr_f16,brdf_rmse_cbrt_f16,eval_ns_per_query_f16,size_bytes_f16\n",
+         psnr_f16,brdf_rmse_cbrt_f16,eval_ns_per_query_f16,size_bytes_f16,psnr_f16_half,brdf_rmse_cbrt_f16_half,\
+         eval_ns_per_query_f16_half\n",
     );
     let o = |v: Option<f64>| v.map_or(String::new(), |x| x.to_string());
     for r in results {
         let e = &r.eval;
         let f16 = r.eval_f16.as_ref();
+        let half = r.eval_f16_half.as_ref();
         let _ = writeln!(
             out,
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             r.scene,
             r.model,
             e.image.psnr,
@@ -526,7 +535,10 @@ pub fn csv(results: &[JobResult]) -> String {
             o(f16.map(|e| e.image.psnr)),
             o(f16.map(|e| e.brdf_rmse_cbrt.value)),
             o(f16.map(|e| e.eval_ns_per_query)),
-            r.size_bytes_f16.map_or(String::new(), |b| b.to_string())
+            r.size_bytes_f16.map_or(String::new(), |b| b.to_string()),
+            o(half.map(|e| e.image.psnr)),
+            o(half.map(|e| e.brdf_rmse_cbrt.value)),
+            o(half.map(|e| e.eval_ns_per_query)),
         );
     }
     out
