@@ -21,6 +21,13 @@
 //! ReLU); `fma(0, w, acc) = acc` for finite weights, except that `-0 + 0 = +0`, and the sign of a zero
 //! pre-activation is erased by the ReLU (`max(acc, 0)` returns `+0`) and by every output map.
 //! Levels differ from each other by rounding only (FMA versus multiply-then-add).
+//!
+//! # Half-precision arithmetic
+//! [`packet_half_math`], [`one_half_math`] and [`chain_half_math`] run layers of half weights with f16
+//! multiply-adds (x86-64 AVX512-FP16, `half_math.rs`), where [`half_math_available`]: twice the work
+//! per instruction, every sum rounded to f16. They are outside the promise above (they give other
+//! bits than the f32 kernels, and the packet kernel other bits than the one-query ones); each query's
+//! result still depends on that query alone. Callers opt in ([`crate::model::Model::eval_half`]).
 
 #[cfg(target_arch = "x86_64")]
 mod half_math;
