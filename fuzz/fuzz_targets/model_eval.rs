@@ -4,7 +4,8 @@
 //! encoding) gets seeded weights at a fuzzer-chosen scale (up to the format's limit: ±65504 for f16,
 //! ±3.4e38 for f32, where activations overflow to inf) and fuzzer-chosen weight overrides. Invariants:
 //! the diffuse term and every evaluation are finite and non-negative; exactly 0 off the upper
-//! hemisphere; bitwise reciprocal for Θ networks and parametric models.
+//! hemisphere; bitwise reciprocal for Θ networks and parametric models. The half-precision entry points
+//! (`eval_half`, `eval_many_half`: f16 sums that overflow to infinity) keep the first two.
 #![no_main]
 
 mod common;
@@ -37,8 +38,14 @@ fuzz_target!(|input: (u8, u8, u64, u8, [f32; 3], [f32; 6], Vec<(u16, f32)>)| {
     let (wi, wo) = common::pair(dirs);
     let f = model.eval(&prepared, wi, wo);
     common::assert_valid_brdf(f, "model eval");
+    let half = model.eval_half(&prepared, wi, wo);
+    common::assert_valid_brdf(half, "model eval_half");
+    let mut batch = [[f32::NAN; 3]];
+    model.eval_many_half(&prepared, &[wi], &[wo], &mut batch);
+    common::assert_valid_brdf(batch[0], "model eval_many_half");
     if !(common::above(wi) && common::above(wo)) {
         assert_eq!(f, [0.0; 3], "nonzero off the upper hemisphere");
+        assert_eq!((half, batch[0]), ([0.0; 3], [0.0; 3]), "half arithmetic nonzero off the upper hemisphere");
     }
     if h.reciprocity == Reciprocity::Exact || matches!(h.kind, ModelKind::Parametric(_)) {
         assert!(common::same_bits(f, model.eval(&prepared, wo, wi)), "not reciprocal: {wi} {wo}");
