@@ -15,7 +15,7 @@
 
 use core::arch::x86_64::*;
 
-use super::x86::{compress, compress8, mask16, transpose16};
+use super::x86::{compress, compress8, mask16, transpose_columns};
 use super::{Chain, Dense, Init, CHAIN_TAIL_MAX, CHAIN_WIDTH, PACKET};
 
 /// Inputs per pass (`XT_CAP × PACKET` halves, 8 KB on the stack): every layer of the paper-size
@@ -65,28 +65,20 @@ struct Piece {
 }
 
 /// Writes inputs `x[q * stride + i]`, `i < n`, of the `PACKET` queries feature-major to
-/// `xt[i * PACKET + q]`, rounded to f16 (to nearest, ties to even): 16 × 16 blocks transposed in
-/// registers, then one conversion per column.
+/// `xt[i * PACKET + q]`, rounded to f16 (to nearest, ties to even): the f32 kernel's transpose, then
+/// one conversion per column.
 ///
 /// # Safety
 /// Each query's `n` inputs are readable from `x + q * stride`; `xt` has room for `n * PACKET` values.
 #[inline]
 #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
 unsafe fn transpose_inputs(x: *const f32, stride: usize, n: usize, xt: *mut u16) {
-    const { assert!(PACKET == 16) };
-    let mut i = 0;
-    while i < n {
-        let m = mask16(n - i);
-        // SAFETY: lanes `i + j < n` only are read; columns `j < n - i` only are written.
-        unsafe {
-            let rows: [__m512; 16] = core::array::from_fn(|q| _mm512_maskz_loadu_ps(m, x.add(q * stride + i)));
-            let cols = transpose16(rows);
-            for (j, c) in cols.iter().enumerate().take(n - i) {
-                let h = _mm512_cvtps_ph::<{ _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC }>(*c);
-                _mm256_storeu_si256(xt.add((i + j) * PACKET).cast::<__m256i>(), h);
-            }
-        }
-        i += 16;
+    // SAFETY: column `i < n` goes to `xt[i * PACKET..]`, within the room (contract).
+    unsafe {
+        transpose_columns(x, stride, n, |i, c| {
+            let h = _mm512_cvtps_ph::<{ _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC }>(c);
+            _mm256_storeu_si256(xt.add(i * PACKET).cast::<__m256i>(), h);
+        })
     }
 }
 

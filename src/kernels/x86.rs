@@ -605,25 +605,35 @@ struct Pass<'a, W> {
 }
 
 /// Writes inputs `x[q * stride + i]`, `i < n`, of the `PACKET` queries feature-major to
-/// `xt[i * PACKET + q]`: 16 × 16 blocks, each loaded as 16 rows (masked past `n`), transposed in
-/// registers ([`transpose16`]) and stored as 16 columns.
+/// `xt[i * PACKET + q]` ([`transpose_columns`]).
 ///
 /// # Safety
 /// Each query's `n` inputs are readable from `x + q * stride`; `xt` has room for `n * PACKET` values.
 #[inline]
 #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
 unsafe fn transpose_inputs(x: *const f32, stride: usize, n: usize, xt: *mut f32) {
+    // SAFETY: column `i < n` goes to `xt[i * PACKET..]`, within the room (contract).
+    unsafe { transpose_columns(x, stride, n, |i, c| _mm512_storeu_ps(xt.add(i * PACKET), c)) }
+}
+
+/// Hands input `i < n` of the `PACKET` queries (`x[q * stride + i]` in lane `q`) to `put(i, column)`, in
+/// order: 16 × 16 blocks, each loaded as 16 rows (masked past `n`) and transposed in registers
+/// ([`transpose16`]).
+///
+/// # Safety
+/// Each query's `n` inputs are readable from `x + q * stride`.
+#[inline]
+#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
+pub(super) unsafe fn transpose_columns(x: *const f32, stride: usize, n: usize, mut put: impl FnMut(usize, __m512)) {
     const { assert!(PACKET == 16) };
     let mut i = 0;
     while i < n {
         let m = mask16(n - i);
-        // SAFETY: lanes `i + j < n` only are read; columns `j < n - i` only are written.
-        unsafe {
-            let rows: [__m512; 16] = core::array::from_fn(|q| _mm512_maskz_loadu_ps(m, x.add(q * stride + i)));
-            let cols = transpose16(rows);
-            for (j, c) in cols.iter().enumerate().take(n - i) {
-                _mm512_storeu_ps(xt.add((i + j) * PACKET), *c);
-            }
+        // SAFETY: lanes `i + j < n` only are read (contract).
+        let rows: [__m512; 16] = core::array::from_fn(|q| unsafe { _mm512_maskz_loadu_ps(m, x.add(q * stride + i)) });
+        let cols = transpose16(rows);
+        for (j, c) in cols.iter().enumerate().take(n - i) {
+            put(i + j, *c);
         }
         i += 16;
     }
@@ -634,7 +644,7 @@ unsafe fn transpose_inputs(x: *const f32, stride: usize, n: usize, xt: *mut f32)
 /// shuffles.
 #[inline]
 #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
-pub(super) fn transpose16(r: [__m512; 16]) -> [__m512; 16] {
+fn transpose16(r: [__m512; 16]) -> [__m512; 16] {
     // t[2k] = a0 b0 a1 b1 | a4 b4 a5 b5 | ..., t[2k + 1] = a2 b2 a3 b3 | ... for rows a, b = 2k, 2k + 1.
     let t: [__m512; 16] = core::array::from_fn(|j| {
         let (a, b) = (r[j & !1], r[j | 1]);
