@@ -15,12 +15,8 @@
 
 use core::arch::x86_64::*;
 
-use super::x86::{compress, compress8, mask16, transpose_columns};
+use super::x86::{compress, compress8, mask16, passes, transpose_columns, Piece, XT_CAP};
 use super::{Chain, Dense, Init, CHAIN_TAIL_MAX, CHAIN_WIDTH, PACKET};
-
-/// Inputs per pass (`XT_CAP × PACKET` halves, 8 KB on the stack): every layer of the paper-size
-/// networks (at most 128 + 36 inputs) in one pass, as in the f32 kernel.
-const XT_CAP: usize = 256;
 
 /// Outputs per register tile: one vector of halves.
 const TILE: usize = 32;
@@ -53,15 +49,6 @@ pub(super) fn available() -> bool {
             target_feature = "avx512vl"
         ))
     }
-}
-
-/// Consecutive inputs of one segment, transposed and rounded: rows `rows[i * n_out..]` for the
-/// inputs at `xt[(start + i) * PACKET..][..PACKET]`, `i < n`.
-#[derive(Clone, Copy)]
-struct Piece {
-    rows: *const u16,
-    start: usize,
-    n: usize,
 }
 
 /// Writes inputs `x[q * stride + i]`, `i < n`, of the `PACKET` queries feature-major to
@@ -110,7 +97,7 @@ unsafe fn load_rounded(p: *const f32, m: __mmask32) -> __m512i {
 unsafe fn tile<const MASKED: bool>(
     l: &Dense<'_, half::f16>,
     xt: *const u16,
-    pieces: &[Piece],
+    pieces: &[Piece<half::f16>],
     first: bool,
     relu: bool,
     out: *mut f32,
@@ -130,7 +117,7 @@ unsafe fn tile<const MASKED: bool>(
         for piece in pieces {
             // Moving pointers, as in the f32 tile: the broadcasts address `x + 2q`.
             let mut x = xt.add(piece.start * PACKET);
-            let mut r = piece.rows.add(o);
+            let mut r = piece.rows.cast::<u16>().add(o);
             for _ in 0..piece.n {
                 let w = _mm512_castsi512_ph(if MASKED {
                     _mm512_maskz_loadu_epi16(m, r.cast::<i16>())
@@ -167,7 +154,7 @@ pub(super) unsafe fn packet(l: &Dense<'_, half::f16>, out: *mut f32, os: usize) 
     let n = l.n_out;
     let mut xt = [core::mem::MaybeUninit::<__m256i>::uninit(); XT_CAP];
     let xt = xt.as_mut_ptr().cast::<u16>();
-    let tiles = |pieces: &[Piece], first: bool, last: bool| {
+    let tiles = |pieces: &[Piece<half::f16>], first: bool, last: bool| {
         let relu = last && l.relu;
         let mut o = 0;
         // SAFETY: each tile stays below `n_out` (full tiles by the loop bounds, the rest masked);
@@ -182,28 +169,12 @@ pub(super) unsafe fn packet(l: &Dense<'_, half::f16>, out: *mut f32, os: usize) 
             }
         }
     };
-    // Up to `XT_CAP` inputs at a time, in segment order; a longer layer passes its partial sums
-    // through `out` (rounded to f16 again when they are read back: exact, they are halves already).
-    let mut pieces = [Piece { rows: core::ptr::null(), start: 0, n: 0 }; 2];
-    let (mut np, mut used, mut first) = (0, 0, true);
-    for s in &l.segs[..l.n_segs] {
-        let mut i0 = 0;
-        while i0 < s.n {
-            if used == XT_CAP {
-                tiles(&pieces[..np], first, false);
-                (np, used, first) = (0, 0, false);
-            }
-            let c = (s.n - i0).min(XT_CAP - used);
-            // SAFETY: inputs `i0 .. i0 + c` of every query lie in the checked segment; `xt` has room
-            // for `used + c ≤ XT_CAP` rows.
-            unsafe {
-                transpose_inputs(s.x.as_ptr().add(i0), s.stride, c, xt.add(used * PACKET));
-                pieces[np] = Piece { rows: s.rows.as_ptr().add(i0 * n).cast::<u16>(), start: used, n: c };
-            }
-            (np, used, i0) = (np + 1, used + c, i0 + c);
-        }
+    // A longer layer passes its partial sums through `out` (rounded to f16 again when they are read
+    // back: exact, they are halves already).
+    // SAFETY: `passes` hands out inputs of checked segments, `xt` rows below `XT_CAP`.
+    unsafe {
+        passes(l, |x, stride, c, used| transpose_inputs(x, stride, c, xt.add(used * PACKET)), tiles);
     }
-    tiles(&pieces[..np], first, true);
 }
 
 /// Inputs gathered per step of [`one`]: the nonzero values of up to this many inputs of a segment

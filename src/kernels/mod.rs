@@ -532,17 +532,43 @@ mod tests {
         y
     }
 
+    /// Distance between two queries' inputs in the test layers.
+    const LAYER_STRIDE: usize = 330;
+
+    /// The inputs of a test layer: two segments' worth for `PACKET` queries, and `init`.
+    fn layer_inputs(n_out: usize, n1: usize) -> ([f32; N], [f32; N], [f32; N]) {
+        (values(PACKET * LAYER_STRIDE, n_out as u32, 3), values(PACKET * LAYER_STRIDE, 99 + n1 as u32, 4), values(n_out, 5, 0))
+    }
+
+    /// A test layer of shape `(n_out, n1, n2, relu)` over `w`: segments of `n1` and `n2` inputs.
+    fn test_layer<'a, W>(
+        w: &'a [W],
+        (n_out, n1, n2, relu): (usize, usize, usize, bool),
+        x1: &'a [f32],
+        x2: &'a [f32],
+        init: &'a [f32],
+    ) -> Dense<'a, W> {
+        let stride = LAYER_STRIDE;
+        let seg1 = Segment { x: x1, stride, n: n1, rows: &w[..n1 * n_out] };
+        let seg2 = Segment { x: x2, stride, n: n2, rows: &w[n1 * n_out..(n1 + n2) * n_out] };
+        Dense { init: &init[..n_out], segs: [seg1, seg2], n_segs: if n2 > 0 { 2 } else { 1 }, n_out, relu }
+    }
+
+    /// Query `q` of a packet's test layer as a one-query layer.
+    fn alone<'a, W: Copy>(layer: &Dense<'a, W>, q: usize) -> Dense<'a, W> {
+        let mut l = *layer;
+        for s in &mut l.segs[..l.n_segs] {
+            s.x = &s.x[q * s.stride..];
+        }
+        l
+    }
+
     fn check_shapes<W: crate::mlp::Weight>(w: &[W]) {
         for &(n_out, n1, n2, relu) in
             &[(3, 20, 0, false), (6, 31, 0, false), (17, 9, 5, true), (21, 21, 0, true), (32, 6, 0, true), (64, 20, 0, false), (128, 40, 0, true), (128, 64, 7, true), (130, 12, 3, true), (200, 3, 0, true), (48, 5, 5, false), (17, 300, 20, true), (40, 250, 9, false)]
         {
-            let stride = 330;
-            let x1 = values(PACKET * stride, n_out as u32, 3);
-            let x2 = values(PACKET * stride, 99 + n1 as u32, 4);
-            let init = values(n_out, 5, 0);
-            let seg1 = Segment { x: &x1[..], stride, n: n1, rows: &w[..n1 * n_out] };
-            let seg2 = Segment { x: &x2[..], stride, n: n2, rows: &w[n1 * n_out..(n1 + n2) * n_out] };
-            let layer = Dense { init: &init[..n_out], segs: [seg1, seg2], n_segs: if n2 > 0 { 2 } else { 1 }, n_out, relu };
+            let (x1, x2, init) = layer_inputs(n_out, n1);
+            let layer = test_layer(w, (n_out, n1, n2, relu), &x1, &x2, &init);
             let os = n_out + 3;
             let mut portable = [0.0f32; PACKET * 260];
             W::table(Level::Portable).packet(&layer, &mut portable, os);
@@ -553,11 +579,8 @@ mod tests {
                 for q in 0..PACKET {
                     let want = reference(&layer, q);
                     // One query through the one-query kernel: the same bits as its lane of the packet.
-                    let mut l1 = layer;
-                    l1.segs[0].x = &x1[q * stride..];
-                    l1.segs[1].x = &x2[q * stride..];
                     let mut single = [f32::NAN; 260];
-                    k.one(&l1, &mut single);
+                    k.one(&alone(&layer, q), &mut single);
                     for o in 0..n_out {
                         let got = packed[q * os + o];
                         assert_eq!(got.to_bits(), single[o].to_bits(), "{level:?} n_out {n_out} q {q} o {o}");
@@ -594,13 +617,8 @@ mod tests {
         let h: [half::f16; N] = core::array::from_fn(|i| half::f16::from_f32(w[i]));
         let u = 2f64.powi(-11);
         for &(n_out, n1, n2, relu) in &[(32, 6, 0, true), (17, 9, 5, true), (128, 64, 36, true), (130, 12, 3, false), (40, 250, 9, true), (17, 300, 20, true), (200, 70, 0, true)] {
-            let stride = 330;
-            let x1 = values(PACKET * stride, n_out as u32, 3);
-            let x2 = values(PACKET * stride, 99 + n1 as u32, 4);
-            let init = values(n_out, 5, 0);
-            let seg1 = Segment { x: &x1[..], stride, n: n1, rows: &h[..n1 * n_out] };
-            let seg2 = Segment { x: &x2[..], stride, n: n2, rows: &h[n1 * n_out..(n1 + n2) * n_out] };
-            let layer = Dense { init: &init[..n_out], segs: [seg1, seg2], n_segs: if n2 > 0 { 2 } else { 1 }, n_out, relu };
+            let (x1, x2, init) = layer_inputs(n_out, n1);
+            let layer = test_layer(&h[..], (n_out, n1, n2, relu), &x1, &x2, &init);
             let os = n_out + 3;
             let mut out = [f32::NAN; PACKET * 260];
             assert!(packet_half_math(&layer, &mut out, os));
@@ -609,11 +627,8 @@ mod tests {
             for q in 0..PACKET {
                 let want = reference(&layer, q);
                 // The same query alone, through the one-query kernel.
-                let mut l1 = layer;
-                l1.segs[0].x = &x1[q * stride..];
-                l1.segs[1].x = &x2[q * stride..];
                 let mut single = [f32::NAN; 260];
-                assert!(one_half_math(&l1, &mut single));
+                assert!(one_half_math(&alone(&layer, q), &mut single));
                 for o in 0..n_out {
                     let mut mag = (init[o] as f64).abs();
                     for s in &layer.segs[..layer.n_segs] {
@@ -655,6 +670,73 @@ mod tests {
         assert!(full.iter().all(|&v| v == 2049.0));
     }
 
+    /// Overlapping windows of test weights, a different one per matrix.
+    struct Windows<'a, W> {
+        w: &'a [W],
+        at: usize,
+    }
+
+    impl<'a, W> Windows<'a, W> {
+        fn take(&mut self, n: usize) -> &'a [W] {
+            let start = self.at % (self.w.len() - n + 1);
+            self.at += 977;
+            &self.w[start..start + n]
+        }
+    }
+
+    /// Layer 0's rows and 5 hidden layers of a test chain (the skip layer, if any, starting from
+    /// `skip_init` and reading the tail again).
+    fn chain_layers<'a, W>(
+        win: &mut Windows<'a, W>,
+        n_tail: usize,
+        skip: Option<usize>,
+        skip_init: &'a [f32],
+    ) -> (&'a [W], [ChainLayer<'a, W>; 5]) {
+        const C: usize = CHAIN_WIDTH;
+        let first_rows = win.take(n_tail * C);
+        let layers = core::array::from_fn(|l| ChainLayer {
+            init: if skip == Some(l) { Init::F32(&skip_init[..C]) } else { Init::Bias(win.take(C)) },
+            rows: win.take(C * C),
+            tail_rows: (skip == Some(l)).then(|| win.take(n_tail * C)),
+        });
+        (first_rows, layers)
+    }
+
+    /// The hidden layers of a chain run one by one through `one` (a one-query kernel); the last
+    /// layer's activations.
+    fn layer_by_layer<W: crate::mlp::Weight>(
+        one: impl Fn(&Dense<'_, W>, &mut [f32]),
+        tail: &[f32],
+        first_init: &[f32],
+        first_rows: &[W],
+        hidden: &[ChainLayer<'_, W>],
+    ) -> [f32; CHAIN_WIDTH] {
+        const C: usize = CHAIN_WIDTH;
+        let none = Segment { x: &[], stride: 0, n: 0, rows: &[] };
+        let ts = |rows| Segment { x: tail, stride: 0, n: tail.len(), rows };
+        let (mut h, mut t) = ([0.0f32; C], [0.0f32; C]);
+        one(&Dense { init: &first_init[..C], segs: [ts(first_rows), none], n_segs: 1, n_out: C, relu: true }, &mut h);
+        for l in hidden {
+            let mut bias = [0.0f32; C];
+            let init = match l.init {
+                Init::F32(s) => s,
+                Init::Bias(b) => {
+                    W::widen(b, &mut bias);
+                    &bias[..]
+                }
+            };
+            let hs = Segment { x: &h[..], stride: 0, n: C, rows: l.rows };
+            let segs = [hs, l.tail_rows.map_or(none, ts)];
+            one(&Dense { init, segs, n_segs: 1 + l.tail_rows.is_some() as usize, n_out: C, relu: true }, &mut t);
+            core::mem::swap(&mut h, &mut t);
+        }
+        h
+    }
+
+    /// The shapes of the chain tests: tail length, hidden layers, skip layer.
+    const CHAIN_SHAPES: [(usize, usize, Option<usize>); 6] =
+        [(0, 1, None), (5, 2, Some(0)), (36, 5, Some(1)), (40, 3, None), (120, 4, Some(3)), (17, 1, Some(0))];
+
     /// A chain against the same layers run one by one through `Kernels::one`: every tail length
     /// (none, below and above the dense-layer threshold, near the longest encoding), with and without a
     /// skip layer, every output-layer shape.
@@ -666,48 +748,18 @@ mod tests {
         const C: usize = CHAIN_WIDTH;
         let f32_init = values(C, 3, 0);
         let skip_init = values(C, 4, 0);
-        for &(n_tail, n_hidden, skip, n_out) in
-            &[(0, 1, None, 3), (5, 2, Some(0), 0), (36, 5, Some(1), 3), (40, 3, None, 6), (120, 4, Some(3), 16), (17, 1, Some(0), 1)]
-        {
+        for (&(n_tail, n_hidden, skip), n_out) in CHAIN_SHAPES.iter().zip([3, 0, 3, 6, 16, 1]) {
             let tail = values(n_tail, 7 + n_tail as u32, 3);
-            let mut at = 0;
-            // Overlapping windows of the weights, a different one per matrix.
-            let mut take = |n: usize| {
-                let start = at % (w.len() - n + 1);
-                at += 977;
-                &w[start..start + n]
-            };
-            let first_rows = take(n_tail * C);
-            let layers: [ChainLayer<'_, W>; 5] = core::array::from_fn(|l| ChainLayer {
-                init: if skip == Some(l) { Init::F32(&skip_init[..C]) } else { Init::Bias(take(C)) },
-                rows: take(C * C),
-                tail_rows: (skip == Some(l)).then(|| take(n_tail * C)),
-            });
+            let mut win = Windows { w, at: 0 };
+            let (first_rows, layers) = chain_layers(&mut win, n_tail, skip, &skip_init);
             let hidden = &layers[..n_hidden];
-            let out_layer = (n_out > 0).then(|| (take(n_out), take(C * n_out), n_out));
+            let out_layer = (n_out > 0).then(|| (win.take(n_out), win.take(C * n_out), n_out));
             let chain = Chain { tail: &tail[..n_tail], first_init: &f32_init[..C], first_rows, hidden, out: out_layer };
             let mut got = [f32::NAN; C + 1];
             assert!(k.chain(&chain, &mut got));
 
             // The same network layer by layer.
-            let none = Segment { x: &[], stride: 0, n: 0, rows: &[] };
-            let ts = |rows| Segment { x: &tail[..n_tail], stride: 0, n: n_tail, rows };
-            let (mut h, mut t) = ([0.0f32; C], [0.0f32; C]);
-            k.one(&Dense { init: &f32_init[..C], segs: [ts(first_rows), none], n_segs: 1, n_out: C, relu: true }, &mut h);
-            for l in hidden {
-                let mut bias = [0.0f32; C];
-                let init = match l.init {
-                    Init::F32(s) => s,
-                    Init::Bias(b) => {
-                        W::widen(b, &mut bias);
-                        &bias[..]
-                    }
-                };
-                let hs = Segment { x: &h[..], stride: 0, n: C, rows: l.rows };
-                let segs = [hs, l.tail_rows.map_or(none, ts)];
-                k.one(&Dense { init, segs, n_segs: 1 + l.tail_rows.is_some() as usize, n_out: C, relu: true }, &mut t);
-                core::mem::swap(&mut h, &mut t);
-            }
+            let h = layer_by_layer(|l, out| k.one(l, out), &tail[..n_tail], &f32_init, first_rows, hidden);
             let mut want = [f32::NAN; C + 1];
             match out_layer {
                 None => want[..C].copy_from_slice(&h),
@@ -715,6 +767,7 @@ mod tests {
                     let mut bias = [0.0f32; CHAIN_OUT_MAX];
                     W::widen(b, &mut bias[..n]);
                     let hs = Segment { x: &h[..], stride: 0, n: C, rows };
+                    let none = Segment { x: &[], stride: 0, n: 0, rows: &[] };
                     k.one(&Dense { init: &bias[..n], segs: [hs, none], n_segs: 1, n_out: n, relu: false }, &mut want);
                 }
             }
@@ -747,45 +800,17 @@ mod tests {
         let w: [half::f16; N] = core::array::from_fn(|i| half::f16::from_f32(w[i]));
         let f32_init = values(C, 3, 0);
         let skip_init = values(C, 4, 0);
-        for &(n_tail, n_hidden, skip) in &[(0, 1, None), (5, 2, Some(0)), (36, 5, Some(1)), (40, 3, None), (120, 4, Some(3)), (17, 1, Some(0))] {
+        for &(n_tail, n_hidden, skip) in &CHAIN_SHAPES {
             let tail = values(n_tail, 7 + n_tail as u32, 3);
-            let mut at = 0;
-            let mut take = |n: usize| {
-                let start = at % (w.len() - n + 1);
-                at += 977;
-                &w[start..start + n]
-            };
-            let first_rows = take(n_tail * C);
-            let layers: [ChainLayer<'_, half::f16>; 5] = core::array::from_fn(|l| ChainLayer {
-                init: if skip == Some(l) { Init::F32(&skip_init[..C]) } else { Init::Bias(take(C)) },
-                rows: take(C * C),
-                tail_rows: (skip == Some(l)).then(|| take(n_tail * C)),
-            });
+            let (first_rows, layers) = chain_layers(&mut Windows { w: &w[..], at: 0 }, n_tail, skip, &skip_init);
             let hidden = &layers[..n_hidden];
             let chain = Chain { tail: &tail[..n_tail], first_init: &f32_init[..C], first_rows, hidden, out: None };
             let mut got = [f32::NAN; C + 1];
             assert!(chain_half_math(&chain, &mut got));
-
-            let none = Segment { x: &[], stride: 0, n: 0, rows: &[] };
-            let ts = |rows| Segment { x: &tail[..n_tail], stride: 0, n: n_tail, rows };
-            let (mut h, mut t) = ([0.0f32; C], [0.0f32; C]);
-            assert!(one_half_math(&Dense { init: &f32_init[..C], segs: [ts(first_rows), none], n_segs: 1, n_out: C, relu: true }, &mut h));
-            for l in hidden {
-                let mut bias = [0.0f32; C];
-                let init = match l.init {
-                    Init::F32(s) => s,
-                    Init::Bias(b) => {
-                        <half::f16 as crate::mlp::Weight>::widen(b, &mut bias);
-                        &bias[..]
-                    }
-                };
-                let hs = Segment { x: &h[..], stride: 0, n: C, rows: l.rows };
-                let segs = [hs, l.tail_rows.map_or(none, ts)];
-                assert!(one_half_math(&Dense { init, segs, n_segs: 1 + l.tail_rows.is_some() as usize, n_out: C, relu: true }, &mut t));
-                core::mem::swap(&mut h, &mut t);
-            }
+            let one = |l: &Dense<'_, half::f16>, out: &mut [f32]| assert!(one_half_math(l, out));
+            let want = layer_by_layer(one, &tail[..n_tail], &f32_init, first_rows, hidden);
             for o in 0..C {
-                assert_eq!(got[o].to_bits(), h[o].to_bits(), "tail {n_tail} hidden {n_hidden} skip {skip:?}: output {o}");
+                assert_eq!(got[o].to_bits(), want[o].to_bits(), "tail {n_tail} hidden {n_hidden} skip {skip:?}: output {o}");
             }
             assert!(got[C].is_nan(), "nothing written past the outputs");
         }

@@ -554,28 +554,12 @@ macro_rules! avx512 {
                         }
                     }
                 };
-                // Up to `XT_CAP` inputs at a time, in segment order; a longer layer passes its partial
-                // sums through `out` (exact), the ReLU on the last pass only.
-                let mut pieces = [Piece { rows: core::ptr::null(), start: 0, n: 0 }; 2];
-                let (mut np, mut used, mut first) = (0, 0, true);
-                for s in &l.segs[..l.n_segs] {
-                    let mut i0 = 0;
-                    while i0 < s.n {
-                        if used == XT_CAP {
-                            tiles(&pieces[..np], first, false);
-                            (np, used, first) = (0, 0, false);
-                        }
-                        let c = (s.n - i0).min(XT_CAP - used);
-                        // SAFETY: inputs `i0 .. i0 + c` of every query lie in the checked segment;
-                        // `xt` has room for `used + c ≤ XT_CAP` rows.
-                        unsafe {
-                            transpose_inputs(s.x.as_ptr().add(i0), s.stride, c, xt.add(used * PACKET));
-                            pieces[np] = Piece { rows: s.rows.as_ptr().add(i0 * n), start: used, n: c };
-                        }
-                        (np, used, i0) = (np + 1, used + c, i0 + c);
-                    }
+                // A longer layer passes its partial sums through `out` (exact), the ReLU on the last
+                // pass only.
+                // SAFETY: `passes` hands out inputs of checked segments, `xt` rows below `XT_CAP`.
+                unsafe {
+                    passes(l, |x, stride, c, used| transpose_inputs(x, stride, c, xt.add(used * PACKET)), tiles);
                 }
-                tiles(&pieces[..np], first, true);
             }
         }
     };
@@ -584,15 +568,48 @@ macro_rules! avx512 {
 /// Inputs per pass of the AVX-512 packet kernel: `XT_CAP × PACKET` f32 (16 KB) on the stack, room
 /// for every layer of the paper-size networks (at most 128 + 36 inputs) in one pass; a layer with
 /// more inputs (a longer angle encoding) takes one pass per `XT_CAP`.
-const XT_CAP: usize = 256;
+pub(super) const XT_CAP: usize = 256;
 
 /// Consecutive inputs of one segment, transposed: rows `rows[i * n_out..]` for the inputs at
 /// `xt[(start + i) * PACKET..][..PACKET]`, `i < n`.
 #[derive(Clone, Copy)]
-struct Piece<W> {
-    rows: *const W,
-    start: usize,
-    n: usize,
+pub(super) struct Piece<W> {
+    pub(super) rows: *const W,
+    pub(super) start: usize,
+    pub(super) n: usize,
+}
+
+/// The passes of a packet kernel over a layer's inputs: up to `XT_CAP` inputs at a time, in segment
+/// order, each run of consecutive inputs handed to `transpose(x, stride, count, slot)` (the first
+/// transposed slot `slot`), then every full buffer and the last to `tiles(pieces, first, last)`.
+///
+/// # Safety
+/// The layer passed `check(PACKET, ..)` (what `transpose` is handed lies in its segments).
+#[inline(always)]
+pub(super) unsafe fn passes<W: Copy>(
+    l: &Dense<'_, W>,
+    mut transpose: impl FnMut(*const f32, usize, usize, usize),
+    mut tiles: impl FnMut(&[Piece<W>], bool, bool),
+) {
+    let mut pieces = [Piece { rows: core::ptr::null(), start: 0, n: 0 }; 2];
+    let (mut np, mut used, mut first) = (0, 0, true);
+    for s in &l.segs[..l.n_segs] {
+        let mut i0 = 0;
+        while i0 < s.n {
+            if used == XT_CAP {
+                tiles(&pieces[..np], first, false);
+                (np, used, first) = (0, 0, false);
+            }
+            let c = (s.n - i0).min(XT_CAP - used);
+            // SAFETY: inputs `i0 .. i0 + c` of every query lie in the checked segment (contract).
+            unsafe {
+                transpose(s.x.as_ptr().add(i0), s.stride, c, used);
+                pieces[np] = Piece { rows: s.rows.as_ptr().add(i0 * l.n_out), start: used, n: c };
+            }
+            (np, used, i0) = (np + 1, used + c, i0 + c);
+        }
+    }
+    tiles(&pieces[..np], first, true);
 }
 
 /// One pass of the AVX-512 packet kernel over transposed inputs: the pieces in `xt`, whether it is
