@@ -1,17 +1,22 @@
-//! The packet kernel in half-precision arithmetic (x86-64 AVX512-FP16): `PACKET` queries through one
-//! hidden layer of half weights, every multiply-add in f16.
+//! Dense layers of half weights in half-precision arithmetic (x86-64 AVX512-FP16), every multiply-add
+//! in f16: a packet kernel (`PACKET` queries through one hidden layer), a one-query kernel, and a
+//! chain (one query through a 128-wide network's hidden layers).
 //!
 //! An f16 multiply-add covers 32 lanes where an f32 one covers 16, so a core does twice the work per
-//! instruction: the way past the f32 FMA rate, which bounds the f32 packet kernels (`docs/speed.md`).
-//! The price is accuracy, and it is the caller's choice ([`crate::model::Model::eval_many_half`]): every
-//! product and partial sum is rounded to f16 (11 significant bits, largest finite value 65504).
-//! Inputs and starting accumulators are rounded to f16 on the way in, results widened to f32 on the
-//! way out (ReLU after widening), so layers still hand each other f32 buffers and the output layer
-//! (3 outputs, no ReLU) stays with the f32 kernels.
+//! instruction: the way past the f32 FMA rate, which bounds the f32 packet kernels (`docs/speed.md`),
+//! and half the bytes a single query streams from cache. The price is accuracy, and it is the
+//! caller's choice ([`crate::model::Model::eval_many_half`], [`crate::model::Model::eval_half`]): every
+//! product and partial sum is rounded to f16 (11 significant bits, largest finite value 65504; the
+//! rounding of the MXCSR, to nearest unless the caller changed it). Inputs and starting accumulators
+//! are rounded to f16 on the way in, results widened to f32 on the way out (ReLU after widening), so
+//! layers still hand each other f32 values and the output layer (3 or 6 outputs, no ReLU) stays with
+//! the f32 kernels.
 //!
-//! Register tile: the 16 queries × 32 outputs (one vector of halves each) in 16 accumulators; per
-//! input row one weight vector and 16 multiply-adds whose input is broadcast from a transposed copy
-//! of the inputs (`vfmadd231ph m16{1to32}`, one fused micro-op on Intel cores), as the f32 tile.
+//! Packet tile: the 16 queries × 32 outputs (one vector of halves each) in 16 accumulators; per input
+//! row one weight vector and 16 multiply-adds whose input is broadcast from a transposed copy of the
+//! inputs (`vfmadd231ph m16{1to32}`, one fused micro-op on Intel cores), as the f32 tile. One query:
+//! its nonzero inputs gathered with their row offsets (`x86::compress`), 4 vectors of 32 outputs per
+//! row, the rows alternating between two sets of accumulators.
 
 use core::arch::x86_64::*;
 
