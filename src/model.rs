@@ -81,6 +81,9 @@ impl Prepared {
 pub struct Model<'a> {
     header: ModelHeader,
     weights: Weights<'a>,
+    /// A cache-line-aligned copy of the per-query (last) network's weights that replaces them in
+    /// evaluation, where the file's own cannot be aligned (see [`ModelBuf`]).
+    query: Option<Weights<'a>>,
     object: [f32; MAX_OBJECT],
     table: &'a [f32],
 }
@@ -160,7 +163,7 @@ impl<'a> Model<'a> {
         }
         // SAFETY: as above.
         let table = unsafe { cast_slice::<f32>(&bytes[s.table.0..s.table.1]) };
-        Ok(Model { header, weights, object, table })
+        Ok(Model { header, weights, query: None, object, table })
     }
 
     #[cfg(not(target_endian = "little"))]
@@ -250,8 +253,8 @@ impl<'a> Model<'a> {
             _ => p,
         };
         match self.weights {
-            Weights::F32(w) => self.prepare_with(&self.nets(w), pos, &mut prepared),
-            Weights::F16(w) => self.prepare_with(&self.nets(w), pos, &mut prepared),
+            Weights::F32(w) => self.prepare_with(&self.nets_f32(w), pos, &mut prepared),
+            Weights::F16(w) => self.prepare_with(&self.nets_f16(w), pos, &mut prepared),
         }
         prepared.valid = true;
         prepared
@@ -310,8 +313,8 @@ impl<'a> Model<'a> {
             return BLACK;
         };
         let f = match self.weights {
-            Weights::F32(w) => self.eval_with(math, &self.nets(w), prepared, &enc[..n]),
-            Weights::F16(w) => self.eval_with(math, &self.nets(w), prepared, &enc[..n]),
+            Weights::F32(w) => self.eval_with(math, &self.nets_f32(w), prepared, &enc[..n]),
+            Weights::F16(w) => self.eval_with(math, &self.nets_f16(w), prepared, &enc[..n]),
         };
         sanitize(f)
     }
@@ -480,8 +483,8 @@ impl<'a> Model<'a> {
             }
             if filled == PACKET || (i + 1 == n && filled > 0) {
                 let f = match self.weights {
-                    Weights::F32(w) => self.eval_packet_with(math, &self.nets(w), prepared, &enc, len),
-                    Weights::F16(w) => self.eval_packet_with(math, &self.nets(w), prepared, &enc, len),
+                    Weights::F32(w) => self.eval_packet_with(math, &self.nets_f32(w), prepared, &enc, len),
+                    Weights::F16(w) => self.eval_packet_with(math, &self.nets_f16(w), prepared, &enc, len),
                 };
                 for (&i, f) in index[..filled].iter().zip(f) {
                     put(i, sanitize(f));
@@ -491,17 +494,40 @@ impl<'a> Model<'a> {
         }
     }
 
-    /// Views of the networks over the weights, in file order.
+    /// Views of the networks over the weights, in file order; the last over `query` where given.
     #[inline]
-    fn nets<W: Weight>(&self, w: &'a [W]) -> [Net<'a, W>; MAX_NETS] {
+    fn nets<W: Weight>(&self, w: &'a [W], query: Option<&'a [W]>) -> [Net<'a, W>; MAX_NETS] {
         let mut nets = [Net { desc: NetDesc::default(), weights: &w[..0] }; MAX_NETS];
         let mut off = 0;
-        for (net, desc) in nets.iter_mut().zip(self.header.nets()) {
+        let last = self.header.nets().len().saturating_sub(1);
+        for (i, (net, desc)) in nets.iter_mut().zip(self.header.nets()).enumerate() {
             let n = desc.n_weights();
-            *net = Net { desc: *desc, weights: &w[off..off + n] };
+            let weights = match query {
+                Some(q) if i == last => &q[..n],
+                _ => &w[off..off + n],
+            };
+            *net = Net { desc: *desc, weights };
             off += n;
         }
         nets
+    }
+
+    /// [`Model::nets`] of f32 weights.
+    #[inline]
+    fn nets_f32(&self, w: &'a [f32]) -> [Net<'a, f32>; MAX_NETS] {
+        self.nets(w, match self.query {
+            Some(Weights::F32(q)) => Some(q),
+            _ => None,
+        })
+    }
+
+    /// [`Model::nets`] of f16 weights.
+    #[inline]
+    fn nets_f16(&self, w: &'a [half::f16]) -> [Net<'a, half::f16>; MAX_NETS] {
+        self.nets(w, match self.query {
+            Some(Weights::F16(q)) => Some(q),
+            _ => None,
+        })
     }
 
     #[inline]
@@ -573,11 +599,17 @@ impl<'a> Model<'a> {
 /// 128 weights as vectors, and a row that straddles cache lines costs each of its loads two lines (on
 /// this project's Zen 4 machine ~12% of a single Single MLP query). The file format only promises
 /// 4-byte alignment (`file` module docs); `Model::from_bytes` on a caller's buffer gets the same speed
-/// when the caller aligns the same offset ([`Model::query_weights_offset_of`]).
+/// when the caller aligns the same offset ([`Model::query_weights_offset_of`]). An f16 network that
+/// starts at an odd element (after networks of odd size: the additive models) cannot sit on a line
+/// while the file's f32 sections stay 4-byte aligned; `ModelBuf` then evaluates an aligned copy of it
+/// (the same values; without it every vector load of that network spans two lines, and a single
+/// Additive Separate query took 1.2× the time).
 #[cfg(feature = "alloc")]
 #[derive(Clone, Debug)]
 pub struct ModelBuf {
     lines: alloc::vec::Vec<CacheLine>,
+    /// The aligned copy of the per-query network's weights, where the file's cannot be aligned.
+    query: Option<alloc::vec::Vec<CacheLine>>,
     /// Where the file starts in `lines`, in bytes (a multiple of 4, below 64).
     shift: usize,
     len: usize,
@@ -607,7 +639,16 @@ impl ModelBuf {
         // `u8` arrays, so its bytes may be viewed and written as one `u8` slice.
         let store = unsafe { core::slice::from_raw_parts_mut(lines.as_mut_ptr().cast::<u8>(), lines.len() * 64) };
         store[shift..shift + bytes.len()].copy_from_slice(bytes);
-        let buf = ModelBuf { lines, shift, len: bytes.len(), header, sections };
+        let at = Model::query_weights_offset(&header, &sections);
+        let query = ((at + shift) % 64 != 0).then(|| {
+            let n = header.nets().last().map_or(0, crate::mlp::NetDesc::n_weights) * header.precision.size();
+            let mut copy = alloc::vec![CacheLine([0; 64]); n.div_ceil(64)];
+            // SAFETY: as for `lines`: one allocation of at least `n` plain bytes.
+            let dst = unsafe { core::slice::from_raw_parts_mut(copy.as_mut_ptr().cast::<u8>(), copy.len() * 64) };
+            dst[..n].copy_from_slice(&bytes[at..at + n]);
+            copy
+        });
+        let buf = ModelBuf { lines, query, shift, len: bytes.len(), header, sections };
         // Surface host-dependent failures (byte order) here rather than at every `model()` call.
         Model::from_parsed(buf.bytes(), header, &sections)?;
         Ok(buf)
@@ -637,10 +678,55 @@ impl ModelBuf {
 
     /// The evaluator over this buffer (no re-validation; cheap).
     pub fn model(&self) -> Model<'_> {
-        match Model::from_parsed(self.bytes(), self.header, &self.sections) {
+        let mut model = match Model::from_parsed(self.bytes(), self.header, &self.sections) {
             Ok(m) => m,
             // `from_bytes` ran the same conversion on the same bytes and header successfully.
             Err(_) => unreachable!("ModelBuf was validated at construction"),
+        };
+        if let Some(copy) = &self.query {
+            let n = self.header.nets().last().map_or(0, crate::mlp::NetDesc::n_weights);
+            let bytes = copy.as_ptr().cast::<u8>();
+            // SAFETY: the copy holds the network's `n` weights from a 64-byte boundary (`from_bytes`),
+            // in the model's precision; f32 and f16 accept every bit pattern.
+            model.query = Some(unsafe {
+                match self.header.precision {
+                    Precision::F32 => Weights::F32(core::slice::from_raw_parts(bytes.cast::<f32>(), n)),
+                    Precision::F16 => Weights::F16(core::slice::from_raw_parts(bytes.cast::<half::f16>(), n)),
+                }
+            });
+        }
+        model
+    }
+}
+
+#[cfg(all(test, feature = "alloc"))]
+mod tests {
+    use super::*;
+    use crate::file::{encode, ModelKind, PositionEncoding, Reciprocity};
+
+    /// The per-query network's weights start on a cache line in every `ModelBuf`: the file's own
+    /// where they can (f32; an f16 network at an even element), else an aligned copy.
+    #[test]
+    fn model_buf_puts_the_per_query_network_on_a_cache_line() {
+        for kind in [ModelKind::SingleMlp, ModelKind::AdditiveSeparate, ModelKind::AdditiveShared] {
+            for precision in [Precision::F32, Precision::F16] {
+                let mut h = ModelHeader::paper(kind, false, Reciprocity::Exact, PositionEncoding::Intrinsic { k: 64 }, 4);
+                h.precision = precision;
+                let buf = ModelBuf::from_bytes(&encode(&h, &alloc::vec![0.01; h.n_weights()], None).unwrap()).unwrap();
+                let model = buf.model();
+                let nets = match model.weights {
+                    Weights::F32(w) => model.nets_f32(w).map(|n| n.weights.as_ptr() as usize),
+                    Weights::F16(w) => model.nets_f16(w).map(|n| n.weights.as_ptr() as usize),
+                };
+                let last = h.nets().len() - 1;
+                assert_eq!(nets[last] % 64, 0, "{kind:?} {precision:?}");
+                // A copy only where the file's own weights are off the line.
+                let in_file = match model.weights {
+                    Weights::F32(w) => w.as_ptr() as usize + 4 * h.nets()[..last].iter().map(NetDesc::n_weights).sum::<usize>(),
+                    Weights::F16(w) => w.as_ptr() as usize + 2 * h.nets()[..last].iter().map(NetDesc::n_weights).sum::<usize>(),
+                };
+                assert_eq!(model.query.is_some(), in_file % 64 != 0, "{kind:?} {precision:?}");
+            }
         }
     }
 }

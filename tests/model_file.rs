@@ -555,6 +555,40 @@ fn half_math_batches_stay_close_to_f32_and_independent_of_their_neighbours() {
     }
 }
 
+/// A `ModelBuf` (which may evaluate an aligned copy of the per-query network) and `Model::from_bytes`
+/// over a caller's 4-aligned buffer (the file's weights in place) give the same bits.
+#[test]
+fn model_buf_and_a_caller_buffer_evaluate_alike() {
+    for kind in [ModelKind::SingleMlp, ModelKind::AdditiveSeparate, ModelKind::AdditiveShared] {
+        for precision in [Precision::F32, Precision::F16] {
+            let mut h = ModelHeader::paper(kind, kind.is_additive(), Reciprocity::Exact, PositionEncoding::Intrinsic { k: 6 }, 3);
+            h.precision = precision;
+            let bytes = encode(&h, &weights(h.n_weights(), 5, 0.15), None).unwrap();
+            let buf = ModelBuf::from_bytes(&bytes).unwrap();
+            let mut words = vec![0u32; bytes.len().div_ceil(4)];
+            for (w, c) in words.iter_mut().zip(bytes.chunks(4)) {
+                let mut b = [0u8; 4];
+                b[..c.len()].copy_from_slice(c);
+                *w = u32::from_ne_bytes(b);
+            }
+            // SAFETY: `words` holds at least `bytes.len()` initialised bytes.
+            let aligned = unsafe { std::slice::from_raw_parts(words.as_ptr().cast::<u8>(), bytes.len()) };
+            let (a, b) = (buf.model(), Model::from_bytes(aligned).unwrap());
+            let point = [0.1, 0.5, -0.3, 0.2, 0.0, 0.9];
+            let (pa, pb) = (a.prepare(&point), b.prepare(&point));
+            let (wi, wo) = pairs(40, 3);
+            let (mut ma, mut mb) = (vec![[0.0; 3]; 40], vec![[0.0; 3]; 40]);
+            a.eval_many(&pa, &wi, &wo, &mut ma);
+            b.eval_many(&pb, &wi, &wo, &mut mb);
+            assert_eq!(ma, mb, "{kind:?} {precision:?}: batches");
+            for i in 0..40 {
+                assert_eq!(a.eval(&pa, wi[i], wo[i]), b.eval(&pb, wi[i], wo[i]), "{kind:?} {precision:?} pair {i}");
+                assert_eq!(a.eval_half(&pa, wi[i], wo[i]), b.eval_half(&pb, wi[i], wo[i]), "{kind:?} {precision:?} pair {i}, half");
+            }
+        }
+    }
+}
+
 #[test]
 fn batched_parametric_models_and_invalid_points_match_single_queries() {
     let h = ModelHeader::paper(ModelKind::Parametric(ParametricKind::Phong), false, Reciprocity::None, PositionEncoding::Intrinsic { k: 4 }, 0);
