@@ -640,7 +640,7 @@ impl ModelBuf {
         let store = unsafe { core::slice::from_raw_parts_mut(lines.as_mut_ptr().cast::<u8>(), lines.len() * 64) };
         store[shift..shift + bytes.len()].copy_from_slice(bytes);
         let at = Model::query_weights_offset(&header, &sections);
-        let query = ((at + shift) % 64 != 0).then(|| {
+        let query = (!(at + shift).is_multiple_of(64)).then(|| {
             let n = header.nets().last().map_or(0, crate::mlp::NetDesc::n_weights) * header.precision.size();
             let mut copy = alloc::vec![CacheLine([0; 64]); n.div_ceil(64)];
             // SAFETY: as for `lines`: one allocation of at least `n` plain bytes.
