@@ -26,6 +26,9 @@ use super::{Chain, Dense, Init, CHAIN_TAIL_MAX, CHAIN_WIDTH, PACKET};
 /// Outputs per register tile: one vector of halves.
 const TILE: usize = 32;
 
+/// f32 → f16 rounding: to nearest, ties to even, no exceptions.
+const ROUND: i32 = _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC;
+
 /// Whether the CPU has AVX512-FP16 (with the AVX-512 base the tile needs): detected once with
 /// `std`, the compile-time target features without it.
 pub(super) fn available() -> bool {
@@ -68,7 +71,7 @@ unsafe fn transpose_inputs(x: *const f32, stride: usize, n: usize, xt: *mut u16)
     // SAFETY: column `i < n` goes to `xt[i * PACKET..]`, within the room (contract).
     unsafe {
         transpose_columns(x, stride, n, |i, c| {
-            let h = _mm512_cvtps_ph::<{ _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC }>(c);
+            let h = _mm512_cvtps_ph::<ROUND>(c);
             _mm256_storeu_si256(xt.add(i * PACKET).cast::<__m256i>(), h);
         })
     }
@@ -81,12 +84,35 @@ unsafe fn transpose_inputs(x: *const f32, stride: usize, n: usize, xt: *mut u16)
 #[inline]
 #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
 unsafe fn load_rounded(p: *const f32, m: __mmask32) -> __m512i {
-    const R: i32 = _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC;
     // SAFETY: masked loads read only the lanes in `m` (contract).
     unsafe {
-        let lo = _mm512_cvtps_ph::<R>(_mm512_maskz_loadu_ps(m as __mmask16, p));
-        let hi = _mm512_cvtps_ph::<R>(_mm512_maskz_loadu_ps((m >> 16) as __mmask16, p.add(16)));
+        let lo = _mm512_cvtps_ph::<ROUND>(_mm512_maskz_loadu_ps(m as __mmask16, p));
+        let hi = _mm512_cvtps_ph::<ROUND>(_mm512_maskz_loadu_ps((m >> 16) as __mmask16, p.add(16)));
         _mm512_inserti64x4::<1>(_mm512_castsi256_si512(lo), hi)
+    }
+}
+
+/// A vector of halves widened to f32, lanes 0..16 and 16..32, after ReLU where `relu`.
+#[inline]
+#[target_feature(enable = "avx512fp16,avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
+fn widen(a: __m512h, relu: bool) -> [__m512; 2] {
+    let a = _mm512_castph_si512(a);
+    let v = [_mm512_cvtph_ps(_mm512_castsi512_si256(a)), _mm512_cvtph_ps(_mm512_extracti64x4_epi64::<1>(a))];
+    if relu { v.map(|v| _mm512_max_ps(v, _mm512_setzero_ps())) } else { v }
+}
+
+/// Stores the lanes of `m` of a vector of halves, widened to f32 (after ReLU where `relu`), at `p`.
+///
+/// # Safety
+/// The lanes in `m` are writable at `p`.
+#[inline]
+#[target_feature(enable = "avx512fp16,avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
+unsafe fn store_widened(p: *mut f32, m: __mmask32, a: __m512h, relu: bool) {
+    let [lo, hi] = widen(a, relu);
+    // SAFETY: masked stores write only the lanes in `m` (contract).
+    unsafe {
+        _mm512_mask_storeu_ps(p, m as __mmask16, lo);
+        _mm512_mask_storeu_ps(p.add(16), (m >> 16) as __mmask16, hi);
     }
 }
 
@@ -137,15 +163,8 @@ unsafe fn tile<const MASKED: bool>(
                 r = r.add(n);
             }
         }
-        let zero = _mm512_setzero_ps();
         for (q, a) in acc.iter().enumerate() {
-            let a = _mm512_castph_si512(*a);
-            let lo = _mm512_cvtph_ps(_mm512_castsi512_si256(a));
-            let hi = _mm512_cvtph_ps(_mm512_extracti64x4_epi64::<1>(a));
-            let (lo, hi) = if relu { (_mm512_max_ps(lo, zero), _mm512_max_ps(hi, zero)) } else { (lo, hi) };
-            let p = out.add(q * os + o);
-            _mm512_mask_storeu_ps(p, m as __mmask16, lo);
-            _mm512_mask_storeu_ps(p.add(16), (m >> 16) as __mmask16, hi);
+            store_widened(out.add(q * os + o), m, *a, relu);
         }
     }
 }
@@ -218,16 +237,14 @@ pub(super) unsafe fn one(l: &Dense<'_, half::f16>, out: *mut f32) {
     }
 }
 
-/// Outputs `o .. o + 128` (the lanes of `m`, vector by vector) of [`one`]. Rows alternate between two
-/// sets of accumulators, summed at the end, so that the chain of multiply-adds does not wait four
-/// cycles per row.
+/// Outputs `o .. o + 128` (the lanes of `m`, vector by vector) of [`one`], gathered input by
+/// gathered input through [`accumulate4`].
 ///
 /// # Safety
 /// As [`one`]; the lanes in `m` lie below `n_out`.
 #[inline]
 #[target_feature(enable = "avx512fp16,avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
 unsafe fn one_tile<const MASKED: bool>(l: &Dense<'_, half::f16>, out: *mut f32, o: usize, m: [__mmask32; 4]) {
-    const R: i32 = _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC;
     let n = l.n_out;
     let mut xs = [core::mem::MaybeUninit::<__m512>::uninit(); GATHER / 16];
     let mut offs = [core::mem::MaybeUninit::<__m512i>::uninit(); GATHER / 16];
@@ -239,53 +256,20 @@ unsafe fn one_tile<const MASKED: bool>(l: &Dense<'_, half::f16>, out: *mut f32, 
     // below `len` are read.
     unsafe {
         let zero = _mm512_castsi512_ph(_mm512_setzero_si512());
-        let mut a0: [__m512h; 4] = core::array::from_fn(|k| _mm512_castsi512_ph(load_rounded(l.init.as_ptr().add(o + 32 * k), m[k])));
-        let mut a1: [__m512h; 4] = [zero; 4];
+        let first = core::array::from_fn(|k| _mm512_castsi512_ph(load_rounded(l.init.as_ptr().add(o + 32 * k), m[k])));
+        let mut acc = [first, [zero; 4]];
         for s in &l.segs[..l.n_segs] {
             let mut i0 = 0;
             while i0 < s.n {
                 let c = (s.n - i0).min(GATHER);
                 let len = compress(s.x.as_ptr().add(i0), c, (2 * n) as u32, xs, offs);
-                let mut j = 0;
-                while j < len {
-                    let h = _mm512_cvtps_ph::<R>(_mm512_maskz_loadu_ps(mask16(len - j), xs.add(j)));
-                    _mm256_storeu_si256(hx.add(j).cast::<__m256i>(), h);
-                    j += 16;
-                }
-                let base = s.rows.as_ptr().add(i0 * n + o).cast::<u8>();
-                let row = |j: usize, a: &mut [__m512h; 4]| {
-                    let r = base.add(*offs.add(j) as usize).cast::<i16>();
-                    let xb = _mm512_castsi512_ph(_mm512_set1_epi16(*hx.add(j) as i16));
-                    for (k, a) in a.iter_mut().enumerate() {
-                        let w = if MASKED {
-                            _mm512_maskz_loadu_epi16(m[k], r.add(32 * k))
-                        } else {
-                            _mm512_loadu_si512(r.add(32 * k).cast::<__m512i>())
-                        };
-                        *a = _mm512_fmadd_ph(xb, _mm512_castsi512_ph(w), *a);
-                    }
-                };
-                let mut j = 0;
-                while j + 2 <= len {
-                    row(j, &mut a0);
-                    row(j + 1, &mut a1);
-                    j += 2;
-                }
-                if j < len {
-                    row(j, &mut a0);
-                }
+                round_list(xs, len, hx);
+                accumulate4::<MASKED>(&mut acc, m, hx, offs, s.rows.as_ptr().add(i0 * n + o).cast(), len);
                 i0 += c;
             }
         }
-        let zero = _mm512_setzero_ps();
         for k in 0..4 {
-            let a = _mm512_castph_si512(_mm512_add_ph(a0[k], a1[k]));
-            let lo = _mm512_cvtph_ps(_mm512_castsi512_si256(a));
-            let hi = _mm512_cvtph_ps(_mm512_extracti64x4_epi64::<1>(a));
-            let (lo, hi) = if l.relu { (_mm512_max_ps(lo, zero), _mm512_max_ps(hi, zero)) } else { (lo, hi) };
-            let p = out.add(o + 32 * k);
-            _mm512_mask_storeu_ps(p, m[k] as __mmask16, lo);
-            _mm512_mask_storeu_ps(p.add(16), (m[k] >> 16) as __mmask16, hi);
+            store_widened(out.add(o + 32 * k), m[k], _mm512_add_ph(acc[0][k], acc[1][k]), l.relu);
         }
     }
 }
@@ -298,12 +282,11 @@ unsafe fn one_tile<const MASKED: bool>(l: &Dense<'_, half::f16>, out: *mut f32, 
 #[inline]
 #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
 unsafe fn round_list(xs: *const f32, len: usize, hx: *mut u16) {
-    const R: i32 = _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC;
     let mut j = 0;
     while j < len {
         // SAFETY: lanes below `len` only are read; whole vectors stored within the room (contract).
         unsafe {
-            let h = _mm512_cvtps_ph::<R>(_mm512_maskz_loadu_ps(mask16(len - j), xs.add(j)));
+            let h = _mm512_cvtps_ph::<ROUND>(_mm512_maskz_loadu_ps(mask16(len - j), xs.add(j)));
             _mm256_storeu_si256(hx.add(j).cast::<__m256i>(), h);
         }
         j += 16;
@@ -311,21 +294,31 @@ unsafe fn round_list(xs: *const f32, len: usize, hx: *mut u16) {
 }
 
 /// `Σ_j x_j row_j` in f16 over a compressed list (f16 inputs `hx`, row byte offsets `offs` from
-/// `base`), 128 outputs, the rows alternating between `acc[0]` and `acc[1]` (added when the layer is
-/// done: the order of [`one_tile`], so that a chain gives the bits of its layers run one by one).
+/// `base`), 128 outputs (the lanes of `m` where `MASKED`), the rows alternating between `acc[0]` and
+/// `acc[1]` (added when the layer is done). The one-query kernel and the chain both sum through
+/// here, so a chain gives the bits of its layers run one by one.
 ///
 /// # Safety
-/// Each listed offset from `base` starts a row of at least 128 halves; `len` entries.
+/// Each listed offset from `base` starts a row of at least 128 halves (the lanes of `m`); `len`
+/// entries.
 #[inline]
 #[target_feature(enable = "avx512fp16,avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
-unsafe fn accumulate4(acc: &mut [[__m512h; 4]; 2], hx: *const u16, offs: *const u32, base: *const u8, len: usize) {
+unsafe fn accumulate4<const MASKED: bool>(
+    acc: &mut [[__m512h; 4]; 2],
+    m: [__mmask32; 4],
+    hx: *const u16,
+    offs: *const u32,
+    base: *const u8,
+    len: usize,
+) {
     // SAFETY: see the contract.
     unsafe {
         let row = |j: usize, a: &mut [__m512h; 4]| {
             let r = base.add(*offs.add(j) as usize).cast::<__m512i>();
             let xb = _mm512_castsi512_ph(_mm512_set1_epi16(*hx.add(j) as i16));
             for (k, a) in a.iter_mut().enumerate() {
-                *a = _mm512_fmadd_ph(xb, _mm512_castsi512_ph(_mm512_loadu_si512(r.add(k))), *a);
+                let w = if MASKED { _mm512_maskz_loadu_epi16(m[k], r.add(k).cast::<i16>()) } else { _mm512_loadu_si512(r.add(k)) };
+                *a = _mm512_fmadd_ph(xb, _mm512_castsi512_ph(w), *a);
             }
         };
         let [a0, a1] = acc;
@@ -345,12 +338,8 @@ unsafe fn accumulate4(acc: &mut [[__m512h; 4]; 2], hx: *const u16, offs: *const 
 #[inline]
 #[target_feature(enable = "avx512fp16,avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
 fn widen8(h: &[[__m512h; 4]; 2], relu: bool) -> [__m512; 8] {
-    let zero = _mm512_setzero_ps();
-    core::array::from_fn(|k| {
-        let a = _mm512_castph_si512(_mm512_add_ph(h[0][k / 2], h[1][k / 2]));
-        let v = _mm512_cvtph_ps(if k % 2 == 0 { _mm512_castsi512_si256(a) } else { _mm512_extracti64x4_epi64::<1>(a) });
-        if relu { _mm512_max_ps(v, zero) } else { v }
-    })
+    let w: [[__m512; 2]; 4] = core::array::from_fn(|k| widen(_mm512_add_ph(h[0][k], h[1][k]), relu));
+    core::array::from_fn(|k| w[k / 2][k % 2])
 }
 
 /// One query through the hidden layers of a [`Chain`] of half weights in f16 arithmetic, the
@@ -388,14 +377,14 @@ pub(super) unsafe fn chain(c: &Chain<'_, half::f16>, out: *mut f32) {
             [a, [zero; 4]]
         };
         let mut h = init(&Init::F32(c.first_init));
-        accumulate4(&mut h, th, to, c.first_rows.as_ptr().cast(), tlen);
+        accumulate4::<false>(&mut h, [u32::MAX; 4], th, to, c.first_rows.as_ptr().cast(), tlen);
         for l in c.hidden {
             let len = compress8(&widen8(&h, true), row_bytes, xp, op);
             round_list(xp, len, hp);
             let mut acc = init(&l.init);
-            accumulate4(&mut acc, hp, op, l.rows.as_ptr().cast(), len);
+            accumulate4::<false>(&mut acc, [u32::MAX; 4], hp, op, l.rows.as_ptr().cast(), len);
             if let Some(t) = l.tail_rows {
-                accumulate4(&mut acc, th, to, t.as_ptr().cast(), tlen);
+                accumulate4::<false>(&mut acc, [u32::MAX; 4], th, to, t.as_ptr().cast(), tlen);
             }
             h = acc;
         }
