@@ -100,6 +100,21 @@ unsafe fn cast_slice<T>(bytes: &[u8]) -> &[T] {
     unsafe { core::slice::from_raw_parts(bytes.as_ptr().cast::<T>(), bytes.len() / core::mem::size_of::<T>()) }
 }
 
+/// Network weights of `precision` over validated, aligned little-endian bytes.
+///
+/// # Safety
+/// As [`cast_slice`] for the precision's element type.
+#[cfg(target_endian = "little")]
+unsafe fn weights_of(precision: Precision, bytes: &[u8]) -> Weights<'_> {
+    // SAFETY: guaranteed by the caller; f32 and f16 accept every bit pattern.
+    unsafe {
+        match precision {
+            Precision::F32 => Weights::F32(cast_slice::<f32>(bytes)),
+            Precision::F16 => Weights::F16(cast_slice::<half::f16>(bytes)),
+        }
+    }
+}
+
 impl<'a> Model<'a> {
     /// Validates a model file in place and borrows its weights without copying.
     ///
@@ -137,22 +152,22 @@ impl<'a> Model<'a> {
 
     /// See [`Model::query_weights_offset_of`].
     pub(crate) fn query_weights_offset(header: &ModelHeader, sections: &Sections) -> usize {
+        Self::query_weights_range(header, sections).start
+    }
+
+    /// The bytes of the per-query (last) network's weights in the file.
+    pub(crate) fn query_weights_range(header: &ModelHeader, sections: &Sections) -> core::ops::Range<usize> {
         let nets = header.nets();
-        let before: usize = nets[..nets.len().saturating_sub(1)].iter().map(crate::mlp::NetDesc::n_weights).sum();
-        sections.weights.0 + before * header.precision.size()
+        let (before, last) = nets.split_at(nets.len().saturating_sub(1));
+        let start = sections.weights.0 + before.iter().map(NetDesc::n_weights).sum::<usize>() * header.precision.size();
+        start..start + last.iter().map(NetDesc::n_weights).sum::<usize>() * header.precision.size()
     }
 
     #[cfg(target_endian = "little")]
     pub(crate) fn from_parsed(bytes: &'a [u8], header: ModelHeader, s: &Sections) -> Result<Self, Error> {
-        let w = &bytes[s.weights.0..s.weights.1];
         // SAFETY: `parse` checked the section bounds; sections start at multiples of 4 of a 4-aligned
-        // buffer and hold whole elements; f32 and f16 accept every bit pattern.
-        let weights = unsafe {
-            match header.precision {
-                Precision::F32 => Weights::F32(cast_slice::<f32>(w)),
-                Precision::F16 => Weights::F16(cast_slice::<half::f16>(w)),
-            }
-        };
+        // buffer and hold whole elements.
+        let weights = unsafe { weights_of(header.precision, &bytes[s.weights.0..s.weights.1]) };
         let mut object = [0.0f32; MAX_OBJECT];
         let obj = &bytes[s.object.0..s.object.1];
         if obj.len() / 4 > MAX_OBJECT {
@@ -295,8 +310,10 @@ impl<'a> Model<'a> {
         self.eval_in(Arithmetic::HalfHidden, prepared, wi, wo)
     }
 
+    /// [`Model::eval`] (`math` = [`Arithmetic::F32`]) or [`Model::eval_half`]
+    /// ([`Arithmetic::HalfHidden`]), for callers that choose the arithmetic at run time.
     #[inline(always)]
-    fn eval_in(&self, math: Arithmetic, prepared: &Prepared, wi: Vec3, wo: Vec3) -> Rgb {
+    pub fn eval_in(&self, math: Arithmetic, prepared: &Prepared, wi: Vec3, wo: Vec3) -> Rgb {
         // 0.83x the time of an FMBRDF query in a loop of independent ones (see `load_pair`).
         let (wi, wo) = crate::math::load_pair(&wi, &wo);
         if !prepared.valid {
@@ -625,6 +642,25 @@ pub struct ModelBuf {
 struct CacheLine([u8; 64]);
 
 #[cfg(feature = "alloc")]
+impl CacheLine {
+    /// Lines holding `bytes` from byte `shift` of the first (zeros around them).
+    fn copy_of(bytes: &[u8], shift: usize) -> alloc::vec::Vec<CacheLine> {
+        let mut lines = alloc::vec![CacheLine([0; 64]); (shift + bytes.len()).div_ceil(64)];
+        // SAFETY: as in `bytes`, and the lines are borrowed mutably.
+        let store = unsafe { core::slice::from_raw_parts_mut(lines.as_mut_ptr().cast::<u8>(), lines.len() * 64) };
+        store[shift..shift + bytes.len()].copy_from_slice(bytes);
+        lines
+    }
+
+    /// The bytes of consecutive lines.
+    fn bytes(lines: &[CacheLine]) -> &[u8] {
+        // SAFETY: `CacheLine` is `repr(C)` over a `[u8; 64]` with no padding (its alignment divides 64),
+        // so a slice of lines is `64 × len` initialised bytes; u8 has no alignment requirement.
+        unsafe { core::slice::from_raw_parts(lines.as_ptr().cast::<u8>(), lines.len() * 64) }
+    }
+}
+
+#[cfg(feature = "alloc")]
 impl ModelBuf {
     /// Copies `bytes` into storage whose per-query network starts on a 64-byte boundary, and validates
     /// them as a model file.
@@ -634,20 +670,9 @@ impl ModelBuf {
         // Shifts are whole words, keeping the 4-byte alignment that `Model` needs for every section
         // (an f16 network that starts mid-word ends up 2 bytes short of a line).
         let shift = shift & !3;
-        let mut lines = alloc::vec![CacheLine([0; 64]); (shift + bytes.len()).div_ceil(64)];
-        // SAFETY: `lines` is one allocation of `64 × lines.len() ≥ shift + bytes.len()` bytes of plain
-        // `u8` arrays, so its bytes may be viewed and written as one `u8` slice.
-        let store = unsafe { core::slice::from_raw_parts_mut(lines.as_mut_ptr().cast::<u8>(), lines.len() * 64) };
-        store[shift..shift + bytes.len()].copy_from_slice(bytes);
-        let at = Model::query_weights_offset(&header, &sections);
-        let query = (!(at + shift).is_multiple_of(64)).then(|| {
-            let n = header.nets().last().map_or(0, crate::mlp::NetDesc::n_weights) * header.precision.size();
-            let mut copy = alloc::vec![CacheLine([0; 64]); n.div_ceil(64)];
-            // SAFETY: as for `lines`: one allocation of at least `n` plain bytes.
-            let dst = unsafe { core::slice::from_raw_parts_mut(copy.as_mut_ptr().cast::<u8>(), copy.len() * 64) };
-            dst[..n].copy_from_slice(&bytes[at..at + n]);
-            copy
-        });
+        let lines = CacheLine::copy_of(bytes, shift);
+        let q = Model::query_weights_range(&header, &sections);
+        let query = (!(q.start + shift).is_multiple_of(64)).then(|| CacheLine::copy_of(&bytes[q], 0));
         let buf = ModelBuf { lines, query, shift, len: bytes.len(), header, sections };
         // Surface host-dependent failures (byte order) here rather than at every `model()` call.
         Model::from_parsed(buf.bytes(), header, &sections)?;
@@ -661,9 +686,7 @@ impl ModelBuf {
     }
 
     fn bytes(&self) -> &[u8] {
-        // SAFETY: `lines` holds at least `shift + len` initialised bytes (see `from_bytes`); u8 has no
-        // alignment requirement.
-        unsafe { core::slice::from_raw_parts(self.lines.as_ptr().cast::<u8>().add(self.shift), self.len) }
+        &CacheLine::bytes(&self.lines)[self.shift..self.shift + self.len]
     }
 
     /// The file bytes, e.g. to write them elsewhere.
@@ -684,16 +707,9 @@ impl ModelBuf {
             Err(_) => unreachable!("ModelBuf was validated at construction"),
         };
         if let Some(copy) = &self.query {
-            let n = self.header.nets().last().map_or(0, crate::mlp::NetDesc::n_weights);
-            let bytes = copy.as_ptr().cast::<u8>();
-            // SAFETY: the copy holds the network's `n` weights from a 64-byte boundary (`from_bytes`),
-            // in the model's precision; f32 and f16 accept every bit pattern.
-            model.query = Some(unsafe {
-                match self.header.precision {
-                    Precision::F32 => Weights::F32(core::slice::from_raw_parts(bytes.cast::<f32>(), n)),
-                    Precision::F16 => Weights::F16(core::slice::from_raw_parts(bytes.cast::<half::f16>(), n)),
-                }
-            });
+            let n = Model::query_weights_range(&self.header, &self.sections).len();
+            // SAFETY: the copy holds the network's weights from a 64-byte boundary (`from_bytes`).
+            model.query = Some(unsafe { weights_of(self.header.precision, &CacheLine::bytes(copy)[..n]) });
         }
         model
     }

@@ -346,6 +346,10 @@ impl<W: 'static> Kernels<W> {
 
 /// A weight type with kernels: `f32` and `half::f16`.
 pub trait KernelWeight: Sized + 'static {
+    /// Whether the half-precision kernels take this weight type (half weights).
+    #[doc(hidden)]
+    const HALF: bool;
+
     /// The kernels of `level`, which must be at most [`detected`] (lower levels are always safe).
     #[doc(hidden)]
     fn table(level: Level) -> &'static Kernels<Self>;
@@ -353,10 +357,6 @@ pub trait KernelWeight: Sized + 'static {
     /// [`packet_half_math`] for this weight type: `false` (nothing run) but for half weights.
     #[doc(hidden)]
     fn packet_half_math(layer: &Dense<'_, Self>, out: &mut [f32], out_stride: usize) -> bool;
-
-    /// Whether the half-precision kernels take this weight type (half weights).
-    #[doc(hidden)]
-    const HALF: bool;
 
     /// [`one_half_math`] for this weight type: `false` (nothing run) but for half weights.
     #[doc(hidden)]
@@ -458,8 +458,8 @@ pub fn packet_half_math(layer: &Dense<'_, half::f16>, out: &mut [f32], out_strid
 /// output layer: `out: None`) with every multiply-add in half precision, where
 /// [`half_math_available`]; writes the last hidden layer's [`CHAIN_WIDTH`] activations to `out` and
 /// returns `true`, or returns `false` and writes nothing elsewhere. The activations stay in registers
-/// between the layers, as in [`Kernels::chain`]; rounding as [`one_half_math`] (the sums of a layer
-/// with two input segments in another order).
+/// between the layers, as in [`Kernels::chain`]; the same bits as its hidden layers run one by one
+/// through [`one_half_math`].
 ///
 /// Panics where the chain has an output layer.
 #[inline]
