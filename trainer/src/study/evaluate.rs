@@ -68,10 +68,7 @@ pub fn evaluate(
     let buf = ModelBuf::load(model_path).map_err(Error::Core)?;
     let model = buf.model();
     // Every query of the evaluation, in the arithmetic under test.
-    let eval = |p: &Prepared, wi: Vec3, wo: Vec3| match math {
-        Arithmetic::F32 => model.eval(p, wi, wo),
-        Arithmetic::HalfHidden => model.eval_half(p, wi, wo),
-    };
+    let eval = |p: &Prepared, wi: Vec3, wo: Vec3| model.eval_in(math, p, wi, wo);
     let mut image_metrics = Vec::new();
     let (mut pred_brdf, mut ref_brdf, mut keep) = (Vec::<Rgb>::new(), Vec::<Rgb>::new(), Vec::new());
     for view in ds.views.iter().filter(|v| v.split == Split::Test) {

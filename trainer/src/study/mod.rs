@@ -223,8 +223,10 @@ pub fn run(config: &StudyConfig, out: &Path, shard: Option<Shard>, progress: boo
                 let bytes = evaluate::to_f16(&buf)?;
                 crate::train::write_atomic(&path16, &bytes)?;
                 let f16 = evaluate::evaluate(&ds, &path16, &lpips, config, Arithmetic::F32)?;
-                let half = nbrdf::file::ModelBuf::from_bytes(&bytes).map_err(Error::Core)?.model().half_math();
-                let half = half.then(|| evaluate::evaluate(&ds, &path16, &lpips, config, Arithmetic::HalfHidden)).transpose()?;
+                // The copy has f16 weights and a neural model: `Model::half_math` is the CPU's answer.
+                let half = nbrdf::kernels::half_math_available()
+                    .then(|| evaluate::evaluate(&ds, &path16, &lpips, config, Arithmetic::HalfHidden))
+                    .transpose()?;
                 (Some(f16), Some(bytes.len() as u64), half)
             };
             let r = JobResult {
