@@ -489,6 +489,23 @@ fn f16_weights_that_round_to_infinity_are_rejected_at_encode() {
     assert!(encode(&h, &w, None).is_ok());
 }
 
+/// `Model::to_f16` of an f32 model with a weight f16 cannot hold names it, like the export, and of
+/// an f16 model says so; the f32 model stays as it was.
+#[test]
+fn to_f16_rejects_weights_beyond_the_f16_range_and_f16_models() {
+    let h = ModelHeader::paper(ModelKind::SingleMlp, false, Reciprocity::Exact, PositionEncoding::Uniform, 2);
+    let mut w = vec![0.01; h.n_weights()];
+    w[17] = 1e5;
+    let bytes = encode(&h, &w, None).unwrap();
+    let buf = nbrdf::file::ModelBuf::from_bytes(&bytes).unwrap();
+    assert!(matches!(buf.model().to_f16(), Err(nbrdf::Error::NonFinite { index: 17, .. })));
+    assert_eq!(buf.as_bytes(), &bytes[..]);
+    w[17] = 0.5;
+    let half = nbrdf::file::ModelBuf::from_bytes(&encode(&h, &w, None).unwrap()).unwrap().model().to_f16().unwrap();
+    let half = nbrdf::file::ModelBuf::from_bytes(&half).unwrap();
+    assert!(matches!(half.model().to_f16(), Err(nbrdf::Error::InvalidValue { what: "model precision", .. })));
+}
+
 // -------------------------------------------------------------------------------------------------
 // Measured materials
 

@@ -94,6 +94,14 @@ fn tiny_study_writes_every_table_and_reuses_jobs() {
             assert!((h.image.psnr - f16.image.psnr).abs() < 0.5, "{}: half arithmetic moved PSNR by more than 0.5 dB", r.model);
         }
     }
+    // A result.json written before the half-arithmetic field still loads (without it); a truncated one
+    // is a parse error (the study then runs the job again).
+    let mut old = serde_json::to_value(&results[1]).unwrap();
+    old.as_object_mut().unwrap().remove("eval_f16_half");
+    let loaded: study::JobResult = serde_json::from_value(old).unwrap();
+    assert!(loaded.eval_f16_half.is_none() && loaded.eval_f16.is_some());
+    let json = serde_json::to_string(&results[1]).unwrap();
+    assert!(serde_json::from_str::<study::JobResult>(&json[..json.len() / 2]).is_err());
     // The figures: Pareto plots and, per object, best parametric and best neural comparisons.
     for plot in ["figures/pareto-train.png", "figures/pareto-eval.png"] {
         assert!(report.contains(plot), "{plot} not linked");
