@@ -15,6 +15,7 @@ use criterion::measurement::{Measurement, ValueFormatter, WallTime};
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use nbrdf::kernels::{detected, set_level, Level};
 use nbrdf::measured::NbrdfNetwork;
+use nbrdf::mlp::Arithmetic;
 use nbrdf::file::{encode, ModelBuf, ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity};
 use nbrdf::parametric::ParametricKind;
 use nbrdf::{Rgb, Vec3};
@@ -140,6 +141,9 @@ fn bench_models(c: &mut Criterion<Clock>) {
             h.precision = precision;
             let buf = ModelBuf::from_bytes(&encode(&h, &weights(h.n_weights()), None).unwrap()).unwrap();
             let m = buf.model();
+            // The AMX tiles of the per-query network, where the CPU has them.
+            let mut tiled = buf.clone();
+            tiled.enable_amx();
             for (level, lname) in levels() {
                 set_level(Some(level));
                 let prepared = m.prepare(&p);
@@ -171,6 +175,13 @@ fn bench_models(c: &mut Criterion<Clock>) {
                     g.throughput(Throughput::Elements(wi.len() as u64));
                     g.bench_function(BenchmarkId::new(format!("batch-1024-half-math/{lname}"), &name), |b| {
                         b.iter(|| m.eval_many_half(&prepared, black_box(&wi), black_box(&wo), &mut out))
+                    });
+                }
+                if level == Level::Avx512 && tiled.model().amx() {
+                    let mt = tiled.model();
+                    g.throughput(Throughput::Elements(wi.len() as u64));
+                    g.bench_function(BenchmarkId::new(format!("batch-1024-split-bf16/{lname}"), &name), |b| {
+                        b.iter(|| mt.eval_many_in(Arithmetic::SplitBf16, &prepared, black_box(&wi), black_box(&wo), &mut out))
                     });
                 }
             }
@@ -240,24 +251,32 @@ fn bench_all_cores(c: &mut Criterion<WallTime>) {
     let mut g = c.benchmark_group(format!("eval-f32-{threads}-threads"));
     g.throughput(Throughput::Elements((threads * 8 * wi.len()) as u64));
     for (name, h) in variants().into_iter().filter(|(n, _)| !ParametricKind::ALL.iter().any(|k| k.id() == n)) {
-        let buf = ModelBuf::from_bytes(&encode(&h, &weights(h.n_weights()), None).unwrap()).unwrap();
+        let mut buf = ModelBuf::from_bytes(&encode(&h, &weights(h.n_weights()), None).unwrap()).unwrap();
+        let amx = buf.enable_amx();
         let m = buf.model();
-        g.bench_function(BenchmarkId::new("batch-8x1024", &name), |b| {
-            b.iter(|| {
-                std::thread::scope(|s| {
-                    for _ in 0..threads {
-                        s.spawn(|| {
-                            let prepared = m.prepare(&p);
-                            let mut out: Vec<Rgb> = vec![[0.0; 3]; wi.len()];
-                            for _ in 0..8 {
-                                m.eval_many(&prepared, black_box(&wi), black_box(&wo), &mut out);
-                            }
-                            black_box(out[0])
-                        });
-                    }
+        let maths: &[(Arithmetic, &str)] = if amx {
+            &[(Arithmetic::F32, "batch-8x1024"), (Arithmetic::SplitBf16, "batch-8x1024-split-bf16")]
+        } else {
+            &[(Arithmetic::F32, "batch-8x1024")]
+        };
+        for &(math, id) in maths {
+            g.bench_function(BenchmarkId::new(id, &name), |b| {
+                b.iter(|| {
+                    std::thread::scope(|s| {
+                        for _ in 0..threads {
+                            s.spawn(|| {
+                                let prepared = m.prepare(&p);
+                                let mut out: Vec<Rgb> = vec![[0.0; 3]; wi.len()];
+                                for _ in 0..8 {
+                                    m.eval_many_in(math, &prepared, black_box(&wi), black_box(&wo), &mut out);
+                                }
+                                black_box(out[0])
+                            });
+                        }
+                    })
                 })
-            })
-        });
+            });
+        }
     }
     g.finish();
 }

@@ -76,6 +76,23 @@ pub enum Arithmetic {
     /// ([`crate::kernels::packet_half_math`]): twice the multiply-adds per instruction, each product
     /// and partial sum rounded to f16. The output layer, f32 weights and other CPUs: as [`F32`](Self::F32).
     HalfHidden,
+    /// Each product of the hidden layers as three bf16 products on AMX tiles, `x_hi·w_hi + x_hi·w_lo +
+    /// x_lo·w_hi` with f32 sums (`crate::kernels` "Split-bf16 arithmetic"): ~16 significant bits a
+    /// product, results within ~1e-5 relative of [`F32`](Self::F32), for packets of a network with
+    /// [`Tiled`] weights where [`crate::kernels::amx_available`]. The output layer, single queries,
+    /// networks without tiles and other CPUs: as [`F32`](Self::F32).
+    SplitBf16,
+}
+
+/// A network's hidden-layer weights re-laid for the AMX tiles of [`Arithmetic::SplitBf16`]: bf16 high
+/// and low parts in the order the tiles read them, for a network whose last `n_tail` inputs are the
+/// per-query tail (the encoded angles). [`crate::model::ModelBuf::enable_amx`] makes and keeps them.
+#[derive(Clone, Copy, Debug)]
+pub struct Tiled<'a> {
+    /// The bf16 bits, 64-byte aligned.
+    pub(crate) values: &'a [u16],
+    /// Number of tail inputs the layout was made for.
+    pub(crate) n_tail: usize,
 }
 
 /// Shape of one network: `Mlp(n_in, width, hidden, n_out, skip)` of `docs/models.md`.
@@ -320,17 +337,34 @@ fn run<W: Weight, const Q: usize>(
         core::mem::swap(&mut h, &mut t);
     }
 
+    debug_assert_eq!(off, d.layer_offset(d.hidden as usize));
+    output_layer::<W, Q>(net, h, out, out_stride);
+}
+
+/// The output layer of `net` (f32 arithmetic) on the last hidden activations `h` (`Q × width`, query
+/// after query), or those activations themselves for a trunk without one.
+#[inline(always)]
+fn output_layer<W: Weight, const Q: usize>(net: &Net<'_, W>, h: &[f32], out: &mut [f32], out_stride: usize) {
+    let d = &net.desc;
+    let width = d.width as usize;
     if d.n_out == 0 {
         for q in 0..Q {
             out[q * out_stride..q * out_stride + width].copy_from_slice(&h[q * width..(q + 1) * width]);
         }
+        return;
+    }
+    let k = kernels::<W>();
+    let n_out = d.n_out as usize;
+    let off = d.layer_offset(d.hidden as usize);
+    let m = &net.weights[off..off + (width + 1) * n_out];
+    let mut bias = [0.0f32; MAX_WIDTH];
+    W::widen(&m[width * n_out..], &mut bias[..n_out]);
+    let hs = Segment { x: h, stride: width, n: width, rows: m };
+    let lo = Dense { init: &bias[..n_out], segs: [hs, none()], n_segs: 1, n_out, relu: false };
+    if Q == 1 {
+        k.one(&lo, out)
     } else {
-        let n_out = d.n_out as usize;
-        let m = &net.weights[off..off + (width + 1) * n_out];
-        W::widen(&m[width * n_out..], &mut bias[..n_out]);
-        let hs = Segment { x: &h[..], stride: width, n: width, rows: m };
-        let lo = Dense { init: &bias[..n_out], segs: [hs, none()], n_segs: 1, n_out, relu: false };
-        layer(&lo, out, out_stride);
+        k.packet(&lo, out, out_stride)
     }
 }
 
@@ -425,11 +459,16 @@ fn forward_chain<W: Weight>(math: Arithmetic, net: &Net<'_, W>, partial: &Partia
 /// Each weight row is read once per packet. With [`Arithmetic::F32`] every query gets the same bits as
 /// [`forward`] on its own tail (see [`crate::kernels`], "Determinism").
 ///
+/// With [`Arithmetic::SplitBf16`], `tiled` (the network's [`Tiled`] weights) runs the hidden layers on
+/// AMX tiles where they apply: the CPU has them, the layout was made for `n_tail` tail inputs, and the
+/// head folded into `partial` is the rest of the input. Otherwise `tiled` is unused.
+///
 /// Panics when `tails` or `out` is too short for the packet.
 #[inline]
 #[allow(clippy::too_many_arguments)]
 pub fn forward_packet<W: Weight>(
     math: Arithmetic,
+    tiled: Option<Tiled<'_>>,
     net: &Net<'_, W>,
     partial: &Partial,
     tails: &[f32],
@@ -439,8 +478,51 @@ pub fn forward_packet<W: Weight>(
     out_stride: usize,
 ) {
     let mut h = [0.0f32; PACKET * MAX_WIDTH];
+    if let (Arithmetic::SplitBf16, Some(tiled)) = (math, tiled) {
+        if hidden_tiled(tiled, net, partial, tails, tail_stride, n_tail, &mut h) {
+            return output_layer::<W, PACKET>(net, &h, out, out_stride);
+        }
+    }
     let mut t = [0.0f32; PACKET * MAX_WIDTH];
     run::<W, PACKET>(math, net, partial, tails, tail_stride, n_tail, out, out_stride, &mut h, &mut t);
+}
+
+/// The hidden layers of a packet on AMX tiles ([`crate::kernels`], "Split-bf16 arithmetic"), the last
+/// activations to `h`; `false` (nothing written) where they do not apply (see [`forward_packet`]).
+#[allow(unused_variables)]
+fn hidden_tiled<W: Weight>(
+    tiled: Tiled<'_>,
+    net: &Net<'_, W>,
+    partial: &Partial,
+    tails: &[f32],
+    tail_stride: usize,
+    n_tail: usize,
+    h: &mut [f32; PACKET * MAX_WIDTH],
+) -> bool {
+    #[cfg(all(target_arch = "x86_64", target_os = "linux", feature = "std"))]
+    {
+        use crate::kernels::amx;
+        let d = &net.desc;
+        let applies = crate::kernels::amx_available()
+            && n_tail == tiled.n_tail
+            && partial.head_len + n_tail == d.n_in as usize
+            && !tiled.values.is_empty()
+            && amx::packed_len(d, n_tail) == tiled.values.len()
+            && net.weights.len() == d.n_weights();
+        if !applies {
+            return false;
+        }
+        assert!(tails.len() >= (PACKET - 1) * tail_stride + n_tail, "tails too short for a packet");
+        // SAFETY: the CPU and OS have the tiles; the layout fits `net` and `n_tail` (its length is
+        // `packed_len`, which is non-zero only where `fits`); the head is the rest of the input;
+        // the tails extent was checked; `h` holds `PACKET × MAX_WIDTH` floats.
+        unsafe { amx::hidden(net, tiled.values, partial, tails, tail_stride, n_tail, h) };
+        true
+    }
+    #[cfg(not(all(target_arch = "x86_64", target_os = "linux", feature = "std")))]
+    {
+        false
+    }
 }
 
 /// Runs the network on its whole input `x` (no precomputed head).

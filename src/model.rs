@@ -27,7 +27,7 @@ use crate::angles::{rusinkiewicz_angles, theta_map, upper_hemisphere_pair};
 use crate::encoding::{encoded_len, positional_encoding};
 use crate::file::{ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity, Sections, MAX_NETS};
 use crate::math::sanitize;
-use crate::mlp::{Arithmetic, Net, NetDesc, Partial, Weight, PACKET};
+use crate::mlp::{Arithmetic, Net, NetDesc, Partial, Tiled, Weight, PACKET};
 use crate::neural::{additive_separate, additive_shared, parametric_net, single_mlp};
 use crate::parametric::Parametric;
 use crate::{Error, Rgb, Vec3, BLACK};
@@ -84,6 +84,8 @@ pub struct Model<'a> {
     /// A cache-line-aligned copy of the per-query (last) network's weights that replaces them in
     /// evaluation, where the file's own cannot be aligned (see [`ModelBuf`]).
     query: Option<Weights<'a>>,
+    /// The per-query network's hidden weights in AMX tile order ([`ModelBuf::enable_amx`]).
+    tiles: Option<&'a [u16]>,
     object: [f32; MAX_OBJECT],
     table: &'a [f32],
 }
@@ -178,7 +180,7 @@ impl<'a> Model<'a> {
         }
         // SAFETY: as above.
         let table = unsafe { cast_slice::<f32>(&bytes[s.table.0..s.table.1]) };
-        Ok(Model { header, weights, query: None, object, table })
+        Ok(Model { header, weights, query: None, tiles: None, object, table })
     }
 
     #[cfg(not(target_endian = "little"))]
@@ -405,6 +407,49 @@ impl<'a> Model<'a> {
         self.eval_many_by(Arithmetic::HalfHidden, prepared, n, |i| (wi[i], wo[i]), |i, f| out[i] = f);
     }
 
+    /// [`Model::eval_many`] ([`Arithmetic::F32`]), [`Model::eval_many_half`] ([`Arithmetic::HalfHidden`])
+    /// or the split-bf16 arithmetic on AMX tiles ([`Arithmetic::SplitBf16`]), chosen at run time.
+    ///
+    /// With `SplitBf16`, where [`Model::amx`] says it applies (a [`ModelBuf`] after
+    /// [`ModelBuf::enable_amx`], a CPU with AMX-BF16), each f32 product of the per-query network's
+    /// hidden layers is taken as three bf16 products with f32 sums (`crate::kernels`, "Split-bf16
+    /// arithmetic"): values move by ~1e-5 relative, not bit for bit those of [`Model::eval`] nor
+    /// exactly reciprocal; each pair's value still does not depend on the others of the batch.
+    /// Elsewhere exactly [`Model::eval_many`].
+    ///
+    /// ```
+    /// use nbrdf::file::{encode, ModelBuf, ModelHeader, ModelKind, PositionEncoding, Reciprocity};
+    /// use nbrdf::mlp::Arithmetic;
+    /// use nbrdf::Vec3;
+    /// let h = ModelHeader::paper(ModelKind::SingleMlp, false, Reciprocity::Exact, PositionEncoding::Intrinsic { k: 64 }, 4);
+    /// let w: Vec<f32> = (0..h.n_weights()).map(|i| ((i * 7919 % 1000) as f32 - 500.0) * 2e-4).collect();
+    /// let mut buf = ModelBuf::from_bytes(&encode(&h, &w, None).unwrap()).unwrap();
+    /// let tiled = buf.enable_amx(); // false without AMX: then SplitBf16 is F32
+    /// let model = buf.model();
+    /// assert_eq!(model.amx(), tiled);
+    /// let p = model.prepare(&[0.1; 64]);
+    /// let wi = [Vec3::new(0.3, 0.1, 0.9).normalize(); 32];
+    /// let wo = [Vec3::new(-0.2, 0.4, 0.8).normalize(); 32];
+    /// let (mut exact, mut fast) = ([[0.0; 3]; 32], [[0.0; 3]; 32]);
+    /// model.eval_many(&p, &wi, &wo, &mut exact);
+    /// model.eval_many_in(Arithmetic::SplitBf16, &p, &wi, &wo, &mut fast);
+    /// for (e, f) in exact.iter().zip(&fast) {
+    ///     for c in 0..3 {
+    ///         assert!((e[c] - f[c]).abs() <= 1e-4 * e[c] + 1e-6);
+    ///     }
+    /// }
+    /// ```
+    pub fn eval_many_in(&self, math: Arithmetic, prepared: &Prepared, wi: &[Vec3], wo: &[Vec3], out: &mut [Rgb]) {
+        let n = out.len().min(wi.len()).min(wo.len());
+        self.eval_many_by(math, prepared, n, |i| (wi[i], wo[i]), |i, f| out[i] = f);
+    }
+
+    /// Whether [`Arithmetic::SplitBf16`] runs on AMX tiles for this model here: its per-query
+    /// network's tiles were made ([`ModelBuf::enable_amx`]) and [`crate::kernels::amx_available`].
+    pub fn amx(&self) -> bool {
+        self.tiles.is_some() && crate::kernels::amx_available()
+    }
+
     /// The model re-encoded with f16 network weights ([`Precision::F16`]: half the weight bytes, and
     /// the half-precision arithmetic of [`Model::eval_half`] where the CPU has it), as the bytes of a
     /// `.nbrdf` file. Object parameters and the position table stay f32, as the file format keeps
@@ -592,16 +637,17 @@ impl<'a> Model<'a> {
     ) -> [Rgb; PACKET] {
         let enhanced = self.header.enhanced;
         let s = MAX_ANGLE_INPUT;
+        let tiled = self.tiles.map(|values| Tiled { values, n_tail: self.header.angle_input_len() });
         match self.header.kind {
             ModelKind::Parametric(_) => [BLACK; PACKET],
             ModelKind::SingleMlp => {
-                single_mlp::eval_packet(math, &nets[self.header.n_nets as usize - 1], &p.partial, enc, s, n)
+                single_mlp::eval_packet(math, tiled, &nets[self.header.n_nets as usize - 1], &p.partial, enc, s, n)
             }
             ModelKind::AdditiveSeparate => {
-                additive_separate::eval_packet(math, &nets[1], p.diffuse, &p.partial, enc, s, n, enhanced)
+                additive_separate::eval_packet(math, tiled, &nets[1], p.diffuse, &p.partial, enc, s, n, enhanced)
             }
             ModelKind::AdditiveShared => {
-                additive_shared::eval_packet(math, &nets[2], p.diffuse, &p.partial, enc, s, n, enhanced)
+                additive_shared::eval_packet(math, tiled, &nets[2], p.diffuse, &p.partial, enc, s, n, enhanced)
             }
         }
     }
@@ -627,6 +673,9 @@ pub struct ModelBuf {
     lines: alloc::vec::Vec<CacheLine>,
     /// The aligned copy of the per-query network's weights, where the file's cannot be aligned.
     query: Option<alloc::vec::Vec<CacheLine>>,
+    /// The per-query network's hidden weights in AMX tile order and their number of bf16 values
+    /// ([`ModelBuf::enable_amx`]).
+    tiles: Option<(alloc::vec::Vec<CacheLine>, usize)>,
     /// Where the file starts in `lines`, in bytes (a multiple of 4, below 64).
     shift: usize,
     len: usize,
@@ -673,7 +722,7 @@ impl ModelBuf {
         let lines = CacheLine::copy_of(bytes, shift);
         let q = Model::query_weights_range(&header, &sections);
         let query = (!(q.start + shift).is_multiple_of(64)).then(|| CacheLine::copy_of(&bytes[q], 0));
-        let buf = ModelBuf { lines, query, shift, len: bytes.len(), header, sections };
+        let buf = ModelBuf { lines, query, tiles: None, shift, len: bytes.len(), header, sections };
         // Surface host-dependent failures (byte order) here rather than at every `model()` call.
         Model::from_parsed(buf.bytes(), header, &sections)?;
         Ok(buf)
@@ -711,7 +760,49 @@ impl ModelBuf {
             // SAFETY: the copy holds the network's weights from a 64-byte boundary (`from_bytes`).
             model.query = Some(unsafe { weights_of(self.header.precision, &CacheLine::bytes(copy)[..n]) });
         }
+        if let Some((lines, n)) = &self.tiles {
+            // SAFETY: the lines are 64-byte aligned and hold `n` u16 values (`enable_amx`).
+            model.tiles = Some(unsafe { &cast_slice::<u16>(CacheLine::bytes(lines))[..*n] });
+        }
         model
+    }
+
+    /// Makes the tiled copy of the per-query network that [`Arithmetic::SplitBf16`] evaluates on AMX
+    /// tiles ([`Model::eval_many_in`]); `true` where it now applies: a neural model whose per-query
+    /// network has a hidden width of a multiple of 32 (the paper's 128), on a CPU and OS with AMX-BF16
+    /// ([`crate::kernels::amx_available`]; built with `std`, Linux). The copy holds a high and a low
+    /// bf16 part of each hidden weight: the bytes of the f32 network (twice those of an f16 one).
+    pub fn enable_amx(&mut self) -> bool {
+        #[cfg(all(target_arch = "x86_64", target_os = "linux", feature = "std"))]
+        {
+            use crate::kernels::amx;
+            if self.tiles.is_some() {
+                return crate::kernels::amx_available();
+            }
+            if !crate::kernels::amx_available() || matches!(self.header.kind, ModelKind::Parametric(_)) {
+                return false;
+            }
+            let n_tail = self.header.angle_input_len();
+            let model = self.model();
+            let last = self.header.nets().len() - 1;
+            let len = amx::packed_len(&self.header.nets()[last], n_tail);
+            if len == 0 {
+                return false;
+            }
+            let mut lines = alloc::vec![CacheLine([0; 64]); (2 * len).div_ceil(64)];
+            // SAFETY: the lines are 64-byte aligned, `2 * len` bytes fit, and every bit pattern is a u16.
+            let values = unsafe { core::slice::from_raw_parts_mut(lines.as_mut_ptr().cast::<u16>(), len) };
+            match model.weights {
+                Weights::F32(w) => amx::pack(&model.nets_f32(w)[last], n_tail, values),
+                Weights::F16(w) => amx::pack(&model.nets_f16(w)[last], n_tail, values),
+            }
+            self.tiles = Some((lines, len));
+            true
+        }
+        #[cfg(not(all(target_arch = "x86_64", target_os = "linux", feature = "std")))]
+        {
+            false
+        }
     }
 }
 

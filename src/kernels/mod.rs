@@ -28,7 +28,15 @@
 //! per instruction, every sum rounded to f16. They are outside the promise above (they give other
 //! bits than the f32 kernels, and the packet kernel other bits than the one-query ones); each query's
 //! result still depends on that query alone. Callers opt in ([`crate::model::Model::eval_half`]).
+//!
+//! # Split-bf16 arithmetic on AMX tiles
+//! `amx.rs` runs a packet's hidden layers on AMX-BF16 tiles (Sapphire Rapids and later, Linux), each
+//! f32 product as three bf16 products (~16 significant bits, f32 sums), over weights re-laid once in
+//! tile order ([`crate::model::ModelBuf::enable_amx`]), where [`amx_available`]. Outside the
+//! determinism promise too (other bits than the f32 kernels); each query still depends on itself only.
 
+#[cfg(all(target_arch = "x86_64", target_os = "linux", feature = "std"))]
+pub(crate) mod amx;
 #[cfg(target_arch = "x86_64")]
 mod half_math;
 mod output_map;
@@ -430,6 +438,22 @@ pub fn half_math_available() -> bool {
         level() == Level::Avx512 && half_math::available()
     }
     #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
+/// Whether the split-bf16 arithmetic ([`crate::mlp::Arithmetic::SplitBf16`]) runs here: the CPU has
+/// AMX-BF16 and AVX512-BF16 (Sapphire Rapids and later Intel cores), the OS lets the process use the
+/// tiles (Linux: asked for once through `arch_prctl`, on the first call), [`level`] is AVX-512, and
+/// the crate was built with `std`.
+#[inline]
+pub fn amx_available() -> bool {
+    #[cfg(all(target_arch = "x86_64", target_os = "linux", feature = "std"))]
+    {
+        level() == Level::Avx512 && amx::available()
+    }
+    #[cfg(not(all(target_arch = "x86_64", target_os = "linux", feature = "std")))]
     {
         false
     }

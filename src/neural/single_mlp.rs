@@ -3,7 +3,7 @@
 //! trunk runs first and the angles join the trunk's features.
 
 use crate::kernels::softplus_slice;
-use crate::mlp::{self, forward_packet, forward_with, Arithmetic, partial, Net, Partial, Weight, MAX_WIDTH, PACKET};
+use crate::mlp::{self, forward_packet, forward_with, Arithmetic, partial, Net, Partial, Tiled, Weight, MAX_WIDTH, PACKET};
 use crate::Rgb;
 
 /// Position-only work: the position rows of the network (one network), or the trunk and the head's
@@ -31,10 +31,11 @@ pub fn eval<W: Weight>(math: Arithmetic, net: &Net<'_, W>, prepared: &Partial, a
 }
 
 /// [`eval`] for [`PACKET`] queries: query `q`'s encoded angles at `angles[q * stride..][..n]`, the
-/// hidden layers in `math`.
+/// hidden layers in `math` (`tiled`: the network's tiles, see [`forward_packet`]).
 #[inline]
 pub fn eval_packet<W: Weight>(
     math: Arithmetic,
+    tiled: Option<Tiled<'_>>,
     net: &Net<'_, W>,
     prepared: &Partial,
     angles: &[f32],
@@ -42,7 +43,7 @@ pub fn eval_packet<W: Weight>(
     n: usize,
 ) -> [Rgb; PACKET] {
     let mut out = [0.0f32; PACKET * OUT_STRIDE];
-    forward_packet(math, net, prepared, angles, stride, n, &mut out, OUT_STRIDE);
+    forward_packet(math, tiled, net, prepared, angles, stride, n, &mut out, OUT_STRIDE);
     // The whole buffer, the unused lanes too: 8 vectors instead of 16 gathers of 3.
     softplus_slice(&mut out);
     core::array::from_fn(|q| {

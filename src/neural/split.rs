@@ -2,7 +2,7 @@
 
 use crate::kernels::{map_outputs, sigmoid_slice};
 use crate::math::{sanitize, INV_PI};
-use crate::mlp::{forward_packet, forward_with, Arithmetic, Net, Partial, Weight, MAX_WIDTH, PACKET};
+use crate::mlp::{forward_packet, forward_with, Arithmetic, Net, Partial, Tiled, Weight, MAX_WIDTH, PACKET};
 use crate::Rgb;
 
 /// Lambertian diffuse term from the diffuse network's raw outputs: `σ(d) / π` (Sec. 4.1.2), so the
@@ -84,11 +84,12 @@ pub fn eval<W: Weight>(
 }
 
 /// [`eval`] for [`PACKET`] queries: query `q`'s encoded angles at `angles[q * stride..][..n]`, the
-/// hidden layers in `math`.
+/// hidden layers in `math` (`tiled`: the specular network's tiles, see [`forward_packet`]).
 #[inline]
 #[allow(clippy::too_many_arguments)]
 pub fn eval_packet<W: Weight>(
     math: Arithmetic,
+    tiled: Option<Tiled<'_>>,
     specular: &Net<'_, W>,
     f_d: Rgb,
     prepared: &Partial,
@@ -99,7 +100,7 @@ pub fn eval_packet<W: Weight>(
 ) -> [Rgb; PACKET] {
     const S: usize = super::single_mlp::OUT_STRIDE;
     let mut s = [0.0f32; PACKET * S];
-    forward_packet(math, specular, prepared, angles, stride, n, &mut s, S);
+    forward_packet(math, tiled, specular, prepared, angles, stride, n, &mut s, S);
     map_split(&mut s, enhanced);
     core::array::from_fn(|q| mix(f_d, &s[q * S..(q + 1) * S], enhanced))
 }

@@ -1,0 +1,461 @@
+//! A packet of queries through a network's hidden layers on AMX tiles (x86-64 AMX-BF16), each f32
+//! product as three bf16 products: the arithmetic [`crate::mlp::Arithmetic::SplitBf16`].
+//!
+//! An AMX `tdpbf16ps` multiplies a 16×32 bf16 tile by a 32×16 one into 16×16 f32 sums: 8192
+//! multiply-adds in 16 cycles, 16× what the two AVX-512 FMA ports do in f32. bf16 keeps 8 significant
+//! bits, too few for a network's activations (~0.4% a product), so every value is split into two
+//! bf16 parts, `x = x_hi + x_lo` (`x_hi` = `x` rounded to bf16, `x_lo` = the remainder rounded), and a
+//! product taken as `x_hi·w_hi + x_hi·w_lo + x_lo·w_hi` — the "bf16x3" of Henry, Tang & Heinecke,
+//! *Leveraging the bfloat16 Artificial Intelligence Datatype for Higher-Precision Computations*
+//! (ARITH 2019), Sec. IV. The dropped `x_lo·w_lo` and the splits' remainders are about `2^-16` of the
+//! product, so a layer's sums are f32 sums of products good to ~16 bits, not to f32's 24: results
+//! move by ~1e-5 relative, 100× less than the f16 arithmetic of [`super::half_math`], at three times
+//! the tile work, which still leaves the tiles ~5× the f32 FMA rate. Sums are f32 (the tile unit's
+//! own rounding; bf16 inputs below 2^-126 count as 0), so a query's value does not depend on the
+//! other queries of its packet.
+//!
+//! The weights are re-laid once ([`pack`], kept by [`crate::model::ModelBuf::enable_amx`]) in the
+//! order the tiles read them: per 32 outputs and 32 inputs, the high and low parts of two 32×16 "B"
+//! tiles (pairs of input rows interleaved per output, the layout `tdpbf16ps` expects). Activations
+//! stay row-major per query (an "A" tile is 16 queries × 32 inputs), split after each layer.
+//!
+//! Inline assembly, because Rust 1.95 has the AMX intrinsics only behind the unstable
+//! `x86_amx_intrinsics` feature; the tile registers are used by nothing else the compiler emits.
+//! Linux hands the 8 KB of tile state to a process only after `arch_prctl(ARCH_REQ_XCOMP_PERM)`,
+//! which [`available`] asks for once.
+
+use core::arch::asm;
+use core::arch::x86_64::*;
+
+use crate::mlp::{Net, NetDesc, Partial, Weight, MAX_WIDTH};
+
+use super::PACKET;
+
+/// Inputs and outputs per tile edge: a tile row is 64 bytes, 32 bf16 inputs or 16 f32 sums.
+const K_TILE: usize = 32;
+/// Outputs per step of the kernel: two accumulator tiles of 16.
+const N_STEP: usize = 32;
+/// bf16 values of one 16-row tile.
+const TILE_VALUES: usize = 16 * K_TILE;
+/// Largest padded tail (encoded angles) the activation buffers hold.
+const TAIL_MAX: usize = round_up(crate::model::MAX_ANGLE_INPUT, K_TILE);
+/// Largest activation row: a hidden layer's outputs and the padded tail.
+const ROW_MAX: usize = MAX_WIDTH + TAIL_MAX;
+
+const fn round_up(n: usize, m: usize) -> usize {
+    n.div_ceil(m) * m
+}
+
+/// Whether the CPU has AMX-BF16 with AVX512-BF16 and the OS lets this process use the tiles (asked
+/// for once; Linux only).
+pub(super) fn available() -> bool {
+    use core::sync::atomic::{AtomicU8, Ordering};
+    static HAS: AtomicU8 = AtomicU8::new(0);
+    match HAS.load(Ordering::Relaxed) {
+        0 => {
+            let has = detect();
+            HAS.store(if has { 2 } else { 1 }, Ordering::Relaxed);
+            has
+        }
+        v => v == 2,
+    }
+}
+
+fn detect() -> bool {
+    if !(std::is_x86_feature_detected!("avx512bf16")
+        && std::is_x86_feature_detected!("avx512f")
+        && std::is_x86_feature_detected!("avx512bw")
+        && std::is_x86_feature_detected!("avx512vl"))
+    {
+        return false;
+    }
+    // CPUID.(EAX=7, ECX=0):EDX bit 22 AMX-BF16, bit 24 AMX-TILE (Intel SDM Vol. 2A, CPUID).
+    // `is_x86_feature_detected!("amx-bf16")` is unstable in Rust 1.95.
+    let leaf7 = __cpuid_count(7, 0);
+    if leaf7.edx & (1 << 22) == 0 || leaf7.edx & (1 << 24) == 0 {
+        return false;
+    }
+    // arch_prctl(ARCH_REQ_XCOMP_PERM, XFEATURE_XTILEDATA) (Linux Documentation/arch/x86/xstate.rst).
+    const SYS_ARCH_PRCTL: i64 = 158;
+    const ARCH_REQ_XCOMP_PERM: i64 = 0x1023;
+    const XFEATURE_XTILEDATA: i64 = 18;
+    let ret: i64;
+    // SAFETY: a plain system call; it only changes this process's permission to use the tile state.
+    unsafe {
+        asm!("syscall", inlateout("rax") SYS_ARCH_PRCTL => ret, in("rdi") ARCH_REQ_XCOMP_PERM,
+             in("rsi") XFEATURE_XTILEDATA, lateout("rcx") _, lateout("r11") _, options(nostack));
+    }
+    ret == 0
+}
+
+/// Padded tail length (inputs after the head of layer 0 and the skip layer).
+#[inline]
+const fn tail_pad(n_tail: usize) -> usize {
+    round_up(n_tail, K_TILE)
+}
+
+/// Number of tiled inputs of hidden layer `l`: the tail (layer 0), the hidden width and the tail (the
+/// skip layer), the hidden width (the others).
+#[inline]
+fn layer_k(d: &NetDesc, n_tail: usize, l: usize) -> usize {
+    let width = d.width as usize;
+    if l == 0 {
+        tail_pad(n_tail)
+    } else if d.skip as usize == l {
+        width + tail_pad(n_tail)
+    } else {
+        width
+    }
+}
+
+/// Whether a network can run on tiles: a hidden width of a multiple of 32 (each step fills two
+/// 16-wide accumulator tiles), a tail of 1 to [`crate::model::MAX_ANGLE_INPUT`] inputs after its head.
+pub(crate) fn fits(d: &NetDesc, n_tail: usize) -> bool {
+    let width = d.width as usize;
+    d.validate().is_ok() && width.is_multiple_of(N_STEP) && n_tail > 0 && tail_pad(n_tail) <= TAIL_MAX && n_tail <= d.n_in as usize
+}
+
+/// Number of bf16 values [`pack`] writes for a network (the high and low parts of every hidden weight
+/// it reads per query, tails padded); 0 where it does not [`fits`].
+pub(crate) fn packed_len(d: &NetDesc, n_tail: usize) -> usize {
+    if !fits(d, n_tail) {
+        return 0;
+    }
+    (0..d.hidden as usize).map(|l| 2 * layer_k(d, n_tail, l) * d.width as usize).sum()
+}
+
+/// `x` as `x_hi + x_lo`, both bf16 (round to nearest, ties to even), as their bits.
+#[inline]
+fn split(x: f32) -> (u16, u16) {
+    let hi = half::bf16::from_f32(x);
+    let lo = half::bf16::from_f32(x - hi.to_f32());
+    (hi.to_bits(), lo.to_bits())
+}
+
+/// Writes the hidden layers of `net` (whose last `n_tail` inputs are the per-query tail) to `out` in
+/// tile order; `out.len()` must be [`packed_len`] (non-zero).
+///
+/// Per layer, per 32 outputs, per 32 inputs `k0..`: for each half `j` of the outputs the high then the
+/// low part of a "B" tile, whose row `r` holds, for output `n`, the weights of inputs `k0 + 2r` and
+/// `k0 + 2r + 1` side by side (Intel SDM, `TDPBF16PS`). Input rows past the layer's (tail padding)
+/// are 0.
+pub(crate) fn pack<W: Weight>(net: &Net<'_, W>, n_tail: usize, out: &mut [u16]) {
+    let d = &net.desc;
+    let (width, n_in) = (d.width as usize, d.n_in as usize);
+    let head = n_in - n_tail;
+    let mut o = 0;
+    for l in 0..d.hidden as usize {
+        let off = d.layer_offset(l);
+        let k = layer_k(d, n_tail, l);
+        // Tiled input `i` → the layer's weight row, where it has one.
+        let row = |i: usize| -> Option<usize> {
+            if l == 0 {
+                (i < n_tail).then_some(head + i)
+            } else if i < width {
+                Some(i)
+            } else {
+                (i - width < n_tail).then_some(width + head + i - width)
+            }
+        };
+        for n0 in (0..width).step_by(N_STEP) {
+            for k0 in (0..k).step_by(K_TILE) {
+                for j in 0..2 {
+                    let (hi, rest) = out[o..o + 2 * TILE_VALUES].split_at_mut(TILE_VALUES);
+                    for r in 0..16 {
+                        for n in 0..16 {
+                            for p in 0..2 {
+                                let w = row(k0 + 2 * r + p).map_or(0.0, |i| net.weights[off + i * width + n0 + 16 * j + n].to_f32());
+                                (hi[r * 32 + 2 * n + p], rest[r * 32 + 2 * n + p]) = split(w);
+                            }
+                        }
+                    }
+                    o += 2 * TILE_VALUES;
+                }
+            }
+        }
+    }
+    debug_assert_eq!(o, out.len());
+}
+
+/// Tile configuration (Intel SDM Vol. 1, 3.2, palette 1): all 8 tiles 16 rows of 64 bytes.
+#[repr(C, align(64))]
+struct Config([u8; 64]);
+
+const CONFIG: Config = {
+    let mut c = [0u8; 64];
+    c[0] = 1;
+    let mut t = 0;
+    while t < 8 {
+        c[16 + 2 * t] = 64;
+        c[48 + t] = 16;
+        t += 1;
+    }
+    Config(c)
+};
+
+/// 64-byte-aligned storage (a tile row per cache line).
+#[repr(C, align(64))]
+struct Aligned<T>(T);
+
+/// One hidden layer on the tiles: `out[q][o] = init[o] + Σ_i x[q][i] w[i][o]` for the 16 queries, in
+/// steps of 32 outputs (accumulators `tmm0`, `tmm1`; inputs `tmm2` high, `tmm3` low; weights `tmm4`..`tmm7`).
+///
+/// # Safety
+/// Tiles configured with [`CONFIG`]; `w` holds the layer's `k / 32 * n / 32` steps of 4 tiles; `xh`
+/// and `xl` 16 rows `x_stride` bytes apart of `k` values; `init` `n` floats; `out` 16 rows of `n`
+/// floats, `n * 4` bytes apart; `k`, `n` positive multiples of 32.
+#[inline]
+#[allow(clippy::too_many_arguments)]
+#[target_feature(enable = "avx512f")]
+unsafe fn layer(w: *const u16, k: usize, n: usize, xh: *const u16, xl: *const u16, x_stride: usize, init: *const f32, out: *mut f32) {
+    let mut w = w;
+    for n0 in (0..n).step_by(N_STEP) {
+        // SAFETY: every tile read and written lies in the extents of the contract.
+        unsafe {
+            asm!(
+                // Every row of an accumulator starts as the 16 `init` values (stride 0).
+                "tileloadd tmm0, [{init} + {zero}*1]",
+                "tileloadd tmm1, [{init} + {zero}*1 + 64]",
+                "2:",
+                "tileloadd tmm2, [{xh} + {xs}*1]",
+                "tileloadd tmm3, [{xl} + {xs}*1]",
+                "tileloadd tmm4, [{w} + {s64}*1]",
+                "tileloadd tmm5, [{w} + {s64}*1 + 1024]",
+                "tileloadd tmm6, [{w} + {s64}*1 + 2048]",
+                "tileloadd tmm7, [{w} + {s64}*1 + 3072]",
+                // Small terms first: x_lo·w_hi, x_hi·w_lo, then x_hi·w_hi; the two accumulators
+                // alternate so that neither waits on its own previous product.
+                "tdpbf16ps tmm0, tmm3, tmm4",
+                "tdpbf16ps tmm1, tmm3, tmm6",
+                "tdpbf16ps tmm0, tmm2, tmm5",
+                "tdpbf16ps tmm1, tmm2, tmm7",
+                "tdpbf16ps tmm0, tmm2, tmm4",
+                "tdpbf16ps tmm1, tmm2, tmm6",
+                "add {w}, 4096",
+                "add {xh}, 64",
+                "add {xl}, 64",
+                "sub {kb}, 1",
+                "jnz 2b",
+                "tilestored [{out} + {os}*1], tmm0",
+                "tilestored [{out} + {os}*1 + 64], tmm1",
+                init = in(reg) init.add(n0),
+                out = in(reg) out.add(n0),
+                os = in(reg) n * 4,
+                zero = in(reg) 0usize,
+                s64 = in(reg) 64usize,
+                xs = in(reg) x_stride,
+                xh = inout(reg) xh => _,
+                xl = inout(reg) xl => _,
+                w = inout(reg) w,
+                kb = inout(reg) k / K_TILE => _,
+                options(nostack),
+            );
+        }
+    }
+}
+
+/// ReLU of the 16 rows of `n` sums at `y`: back to `y` (`xh` null: the last layer), or split into
+/// bf16 high and low parts at `xh`, `xl` (rows `x_row` values apart) as the next layer's input.
+///
+/// # Safety
+/// `y` holds `16 * n` floats, `xh`/`xl` null or 16 rows of `x_row ≥ n` values; `n` a multiple of 16.
+#[inline]
+#[target_feature(enable = "avx512f,avx512bw,avx512bf16,avx512vl")]
+unsafe fn relu_split(y: *mut f32, n: usize, xh: *mut u16, xl: *mut u16, x_row: usize) {
+    // SAFETY: every access within the extents of the contract.
+    unsafe {
+        let zero = _mm512_setzero_ps();
+        for q in 0..PACKET {
+            for i in (0..n).step_by(16) {
+                let p = y.add(q * n + i);
+                let v = _mm512_max_ps(_mm512_loadu_ps(p), zero);
+                if xh.is_null() {
+                    _mm512_storeu_ps(p, v);
+                    continue;
+                }
+                let hi: __m256i = core::mem::transmute(_mm512_cvtneps_pbh(v));
+                let back = _mm512_castsi512_ps(_mm512_slli_epi32::<16>(_mm512_cvtepu16_epi32(hi)));
+                let lo: __m256i = core::mem::transmute(_mm512_cvtneps_pbh(_mm512_sub_ps(v, back)));
+                _mm256_storeu_si256(xh.add(q * x_row + i).cast(), hi);
+                _mm256_storeu_si256(xl.add(q * x_row + i).cast(), lo);
+            }
+        }
+    }
+}
+
+/// The hidden layers of `net` for [`PACKET`] queries at one prepared point, on tiles: query `q`'s tail
+/// at `tails[q * tail_stride..][..n_tail]`, its last hidden activation (after ReLU) to
+/// `h[q * width..][..width]`. `tiles` is [`pack`]'s output for `net` and `n_tail`.
+///
+/// # Safety
+/// [`available`]; `net` [`fits`] with `n_tail`, `tiles` as above, `partial.head_len + n_tail` the
+/// network's input count; `tails` readable as described; `h` holds `PACKET * width` floats.
+#[target_feature(enable = "avx512f,avx512bw,avx512bf16,avx512vl")]
+pub(crate) unsafe fn hidden<W: Weight>(net: &Net<'_, W>, tiles: &[u16], partial: &Partial, tails: &[f32], tail_stride: usize, n_tail: usize, h: &mut [f32]) {
+    let d = &net.desc;
+    let width = d.width as usize;
+    let tp = tail_pad(n_tail);
+    let row = width + tp;
+    let mut xh = Aligned([0u16; PACKET * ROW_MAX]);
+    let mut xl = Aligned([0u16; PACKET * ROW_MAX]);
+    let (xh, xl) = (&mut xh.0, &mut xl.0);
+    for q in 0..PACKET {
+        for (i, &x) in tails[q * tail_stride..][..n_tail].iter().enumerate() {
+            (xh[q * row + width + i], xl[q * row + width + i]) = split(x);
+        }
+    }
+    let mut bias = [0.0f32; MAX_WIDTH];
+    let mut w = tiles.as_ptr();
+    // SAFETY: the buffers hold the extents `layer` and `relu_split` are given; tiles are configured
+    // before the first tile instruction and released after the last.
+    unsafe {
+        asm!("ldtilecfg [{}]", in(reg) CONFIG.0.as_ptr(), options(nostack, readonly));
+        for l in 0..d.hidden as usize {
+            let k = layer_k(d, n_tail, l);
+            let init = if l == 0 {
+                &partial.layer0[..width]
+            } else if d.skip as usize == l {
+                &partial.skip[..width]
+            } else {
+                let off = d.layer_offset(l) + width * width;
+                W::widen(&net.weights[off..off + width], &mut bias[..width]);
+                &bias[..width]
+            };
+            // Layer 0 reads the tail (after the hidden part of the rows); the others from the start.
+            let x0 = if l == 0 { width } else { 0 };
+            layer(w, k, width, xh.as_ptr().add(x0), xl.as_ptr().add(x0), 2 * row, init.as_ptr(), h.as_mut_ptr());
+            w = w.add(2 * k * width);
+            if l + 1 == d.hidden as usize {
+                relu_split(h.as_mut_ptr(), width, core::ptr::null_mut(), core::ptr::null_mut(), row);
+            } else {
+                relu_split(h.as_mut_ptr(), width, xh.as_mut_ptr(), xl.as_mut_ptr(), row);
+            }
+        }
+        asm!("tilerelease", options(nostack, nomem));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mlp::{forward_packet, partial, Arithmetic, Tiled};
+
+    fn random(n: usize, seed: u32, scale: f32) -> alloc::vec::Vec<f32> {
+        let mut s = seed;
+        (0..n)
+            .map(|_| {
+                s = s.wrapping_mul(1664525).wrapping_add(1013904223);
+                ((s >> 8) as f32 / (1u32 << 24) as f32 - 0.5) * 2.0 * scale
+            })
+            .collect()
+    }
+
+    /// Reads `pack`'s output back with the B-tile layout of Intel's SDM (`TDPBF16PS`: element `(k, n)`
+    /// of a 32×16 tile at row `k / 2`, column `2n + k % 2`): every weight of the tiled rows is
+    /// `hi + lo` to 2^-16 of itself, the padding rows are 0. Runs on any x86-64 CPU.
+    #[test]
+    fn pack_lays_out_the_weights_the_tiles_read() {
+        let n_tail = 11;
+        let d = NetDesc { n_in: 5 + n_tail as u16, width: 64, hidden: 3, n_out: 3, skip: 2 };
+        let w = random(d.n_weights(), 3, 1.0);
+        let net = Net { desc: d, weights: &w[..] };
+        let mut tiles = alloc::vec![0u16; packed_len(&d, n_tail)];
+        pack(&net, n_tail, &mut tiles);
+        let (width, head) = (64, 5);
+        let bf = |b: u16| half::bf16::from_bits(b).to_f32();
+        let mut o = 0;
+        for l in 0..3 {
+            let k = layer_k(&d, n_tail, l);
+            assert_eq!(k, [32, 64, 64 + 32][l]);
+            let off = d.layer_offset(l);
+            for n0 in (0..width).step_by(32) {
+                for k0 in (0..k).step_by(32) {
+                    for j in 0..2 {
+                        let (hi, lo) = (&tiles[o..o + 512], &tiles[o + 512..o + 1024]);
+                        for kk in 0..32 {
+                            for n in 0..16 {
+                                let at = (kk / 2) * 32 + 2 * n + kk % 2;
+                                let i = k0 + kk;
+                                let row = match l {
+                                    0 => (i < n_tail).then_some(head + i),
+                                    1 => Some(i),
+                                    _ => if i < width { Some(i) } else { (i - width < n_tail).then_some(width + head + i - width) },
+                                };
+                                let want = row.map_or(0.0, |r| w[off + r * width + n0 + 16 * j + n]);
+                                let got = bf(hi[at]) + bf(lo[at]);
+                                assert!((got - want).abs() <= want.abs() * 2f32.powi(-16), "layer {l} input {i} output {}: {got} vs {want}", n0 + 16 * j + n);
+                            }
+                        }
+                        o += 1024;
+                    }
+                }
+            }
+        }
+        assert_eq!(o, tiles.len());
+    }
+
+    /// One tiled layer against exact sums: with inputs and weights split into bf16 pairs and f32
+    /// sums, `|y - exact| ≤ (2^-15 + K·2^-23) Σ|x_i w_i|` (each product to ~3·2^-18, Henry et al.
+    /// Sec. IV; the f32 sums' γ_K). Layer 0 (the tail, padded to a tile) with a head folded into
+    /// `partial`; then the skip layer and a plain hidden layer, fed exact activations by a layer 0
+    /// that copies bf16-exact tail values (0/1 weights).
+    #[test]
+    fn tiled_layers_stay_within_the_split_bf16_error_bound() {
+        if !available() {
+            std::eprintln!("amx: this CPU has no AMX-BF16 (or the OS denies the tiles); skipping");
+            return;
+        }
+        let n_tail = 36;
+        for (hidden, skip, copy_layer0) in [(1u8, 0u8, false), (2, 1, true), (2, 0, true)] {
+            let d = NetDesc { n_in: 7 + n_tail as u16, width: 128, hidden, n_out: 0, skip };
+            let (width, head_len) = (128usize, 7usize);
+            let mut w = random(d.n_weights(), 11 + hidden as u32 + skip as u32, 0.3);
+            let mut tails = random(PACKET * n_tail, 5, 1.0);
+            if copy_layer0 {
+                // Layer 0: h0[o] = relu(tail[o % n_tail]), exactly (bf16-exact tails, 0/1 weights, no bias).
+                for t in tails.iter_mut() {
+                    *t = half::bf16::from_f32(*t).to_f32();
+                }
+                for i in 0..d.n_in as usize + 1 {
+                    for o in 0..width {
+                        w[i * width + o] = if i >= head_len && i < d.n_in as usize && (o % n_tail) == i - head_len { 1.0 } else { 0.0 };
+                    }
+                }
+            }
+            let net = Net { desc: d, weights: &w[..] };
+            let head = random(head_len, 7, 1.0);
+            let p = partial(&net, &head);
+            let mut tiles = alloc::vec![0u16; packed_len(&d, n_tail)];
+            pack(&net, n_tail, &mut tiles);
+            let tiled = Tiled { values: &tiles, n_tail };
+            let mut out = alloc::vec![f32::NAN; PACKET * width];
+            forward_packet(Arithmetic::SplitBf16, Some(tiled), &net, &p, &tails, n_tail, n_tail, &mut out, width);
+            for q in 0..PACKET {
+                let x: alloc::vec::Vec<f64> = head.iter().chain(&tails[q * n_tail..(q + 1) * n_tail]).map(|&v| v as f64).collect();
+                // Exact activations of the layers before the last, then the last layer's sums.
+                let mut h: alloc::vec::Vec<f64> = alloc::vec::Vec::new();
+                for l in 0..hidden as usize {
+                    let off = d.layer_offset(l);
+                    let input: alloc::vec::Vec<f64> = if l == 0 { x.clone() } else if skip as usize == l { h.iter().chain(&x).copied().collect() } else { h.clone() };
+                    let k = input.len();
+                    let mut next = alloc::vec![0.0f64; width];
+                    for o in 0..width {
+                        let (mut sum, mut mag) = (w[off + k * width + o] as f64, (w[off + k * width + o] as f64).abs());
+                        for (i, &xi) in input.iter().enumerate() {
+                            let t = xi * w[off + i * width + o] as f64;
+                            sum += t;
+                            mag += t.abs();
+                        }
+                        next[o] = sum.max(0.0);
+                        if l + 1 == hidden as usize {
+                            let got = out[q * width + o] as f64;
+                            let bound = (2f64.powi(-15) + k as f64 * 2f64.powi(-23)) * mag;
+                            assert!((got - next[o]).abs() <= bound, "hidden {hidden} skip {skip} query {q} output {o}: {got} vs {} (bound {bound:e})", next[o]);
+                        }
+                    }
+                    h = next;
+                }
+            }
+        }
+    }
+}
