@@ -477,28 +477,30 @@ pub fn forward_packet<W: Weight>(
     out: &mut [f32],
     out_stride: usize,
 ) {
-    let mut h = [0.0f32; PACKET * MAX_WIDTH];
     if let (Arithmetic::SplitBf16, Some(tiled)) = (math, tiled) {
-        if hidden_tiled(tiled, net, partial, tails, tail_stride, n_tail, &mut h) {
-            return output_layer::<W, PACKET>(net, &h, out, out_stride);
+        let mut h = core::mem::MaybeUninit::<[f32; PACKET * MAX_WIDTH]>::uninit();
+        if let Some(h) = hidden_tiled(tiled, net, partial, tails, tail_stride, n_tail, &mut h) {
+            return output_layer::<W, PACKET>(net, h, out, out_stride);
         }
     }
+    let mut h = [0.0f32; PACKET * MAX_WIDTH];
     let mut t = [0.0f32; PACKET * MAX_WIDTH];
     run::<W, PACKET>(math, net, partial, tails, tail_stride, n_tail, out, out_stride, &mut h, &mut t);
 }
 
-/// The hidden layers of a packet on AMX tiles ([`crate::kernels`], "Split-bf16 arithmetic"), the last
-/// activations to `h`; `false` (nothing written) where they do not apply (see [`forward_packet`]).
+/// The hidden layers of a packet on AMX tiles ([`crate::kernels`], "Split-bf16 arithmetic"): the last
+/// activations (`PACKET × width`, written to the front of `h`), or `None` (nothing written) where the
+/// tiles do not apply (see [`forward_packet`]).
 #[allow(unused_variables)]
-fn hidden_tiled<W: Weight>(
+fn hidden_tiled<'h, W: Weight>(
     tiled: Tiled<'_>,
     net: &Net<'_, W>,
     partial: &Partial,
     tails: &[f32],
     tail_stride: usize,
     n_tail: usize,
-    h: &mut [f32; PACKET * MAX_WIDTH],
-) -> bool {
+    h: &'h mut core::mem::MaybeUninit<[f32; PACKET * MAX_WIDTH]>,
+) -> Option<&'h [f32]> {
     #[cfg(all(target_arch = "x86_64", target_os = "linux", feature = "std"))]
     {
         use crate::kernels::amx;
@@ -510,18 +512,23 @@ fn hidden_tiled<W: Weight>(
             && amx::packed_len(d, n_tail) == tiled.values.len()
             && net.weights.len() == d.n_weights();
         if !applies {
-            return false;
+            return None;
         }
         assert!(tails.len() >= (PACKET - 1) * tail_stride + n_tail, "tails too short for a packet");
+        let n = PACKET * d.width as usize;
+        let h = h.as_mut_ptr().cast::<f32>();
         // SAFETY: the CPU and OS have the tiles; the layout fits `net` and `n_tail` (its length is
         // `packed_len`, which is non-zero only where `fits`); the head is the rest of the input;
-        // the tails extent was checked; `h` holds `PACKET × MAX_WIDTH` floats.
-        unsafe { amx::hidden(net, tiled.values, partial, tails, tail_stride, n_tail, h) };
-        true
+        // the tails extent was checked; `h` has room for `PACKET × MAX_WIDTH` floats, and `hidden`
+        // writes the first `n` of them.
+        unsafe {
+            amx::hidden(net, tiled.values, partial, tails, tail_stride, n_tail, h);
+            Some(core::slice::from_raw_parts(h, n))
+        }
     }
     #[cfg(not(all(target_arch = "x86_64", target_os = "linux", feature = "std")))]
     {
-        false
+        None
     }
 }
 

@@ -25,6 +25,7 @@
 //! which [`available`] asks for once.
 
 use core::arch::asm;
+use core::mem::MaybeUninit;
 use core::arch::x86_64::*;
 
 use crate::mlp::{Net, NetDesc, Partial, Weight, MAX_WIDTH};
@@ -254,6 +255,24 @@ unsafe fn layer(w: *const u16, k: usize, n: usize, xh: *const u16, xl: *const u1
     }
 }
 
+/// Splits 16 values into bf16 high and low parts (round to nearest even, AVX512-BF16), stored at `xh`
+/// and `xl`: `lo = bf16(v - hi)`, where `v - hi` is exact (Sterbenz: `hi` is within a factor 2 of `v`).
+///
+/// # Safety
+/// `xh` and `xl` have room for 16 values.
+#[inline]
+#[target_feature(enable = "avx512f,avx512bw,avx512bf16,avx512vl")]
+unsafe fn split16(v: __m512, xh: *mut u16, xl: *mut u16) {
+    // SAFETY: `__m256bh` and `__m256i` are both 256 bits of plain data; the stores are in the room.
+    unsafe {
+        let hi: __m256i = core::mem::transmute(_mm512_cvtneps_pbh(v));
+        let back = _mm512_castsi512_ps(_mm512_slli_epi32::<16>(_mm512_cvtepu16_epi32(hi)));
+        let lo: __m256i = core::mem::transmute(_mm512_cvtneps_pbh(_mm512_sub_ps(v, back)));
+        _mm256_storeu_si256(xh.cast(), hi);
+        _mm256_storeu_si256(xl.cast(), lo);
+    }
+}
+
 /// ReLU of the 16 rows of `n` sums at `y`: back to `y` (`xh` null: the last layer), or split into
 /// bf16 high and low parts at `xh`, `xl` (rows `x_row` values apart) as the next layer's input.
 ///
@@ -271,13 +290,9 @@ unsafe fn relu_split(y: *mut f32, n: usize, xh: *mut u16, xl: *mut u16, x_row: u
                 let v = _mm512_max_ps(_mm512_loadu_ps(p), zero);
                 if xh.is_null() {
                     _mm512_storeu_ps(p, v);
-                    continue;
+                } else {
+                    split16(v, xh.add(q * x_row + i), xl.add(q * x_row + i));
                 }
-                let hi: __m256i = core::mem::transmute(_mm512_cvtneps_pbh(v));
-                let back = _mm512_castsi512_ps(_mm512_slli_epi32::<16>(_mm512_cvtepu16_epi32(hi)));
-                let lo: __m256i = core::mem::transmute(_mm512_cvtneps_pbh(_mm512_sub_ps(v, back)));
-                _mm256_storeu_si256(xh.add(q * x_row + i).cast(), hi);
-                _mm256_storeu_si256(xl.add(q * x_row + i).cast(), lo);
             }
         }
     }
@@ -285,30 +300,38 @@ unsafe fn relu_split(y: *mut f32, n: usize, xh: *mut u16, xl: *mut u16, x_row: u
 
 /// The hidden layers of `net` for [`PACKET`] queries at one prepared point, on tiles: query `q`'s tail
 /// at `tails[q * tail_stride..][..n_tail]`, its last hidden activation (after ReLU) to
-/// `h[q * width..][..width]`. `tiles` is [`pack`]'s output for `net` and `n_tail`.
+/// `h[q * width..][..width]` (every one of those `PACKET * width` values written). `tiles` is
+/// [`pack`]'s output for `net` and `n_tail`.
 ///
 /// # Safety
 /// [`available`]; `net` [`fits`] with `n_tail`, `tiles` as above, `partial.head_len + n_tail` the
-/// network's input count; `tails` readable as described; `h` holds `PACKET * width` floats.
+/// network's input count; `tails` readable as described; `h` writable for `PACKET * width` floats.
 #[target_feature(enable = "avx512f,avx512bw,avx512bf16,avx512vl")]
-pub(crate) unsafe fn hidden<W: Weight>(net: &Net<'_, W>, tiles: &[u16], partial: &Partial, tails: &[f32], tail_stride: usize, n_tail: usize, h: &mut [f32]) {
+pub(crate) unsafe fn hidden<W: Weight>(net: &Net<'_, W>, tiles: &[u16], partial: &Partial, tails: &[f32], tail_stride: usize, n_tail: usize, h: *mut f32) {
     let d = &net.desc;
     let width = d.width as usize;
     let tp = tail_pad(n_tail);
     let row = width + tp;
-    let mut xh = Aligned([0u16; PACKET * ROW_MAX]);
-    let mut xl = Aligned([0u16; PACKET * ROW_MAX]);
-    let (xh, xl) = (&mut xh.0, &mut xl.0);
-    for q in 0..PACKET {
-        for (i, &x) in tails[q * tail_stride..][..n_tail].iter().enumerate() {
-            (xh[q * row + width + i], xl[q * row + width + i]) = split(x);
-        }
-    }
+    // Activation rows `[hidden outputs | tail, zero padded]`, high and low parts. Not zeroed (26 KB a
+    // packet): the tail part is written in full below, the hidden part by each layer before the next
+    // reads it, and the tiles read nothing else.
+    let mut xh = MaybeUninit::<Aligned<[u16; PACKET * ROW_MAX]>>::uninit();
+    let mut xl = MaybeUninit::<Aligned<[u16; PACKET * ROW_MAX]>>::uninit();
+    let (xh, xl) = (xh.as_mut_ptr().cast::<u16>(), xl.as_mut_ptr().cast::<u16>());
     let mut bias = [0.0f32; MAX_WIDTH];
     let mut w = tiles.as_ptr();
-    // SAFETY: the buffers hold the extents `layer` and `relu_split` are given; tiles are configured
-    // before the first tile instruction and released after the last.
+    // SAFETY: the buffers hold the extents `split16`, `layer` and `relu_split` are given (rows of
+    // `row ≤ ROW_MAX` values); the masked loads read only the `n_tail` values of each tail; tiles are
+    // configured before the first tile instruction and released after the last.
     unsafe {
+        for q in 0..PACKET {
+            // `wrapping_add`: past the tail the pointer may leave the slice; the mask reads nothing there.
+            let t = tails.as_ptr().wrapping_add(q * tail_stride);
+            for i in (0..tp).step_by(16) {
+                let m = mask(n_tail.saturating_sub(i));
+                split16(_mm512_maskz_loadu_ps(m, t.wrapping_add(i)), xh.add(q * row + width + i), xl.add(q * row + width + i));
+            }
+        }
         asm!("ldtilecfg [{}]", in(reg) CONFIG.0.as_ptr(), options(nostack, readonly));
         for l in 0..d.hidden as usize {
             let k = layer_k(d, n_tail, l);
@@ -323,15 +346,25 @@ pub(crate) unsafe fn hidden<W: Weight>(net: &Net<'_, W>, tiles: &[u16], partial:
             };
             // Layer 0 reads the tail (after the hidden part of the rows); the others from the start.
             let x0 = if l == 0 { width } else { 0 };
-            layer(w, k, width, xh.as_ptr().add(x0), xl.as_ptr().add(x0), 2 * row, init.as_ptr(), h.as_mut_ptr());
+            layer(w, k, width, xh.add(x0), xl.add(x0), 2 * row, init.as_ptr(), h);
             w = w.add(2 * k * width);
             if l + 1 == d.hidden as usize {
-                relu_split(h.as_mut_ptr(), width, core::ptr::null_mut(), core::ptr::null_mut(), row);
+                relu_split(h, width, core::ptr::null_mut(), core::ptr::null_mut(), row);
             } else {
-                relu_split(h.as_mut_ptr(), width, xh.as_mut_ptr(), xl.as_mut_ptr(), row);
+                relu_split(h, width, xh, xl, row);
             }
         }
         asm!("tilerelease", options(nostack, nomem));
+    }
+}
+
+/// The first `min(n, 16)` lanes.
+#[inline(always)]
+fn mask(n: usize) -> __mmask16 {
+    if n >= 16 {
+        0xffff
+    } else {
+        ((1u32 << n) - 1) as __mmask16
     }
 }
 
