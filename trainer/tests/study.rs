@@ -52,6 +52,7 @@ fn tiny_study_writes_every_table_and_reuses_jobs() {
         }
         assert_eq!(e.energy.pairs, 4);
         assert!(e.eval_ns_per_query > 0.0 && r.size_bytes > 0 && r.train_wall_s > 0.0);
+        assert!(e.eval_batch_ns_per_query.is_some_and(|ns| ns > 0.0), "{}: batched timing", r.model);
         // Neural models also get an f16 copy: smaller, and close to the f32 one in quality.
         match (&r.eval_f16, r.size_bytes_f16) {
             (Some(e16), Some(b16)) => {
@@ -82,28 +83,41 @@ fn tiny_study_writes_every_table_and_reuses_jobs() {
     assert!(t2.contains("| single-mlp+exact+nol3 | single-mlp+exact | sphere__two-lobe-metal |"), "{t2}");
     assert!(t3.find("| single-mlp |").unwrap() < t3.find("| single-mlp+exact |").unwrap(), "{t3}");
     assert!(!t3.contains("| rp |"));
-    // Every variant in the accuracy-versus-cost table, the neural ones with an f16 row too, and a
-    // half-arithmetic row where the CPU has AVX512-FP16 (which also moves the values a little).
+    // Every variant in the accuracy-versus-cost table, the neural ones with an f16 row too, a
+    // half-arithmetic row where the CPU has AVX512-FP16 (which also moves the values a little), and a
+    // split-bf16 row where it has AMX (which moves them by ~1e-5: the same PSNR to 0.01 dB).
     let cost = section("## Accuracy versus cost");
-    let half = nbrdf::kernels::half_math_available();
+    let (half, amx) = (nbrdf::kernels::half_math_available(), nbrdf::kernels::amx_available());
     for r in &results {
         let rows = cost.matches(&format!("| {} |", r.model)).count();
-        assert_eq!(rows, if r.model == "rp" { 1 } else if half { 3 } else { 2 }, "{}:\n{cost}", r.model);
+        assert_eq!(rows, if r.model == "rp" { 1 } else { 2 + half as usize + amx as usize }, "{}:\n{cost}", r.model);
         assert_eq!(r.eval_f16_half.is_some(), half && r.model != "rp", "{}", r.model);
         if let (Some(f16), Some(h)) = (&r.eval_f16, &r.eval_f16_half) {
             assert!((h.image.psnr - f16.image.psnr).abs() < 0.5, "{}: half arithmetic moved PSNR by more than 0.5 dB", r.model);
         }
+        assert_eq!(r.eval_split_bf16.is_some(), amx && r.model != "rp", "{}", r.model);
+        if let Some(sb) = &r.eval_split_bf16 {
+            assert!((sb.image.psnr - r.eval.image.psnr).abs() < 0.01, "{}: split bf16 {} dB vs f32 {} dB", r.model, sb.image.psnr, r.eval.image.psnr);
+            assert!(sb.eval_batch_ns_per_query.is_some());
+        }
+    }
+    if !amx {
+        eprintln!("study: no AMX-BF16 here, so no split-bf16 rows to check");
     }
     // A result.json written before the half-arithmetic field still loads (without it); a truncated one
     // is a parse error (the study then runs the job again).
     let mut old = serde_json::to_value(&results[1]).unwrap();
-    old.as_object_mut().unwrap().remove("eval_f16_half");
+    for field in ["eval_f16_half", "eval_split_bf16"] {
+        old.as_object_mut().unwrap().remove(field);
+    }
+    old["eval"].as_object_mut().unwrap().remove("eval_batch_ns_per_query");
     let loaded: study::JobResult = serde_json::from_value(old).unwrap();
-    assert!(loaded.eval_f16_half.is_none() && loaded.eval_f16.is_some());
+    assert!(loaded.eval_f16_half.is_none() && loaded.eval_split_bf16.is_none() && loaded.eval_f16.is_some());
+    assert!(loaded.eval.eval_batch_ns_per_query.is_none());
     let json = serde_json::to_string(&results[1]).unwrap();
     assert!(serde_json::from_str::<study::JobResult>(&json[..json.len() / 2]).is_err());
     // The figures: Pareto plots and, per object, best parametric and best neural comparisons.
-    for plot in ["figures/pareto-train.png", "figures/pareto-eval.png"] {
+    for plot in ["figures/pareto-train.png", "figures/pareto-eval.png", "figures/pareto-eval-batch.png"] {
         assert!(report.contains(plot), "{plot} not linked");
         let img = image::open(out.join(plot)).unwrap().to_rgb8();
         assert_eq!(img.dimensions(), (900, 600));

@@ -5,7 +5,12 @@
 //! - the rendered BRDF values are compared with the stored raw ground-truth ones in cube-root RMSE, on
 //!   lit pixels within the angle limit of [`brdf_rmse::keep`];
 //! - reciprocity RMSE and the energy analysis use points and directions of the test samples;
-//! - the evaluation cost is timed in-process on the reciprocity pairs.
+//! - the evaluation cost is timed in-process on the reciprocity pairs: one query at a time (`eval_in`), and
+//!   in batches of many directions at one point (`eval_many_in`).
+//!
+//! With [`Arithmetic::SplitBf16`] (batches only: single queries keep f32) every value is taken from a
+//! batch: a pair's value does not depend on the batch it is in, so a batch of one gives the value any
+//! batch would.
 
 use std::time::Instant;
 
@@ -34,7 +39,15 @@ pub struct Evaluation {
     pub energy: EnergySummary,
     /// Mean nanoseconds per `eval` (one direction pair, point already prepared), single thread.
     pub eval_ns_per_query: f64,
+    /// Mean nanoseconds per direction pair of `eval_many_in` (batches of [`BATCH`] pairs at one
+    /// prepared point), single thread; absent in results written before it was measured.
+    #[serde(default)]
+    pub eval_batch_ns_per_query: Option<f64>,
 }
+
+/// Directions per batch of the batched timing: as a renderer shading many light or view samples at
+/// one surface point.
+pub const BATCH: usize = 256;
 
 /// The model's point input at a surface point: the stored intrinsic table interpolated at the hit, the
 /// normalised-mesh position, or nothing.
@@ -65,10 +78,20 @@ pub fn evaluate(
     config: &super::StudyConfig,
     math: Arithmetic,
 ) -> Result<Evaluation> {
-    let buf = ModelBuf::load(model_path).map_err(Error::Core)?;
+    let mut buf = ModelBuf::load(model_path).map_err(Error::Core)?;
+    if math == Arithmetic::SplitBf16 && !buf.enable_amx() {
+        return Err(Error::Invalid(format!("{}: split-bf16 arithmetic does not apply (no AMX here, or not a neural model)", model_path.display())));
+    }
     let model = buf.model();
     // Every query of the evaluation, in the arithmetic under test.
-    let eval = |p: &Prepared, wi: Vec3, wo: Vec3| model.eval_in(math, p, wi, wo);
+    let eval = |p: &Prepared, wi: Vec3, wo: Vec3| match math {
+        Arithmetic::SplitBf16 => {
+            let mut f = [[0.0; 3]];
+            model.eval_many_in(math, p, &[wi], &[wo], &mut f);
+            f[0]
+        }
+        _ => model.eval_in(math, p, wi, wo),
+    };
     let mut image_metrics = Vec::new();
     let (mut pred_brdf, mut ref_brdf, mut keep) = (Vec::<Rgb>::new(), Vec::<Rgb>::new(), Vec::new());
     for view in ds.views.iter().filter(|v| v.split == Split::Test) {
@@ -132,11 +155,33 @@ pub fn evaluate(
         brdf_rmse_cbrt: brdf_rmse::cube_root_rmse(&pred_brdf, &ref_brdf, &keep),
         reciprocity_rmse: reciprocity,
         energy,
-        eval_ns_per_query: time_eval(&eval, &recip_prepared, &pairs),
+        eval_ns_per_query: time_eval(&|p: &Prepared, wi, wo| model.eval_in(math, p, wi, wo), &recip_prepared, &pairs),
+        eval_batch_ns_per_query: Some(time_batches(&model, math, &recip_prepared, &pairs)),
     })
 }
 
-/// Mean ns per `eval` over the pairs, repeated to at least ~200k queries so the timer resolution and
+/// Mean ns per pair of `eval_many_in(math, ..)` over batches of [`BATCH`] of the pairs' directions,
+/// each batch at the next prepared point, repeated to at least ~200k queries.
+fn time_batches(model: &Model<'_>, math: Arithmetic, prepared: &[Prepared], pairs: &[DirectionPair]) -> f64 {
+    if pairs.is_empty() || prepared.is_empty() {
+        return f64::NAN;
+    }
+    let (wi, wo): (Vec<Vec3>, Vec<Vec3>) = (0..BATCH).map(|i| (pairs[i % pairs.len()].wi, pairs[i % pairs.len()].wo)).unzip();
+    let mut out = vec![[0.0f32; 3]; BATCH];
+    model.eval_many_in(math, &prepared[0], &wi, &wo, &mut out);
+    let rounds = (200_000 / BATCH).max(1);
+    let mut sink = 0.0f32;
+    let t = Instant::now();
+    for r in 0..rounds {
+        model.eval_many_in(math, &prepared[r % prepared.len()], std::hint::black_box(&wi), &wo, &mut out);
+        sink += out[r % BATCH][1];
+    }
+    let ns = t.elapsed().as_nanos() as f64 / (rounds * BATCH) as f64;
+    std::hint::black_box(sink);
+    ns
+}
+
+/// Mean ns per single `eval` over the pairs, repeated to at least ~200k queries so the timer resolution and
 /// the first cold calls do not dominate.
 fn time_eval(eval: &impl Fn(&Prepared, Vec3, Vec3) -> Rgb, prepared: &[Prepared], pairs: &[DirectionPair]) -> f64 {
     if pairs.is_empty() {

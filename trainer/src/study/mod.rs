@@ -55,6 +55,10 @@ pub struct JobResult {
     /// has it (AVX512-FP16).
     #[serde(default)]
     pub eval_f16_half: Option<Evaluation>,
+    /// The f32 model in split-bf16 arithmetic on AMX tiles (`Arithmetic::SplitBf16`: batches only),
+    /// where the machine has it.
+    #[serde(default)]
+    pub eval_split_bf16: Option<Evaluation>,
 }
 
 /// Which jobs this process runs: job `j` (in scene-major order) belongs to shard `j % count`.
@@ -229,6 +233,9 @@ pub fn run(config: &StudyConfig, out: &Path, shard: Option<Shard>, progress: boo
                     .transpose()?;
                 (Some(f16), Some(bytes.len() as u64), half)
             };
+            let eval_split_bf16 = (!config::is_parametric(&spec.model) && nbrdf::kernels::amx_available())
+                .then(|| evaluate::evaluate(&ds, &model_path, &lpips, config, Arithmetic::SplitBf16))
+                .transpose()?;
             let r = JobResult {
                 scene: scene.id(),
                 model: name.clone(),
@@ -242,6 +249,7 @@ pub fn run(config: &StudyConfig, out: &Path, shard: Option<Shard>, progress: boo
                 eval_f16,
                 size_bytes_f16,
                 eval_f16_half,
+                eval_split_bf16,
             };
             let json = serde_json::to_vec_pretty(&r).map_err(|e| Error::io(&result_path, e))?;
             crate::train::write_atomic(&result_path, &json)?;

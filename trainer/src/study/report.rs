@@ -31,20 +31,26 @@ pub struct ModelSummary {
     pub energy_median_above_one: Option<f64>,
     pub train_wall_s: f64,
     pub eval_ns_per_query: f64,
+    /// Batched evaluation ns per query (`None` unless every object has it).
+    pub eval_batch_ns_per_query: Option<f64>,
     pub n_weights: usize,
     pub size_bytes: u64,
     /// The f16-weight copies (purely neural models; `None` when some object has none).
     pub f16: Option<F16Summary>,
     /// The f16-weight copies in half-precision arithmetic (`None` unless every object has it).
     pub f16_half: Option<F16Summary>,
+    /// The f32 model in split-bf16 arithmetic on AMX tiles (`None` unless every object has it).
+    pub split_bf16: Option<F16Summary>,
 }
 
-/// Means over the objects of the f16-weight copies of a model.
+/// Means over the objects of one more evaluation of a model: its f16-weight copy, or another
+/// arithmetic.
 #[derive(Clone, Debug, Serialize)]
 pub struct F16Summary {
     pub psnr: f64,
     pub brdf_rmse_cbrt: f64,
     pub eval_ns_per_query: f64,
+    pub eval_batch_ns_per_query: Option<f64>,
     pub size_bytes: u64,
 }
 
@@ -80,10 +86,12 @@ pub fn summarize(results: &[JobResult]) -> Vec<ModelSummary> {
                 energy_median_above_one: (!medians.is_empty()).then(|| mean(medians.into_iter())),
                 train_wall_s: mean(rs.iter().map(|r| r.train_wall_s)),
                 eval_ns_per_query: mean(rs.iter().map(|r| r.eval.eval_ns_per_query)),
+                eval_batch_ns_per_query: mean_all(rs.iter().map(|r| r.eval.eval_batch_ns_per_query)),
                 n_weights: rs[0].n_weights,
                 size_bytes: rs[0].size_bytes,
                 f16: f16_summary(rs.iter().map(|r| r.eval_f16.as_ref().zip(r.size_bytes_f16))),
                 f16_half: f16_summary(rs.iter().map(|r| r.eval_f16_half.as_ref().zip(r.size_bytes_f16))),
+                split_bf16: f16_summary(rs.iter().map(|r| r.eval_split_bf16.as_ref().map(|e| (e, r.size_bytes)))),
             }
         })
         .collect()
@@ -95,8 +103,14 @@ fn f16_summary<'a>(v: impl Iterator<Item = Option<(&'a Evaluation, u64)>>) -> Op
         psnr: mean(v.iter().map(|(e, _)| e.image.psnr)),
         brdf_rmse_cbrt: mean(v.iter().map(|(e, _)| e.brdf_rmse_cbrt.value)),
         eval_ns_per_query: mean(v.iter().map(|(e, _)| e.eval_ns_per_query)),
+        eval_batch_ns_per_query: mean_all(v.iter().map(|(e, _)| e.eval_batch_ns_per_query)),
         size_bytes: v[0].1,
     })
+}
+
+/// The mean where every value is present, else `None`.
+fn mean_all(v: impl Iterator<Item = Option<f64>>) -> Option<f64> {
+    v.collect::<Option<Vec<f64>>>().filter(|v| !v.is_empty()).map(|v| mean(v.into_iter()))
 }
 
 fn opt(v: Option<f64>, scale: f64, digits: usize) -> String {
@@ -255,10 +269,28 @@ pub fn pareto_plots(out: &Path, config: &StudyConfig, results: &[JobResult]) -> 
             })
         }));
     }
-    let plots = [
+    // Batched cost: every row with a batched timing, the split-bf16 arithmetic (batches only) too.
+    let mut batch: Vec<CostPoint> = full
+        .iter()
+        .filter_map(|m| m.eval_batch_ns_per_query.map(|cost| CostPoint { label: short_label(&m.model, config), cost, accuracy: m.psnr }))
+        .collect();
+    for (suffix, pick) in [
+        ("f16", (|m: &ModelSummary| m.f16.as_ref()) as fn(&ModelSummary) -> Option<&F16Summary>),
+        ("f16 half", |m| m.f16_half.as_ref()),
+        ("split bf16", |m| m.split_bf16.as_ref()),
+    ] {
+        batch.extend(full.iter().filter_map(|m| {
+            let f = pick(m)?;
+            Some(CostPoint { label: format!("{} {suffix}", short_label(&m.model, config)), cost: f.eval_batch_ns_per_query?, accuracy: f.psnr })
+        }));
+    }
+    let mut plots = vec![
         ("PSNR against training wall time", "figures/pareto-train.png", "training wall time (s, log)", train),
         ("PSNR against evaluation cost", "figures/pareto-eval.png", "core eval ns per query (log)", eval),
     ];
+    if !batch.is_empty() {
+        plots.push(("PSNR against batched evaluation cost", "figures/pareto-eval-batch.png", "core eval ns per query, batches of 256 (log)", batch));
+    }
     let mut written = Vec::new();
     for (title, rel, xlabel, pts) in plots {
         figures::pareto_plot(&out.join(rel), title, xlabel, "PSNR (dB), mean over objects", &pts)?;
@@ -421,32 +453,38 @@ pub fn markdown(
         "Every variant. Training wall time on this machine (CPU, shared), core evaluation ns per query (one thread, point \
          prepared), model file size; `f16` rows are the same fit re-encoded with f16 network weights (no retraining), \
          evaluated the same way; `f16, half arithmetic` rows evaluate that copy with `Model::eval_half` (f16 multiply-adds, \
-         on CPUs with AVX512-FP16 only). Means over the objects column.\n"
+         on CPUs with AVX512-FP16 only); `f32, split bf16 (AMX)` rows evaluate the f32 model with \
+         `Model::eval_many_in(Arithmetic::SplitBf16, ..)` (each product as three bf16 products on AMX tiles, on CPUs with \
+         AMX-BF16 only; batches only, single queries stay f32). Batched: ns per pair of `eval_many_in` over batches of {} \
+         directions at one point. Means over the objects column.\n",
+        super::evaluate::BATCH
     );
-    let _ = writeln!(md, "| model | weights | objects | train s | eval ns/query | parameters | size (KiB) | PSNR ↑ | RMSE ∛ ×100 ↓ |");
-    let _ = writeln!(md, "|---|---|---:|---:|---:|---:|---:|---:|---:|");
+    let _ = writeln!(md, "| model | weights | objects | train s | eval ns/query | batched ns/query | parameters | size (KiB) | PSNR ↑ | RMSE ∛ ×100 ↓ |");
+    let _ = writeln!(md, "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|");
     for m in &s {
         let _ = writeln!(
             md,
-            "| {} | f32 | {} | {:.1} | {:.0} | {} | {:.1} | {:.2} | {:.2} |",
+            "| {} | f32 | {} | {:.1} | {:.0} | {} | {} | {:.1} | {:.2} | {:.2} |",
             m.model,
             m.objects,
             m.train_wall_s,
             m.eval_ns_per_query,
+            opt(m.eval_batch_ns_per_query, 1.0, 0),
             m.n_weights,
             m.size_bytes as f64 / 1024.0,
             m.psnr,
             m.brdf_rmse_cbrt * 100.0
         );
-        for (weights, f) in [("f16", &m.f16), ("f16, half arithmetic", &m.f16_half)] {
+        for (weights, f) in [("f16", &m.f16), ("f16, half arithmetic", &m.f16_half), ("f32, split bf16 (AMX)", &m.split_bf16)] {
             let Some(f) = f else { continue };
             let _ = writeln!(
                 md,
-                "| {} | {weights} | {} | {:.1} | {:.0} | {} | {:.1} | {:.2} | {:.2} |",
+                "| {} | {weights} | {} | {:.1} | {:.0} | {} | {} | {:.1} | {:.2} | {:.2} |",
                 m.model,
                 m.objects,
                 m.train_wall_s,
                 f.eval_ns_per_query,
+                opt(f.eval_batch_ns_per_query, 1.0, 0),
                 m.n_weights,
                 f.size_bytes as f64 / 1024.0,
                 f.psnr,
@@ -504,16 +542,18 @@ pub fn csv(results: &[JobResult]) -> String {
         "scene,model,psnr,dssim,lpips,flip,brdf_rmse_cbrt,brdf_samples,reciprocity_rmse,energy_share_above_one,\
          energy_median_above_one,energy_mean_albedo,train_wall_s,eval_ns_per_query,n_weights,size_bytes,steps,final_loss,\
          psnr_f16,brdf_rmse_cbrt_f16,eval_ns_per_query_f16,size_bytes_f16,psnr_f16_half,brdf_rmse_cbrt_f16_half,\
-         eval_ns_per_query_f16_half\n",
+         eval_ns_per_query_f16_half,eval_batch_ns_per_query,eval_batch_ns_per_query_f16,eval_batch_ns_per_query_f16_half,\
+         psnr_split_bf16,brdf_rmse_cbrt_split_bf16,eval_batch_ns_per_query_split_bf16\n",
     );
     let o = |v: Option<f64>| v.map_or(String::new(), |x| x.to_string());
     for r in results {
         let e = &r.eval;
         let f16 = r.eval_f16.as_ref();
         let half = r.eval_f16_half.as_ref();
+        let split = r.eval_split_bf16.as_ref();
         let _ = writeln!(
             out,
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             r.scene,
             r.model,
             e.image.psnr,
@@ -539,6 +579,12 @@ pub fn csv(results: &[JobResult]) -> String {
             o(half.map(|e| e.image.psnr)),
             o(half.map(|e| e.brdf_rmse_cbrt.value)),
             o(half.map(|e| e.eval_ns_per_query)),
+            o(e.eval_batch_ns_per_query),
+            o(f16.and_then(|e| e.eval_batch_ns_per_query)),
+            o(half.and_then(|e| e.eval_batch_ns_per_query)),
+            o(split.map(|e| e.image.psnr)),
+            o(split.map(|e| e.brdf_rmse_cbrt.value)),
+            o(split.and_then(|e| e.eval_batch_ns_per_query)),
         );
     }
     out
