@@ -21,8 +21,9 @@ use nbrdf::parametric::ParametricKind;
 pub const N_SHAPES: usize = 12;
 
 /// A valid header of every model kind with small networks (width 4, so a whole file is a few hundred
-/// bytes and a fuzzer can reach every field): shape `i` picks the kind; `variant` the precision, the
-/// reciprocity, the position encoding and the angle octaves.
+/// bytes and a fuzzer can reach every field; width 32, the smallest the AMX tiles take, where
+/// `variant & 0x80`): shape `i` picks the kind; `variant` the precision, the reciprocity, the position
+/// encoding, the angle octaves and the width.
 pub fn small_header(i: usize, variant: u8) -> ModelHeader {
     let kind = match i % N_SHAPES {
         k @ 0..=4 => ModelKind::Parametric(ParametricKind::ALL[k]),
@@ -43,16 +44,17 @@ pub fn small_header(i: usize, variant: u8) -> ModelHeader {
     if i % N_SHAPES == 6 {
         h = h.with_direction_layers(2); // trunk + head
     }
-    // Shrink every network to width 4 (shapes stay consistent: inputs that were 128 trunk features
-    // become 4), and the skip to within the hidden layers.
+    // Shrink every network to width 4 or 32 (shapes stay consistent: inputs that were 128 trunk
+    // features become the width), and the skip to within the hidden layers.
+    let width: u16 = if variant & 0x80 != 0 { 32 } else { 4 };
     let n = h.n_nets as usize;
     for j in 0..n {
         let d = h.nets[j];
         let reads_trunk = j > 0 && matches!((kind, n), (ModelKind::SingleMlp, 2) | (ModelKind::AdditiveShared, 3));
-        let n_in = if reads_trunk { d.n_in - 128 + 4 } else { d.n_in };
+        let n_in = if reads_trunk { d.n_in - 128 + width } else { d.n_in };
         let hidden = d.hidden.min(3);
         let skip = if d.skip != 0 && d.skip < hidden { d.skip } else { 0 };
-        h.nets[j] = NetDesc { n_in, width: 4, hidden, n_out: d.n_out, skip };
+        h.nets[j] = NetDesc { n_in, width, hidden, n_out: d.n_out, skip };
     }
     ModelHeader { precision, ..h }
 }

@@ -5,13 +5,16 @@
 //! ±3.4e38 for f32, where activations overflow to inf) and fuzzer-chosen weight overrides. Invariants:
 //! the diffuse term and every evaluation are finite and non-negative; exactly 0 off the upper
 //! hemisphere; bitwise reciprocal for Θ networks and parametric models. The half-precision entry points
-//! (`eval_half`, `eval_many_half`: f16 sums that overflow to infinity) keep the first two.
+//! (`eval_half`, `eval_many_half`: f16 sums that overflow to infinity) and the split-bf16 arithmetic on
+//! AMX tiles (`eval_many_in(SplitBf16, ..)` after `enable_amx`, where the CPU has AMX: width-32
+//! networks) keep the first two.
 #![no_main]
 
 mod common;
 
 use libfuzzer_sys::fuzz_target;
 use nbrdf::file::{encode, ModelBuf, ModelKind, Precision, Reciprocity};
+use nbrdf::mlp::Arithmetic;
 
 fuzz_target!(|input: (u8, u8, u64, u8, [f32; 3], [f32; 6], Vec<(u16, f32)>)| {
     let (shape, variant, seed, scale, point, dirs, patches) = input;
@@ -27,7 +30,8 @@ fuzz_target!(|input: (u8, u8, u64, u8, [f32; 3], [f32; 6], Vec<(u16, f32)>)| {
     }
     // Non-finite weights, and f16 weights beyond ±65504, are export errors (tests/bad_input.rs).
     let Ok(bytes) = encode(&h, &w, None) else { return };
-    let buf = ModelBuf::from_bytes(&bytes).expect("encode's output loads");
+    let mut buf = ModelBuf::from_bytes(&bytes).expect("encode's output loads");
+    buf.enable_amx();
     let model = buf.model();
     let len = model.position_len().min(3);
     let prepared = model.prepare(&point[..len]);
@@ -43,9 +47,13 @@ fuzz_target!(|input: (u8, u8, u64, u8, [f32; 3], [f32; 6], Vec<(u16, f32)>)| {
     let mut batch = [[f32::NAN; 3]];
     model.eval_many_half(&prepared, &[wi], &[wo], &mut batch);
     common::assert_valid_brdf(batch[0], "model eval_many_half");
+    let mut split = [[f32::NAN; 3]];
+    model.eval_many_in(Arithmetic::SplitBf16, &prepared, &[wi], &[wo], &mut split);
+    common::assert_valid_brdf(split[0], "model eval_many_in(SplitBf16)");
     if !(common::above(wi) && common::above(wo)) {
         assert_eq!(f, [0.0; 3], "nonzero off the upper hemisphere");
         assert_eq!((half, batch[0]), ([0.0; 3], [0.0; 3]), "half arithmetic nonzero off the upper hemisphere");
+        assert_eq!(split[0], [0.0; 3], "split bf16 nonzero off the upper hemisphere");
     }
     if h.reciprocity == Reciprocity::Exact || matches!(h.kind, ModelKind::Parametric(_)) {
         assert!(common::same_bits(f, model.eval(&prepared, wo, wi)), "not reciprocal: {wi} {wo}");

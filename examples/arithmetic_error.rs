@@ -1,19 +1,23 @@
-//! What half-precision arithmetic costs in accuracy and saves in time, on a trained model.
+//! What the faster arithmetics cost in accuracy and save in time, on a trained model: half precision
+//! (f16 weights and sums) and split bf16 (three bf16 products per f32 product on AMX tiles).
 //!
 //! ```text
-//! cargo run --release --example half_math_error -- fitted.nbrdf
+//! cargo run --release --example arithmetic_error -- fitted.nbrdf
 //! ```
 //! The model (f32 weights, e.g. `trainer fit`'s output) is re-encoded with f16 weights
 //! (`Model::to_f16`), then evaluated at 64 of its mesh's vertices (its stored intrinsic encoding; a
-//! fixed point without one) for 1024 cosine-distributed direction pairs each, three ways: f32
-//! weights, f16 weights in f32 arithmetic (`eval_many`), and f16 weights in f16 arithmetic
-//! (`eval_many_half`, `eval_half`). It prints the relative differences of the colour values (RMS, 99th
-//! percentile, maximum; values below 1e-3 compared absolutely) and the time per pair, best of three.
-//! Without AVX512-FP16 the half entry points are the f32 ones, and the program says so.
+//! fixed point without one) for 1024 cosine-distributed direction pairs each, four ways: f32
+//! weights, f16 weights in f32 arithmetic (`eval_many`), f16 weights in f16 arithmetic
+//! (`eval_many_half`, `eval_half`), and f32 weights in split-bf16 arithmetic (`eval_many_in` with
+//! `Arithmetic::SplitBf16` after `ModelBuf::enable_amx`). It prints the relative differences of the
+//! colour values (RMS, 99th percentile, maximum; values below 1e-3 compared absolutely) and the time
+//! per pair, best of three. Where the CPU lacks AVX512-FP16 or AMX-BF16 those entry points are the f32
+//! ones, and the program says so.
 
 use std::time::Instant;
 
 use nbrdf::file::ModelBuf;
+use nbrdf::mlp::Arithmetic;
 use nbrdf::{Rgb, Vec3};
 
 /// Relative differences `(b - a) / max(|a|, 1e-3)` of every colour value.
@@ -45,7 +49,7 @@ fn best_of_three(mut f: impl FnMut()) -> f64 {
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let path = std::env::args().nth(1).ok_or("usage: half_math_error MODEL.nbrdf (f32 weights)")?;
+    let path = std::env::args().nth(1).ok_or("usage: arithmetic_error MODEL.nbrdf (f32 weights)")?;
     let b32 = ModelBuf::load(&path)?;
     let m32 = b32.model();
     let b16 = ModelBuf::from_bytes(&m32.to_f16()?)?;
@@ -53,6 +57,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if !m16.half_math() {
         println!("half arithmetic does not apply here (needs AVX512-FP16 and a neural model): the half entry points are the f32 ones");
     }
+    let mut b_tiled = b32.clone();
+    if !b_tiled.enable_amx() {
+        println!("split-bf16 arithmetic does not apply here (needs AMX-BF16 and a neural model of width 32k): it is f32");
+    }
+    let m_tiled = b_tiled.model();
     let n_vertices = m32.header().n_vertices;
     let mut seed = 0x2545f4914f6cdd1du64;
     let mut uniform = move || {
@@ -62,8 +71,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         (seed >> 40) as f32 / (1u64 << 24) as f32
     };
     let n = 1024;
-    let (mut storage, mut math, mut total, mut single) = (vec![], vec![], vec![], vec![]);
-    let mut times = [0.0f64; 6];
+    let (mut storage, mut math, mut total, mut single, mut split) = (vec![], vec![], vec![], vec![], vec![]);
+    let mut times = [0.0f64; 7];
     for v in 0..64u32 {
         let mut point = vec![0.1f32; m32.position_len()];
         if n_vertices > 0 {
@@ -77,6 +86,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         };
         let (wi, wo): (Vec<Vec3>, Vec<Vec3>) = (0..n).map(|_| (direction(), direction())).unzip();
         let (mut f32_w, mut f16_w, mut half, mut one) = (vec![[0.0; 3]; n], vec![[0.0; 3]; n], vec![[0.0; 3]; n], vec![[0.0; 3]; n]);
+        let mut tiled = vec![[0.0; 3]; n];
         times[0] += best_of_three(|| m32.eval_many(&p32, &wi, &wo, &mut f32_w));
         times[1] += best_of_three(|| m16.eval_many(&p16, &wi, &wo, &mut f16_w));
         times[2] += best_of_three(|| m16.eval_many_half(&p16, &wi, &wo, &mut half));
@@ -84,19 +94,23 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         times[3] += best_of_three(|| wi.iter().zip(&wo).for_each(|(a, b)| sink += m32.eval(&p32, *a, *b)[0]));
         times[4] += best_of_three(|| wi.iter().zip(&wo).for_each(|(a, b)| sink += m16.eval(&p16, *a, *b)[0]));
         times[5] += best_of_three(|| one.iter_mut().zip(wi.iter().zip(&wo)).for_each(|(o, (a, b))| *o = m16.eval_half(&p16, *a, *b)));
+        times[6] += best_of_three(|| m_tiled.eval_many_in(Arithmetic::SplitBf16, &p32, &wi, &wo, &mut tiled));
         std::hint::black_box(sink);
         differences(&f32_w, &f16_w, &mut storage);
         differences(&f16_w, &half, &mut math);
         differences(&f32_w, &half, &mut total);
         differences(&f16_w, &one, &mut single);
+        differences(&f32_w, &tiled, &mut split);
     }
     println!("{} colour values at 64 points:", storage.len());
     summary("f16 weights against f32 weights", &mut storage);
     summary("half arithmetic against f16 weights (batch)", &mut math);
     summary("half arithmetic against f32 weights (batch)", &mut total);
     summary("half arithmetic against f16 weights (single)", &mut single);
+    summary("split bf16 against f32 (batch)", &mut split);
     let per = |t: f64| t / (64 * n) as f64 * 1e6;
     println!("µs per pair, batches of {n}: f32 {:.3}, f16 {:.3}, f16 half arithmetic {:.3} ({:.2}x f32)", per(times[0]), per(times[1]), per(times[2]), times[2] / times[0]);
+    println!("µs per pair, batches of {n}: split bf16 {:.3} ({:.2}x f32)", per(times[6]), times[6] / times[0]);
     println!("µs per pair, single queries: f32 {:.3}, f16 {:.3}, f16 half arithmetic {:.3} ({:.2}x f32)", per(times[3]), per(times[4]), per(times[5]), times[5] / times[3]);
     Ok(())
 }
