@@ -88,6 +88,8 @@ pub enum Arithmetic {
 /// and low parts in the order the tiles read them, for a network whose last `n_tail` inputs are the
 /// per-query tail (the encoded angles). [`crate::model::ModelBuf::enable_amx`] makes and keeps them.
 #[derive(Clone, Copy, Debug)]
+// Read only where the AMX kernels are built (x86-64 Linux with `std`).
+#[cfg_attr(not(all(target_arch = "x86_64", target_os = "linux", feature = "std")), allow(dead_code))]
 pub struct Tiled<'a> {
     /// The bf16 bits, 64-byte aligned.
     pub(crate) values: &'a [u16],
