@@ -8,9 +8,10 @@
 //! product taken as `x_hi·w_hi + x_hi·w_lo + x_lo·w_hi` — the "bf16x3" of Henry, Tang & Heinecke,
 //! *Leveraging the bfloat16 Artificial Intelligence Datatype for Higher-Precision Computations*
 //! (ARITH 2019), Sec. IV. The dropped `x_lo·w_lo` and the splits' remainders are about `2^-16` of the
-//! product, so a layer's sums are f32 sums of products good to ~16 bits, not to f32's 24: results
-//! move by ~1e-5 relative, 100× less than the f16 arithmetic of [`super::half_math`], at three times
-//! the tile work, which still leaves the tiles ~5× the f32 FMA rate. Sums are f32 (the tile unit's
+//! product, so a layer's sums are f32 sums of products good to ~16 bits, not to f32's 24: on fitted
+//! models the outputs move by 2–4e-6 RMS (at most ~4e-5), several hundred times less than with the
+//! f16 arithmetic of [`super::half_math`] (`docs/speed.md`), at three times the tile work, which still
+//! leaves the tiles ~5× the f32 FMA rate. Sums are f32 (the tile unit's
 //! own rounding; bf16 inputs below 2^-126 count as 0), so a query's value does not depend on the
 //! other queries of its packet.
 //!
@@ -25,8 +26,8 @@
 //! which [`available`] asks for once.
 
 use core::arch::asm;
-use core::mem::MaybeUninit;
 use core::arch::x86_64::*;
+use core::mem::MaybeUninit;
 
 use crate::mlp::{Net, NetDesc, Partial, Weight, MAX_WIDTH};
 
@@ -161,12 +162,12 @@ pub(crate) fn pack<W: Weight>(net: &Net<'_, W>, n_tail: usize, out: &mut [u16]) 
         for n0 in (0..width).step_by(N_STEP) {
             for k0 in (0..k).step_by(K_TILE) {
                 for j in 0..2 {
-                    let (hi, rest) = out[o..o + 2 * TILE_VALUES].split_at_mut(TILE_VALUES);
+                    let (hi, lo) = out[o..o + 2 * TILE_VALUES].split_at_mut(TILE_VALUES);
                     for r in 0..16 {
                         for n in 0..16 {
                             for p in 0..2 {
                                 let w = row(k0 + 2 * r + p).map_or(0.0, |i| net.weights[off + i * width + n0 + 16 * j + n].to_f32());
-                                (hi[r * 32 + 2 * n + p], rest[r * 32 + 2 * n + p]) = split(w);
+                                (hi[r * 32 + 2 * n + p], lo[r * 32 + 2 * n + p]) = split(w);
                             }
                         }
                     }
@@ -178,7 +179,8 @@ pub(crate) fn pack<W: Weight>(net: &Net<'_, W>, n_tail: usize, out: &mut [u16]) 
     debug_assert_eq!(o, out.len());
 }
 
-/// Tile configuration (Intel SDM Vol. 1, 3.2, palette 1): all 8 tiles 16 rows of 64 bytes.
+/// Tile configuration (the 64-byte memory operand of `LDTILECFG`, Intel SDM Vol. 2: palette 1, then the
+/// bytes per row of each tile at 16, its rows at 48): all 8 tiles 16 rows of 64 bytes.
 #[repr(C, align(64))]
 struct Config([u8; 64]);
 
