@@ -183,6 +183,9 @@ fn bench_models(c: &mut Criterion<Clock>) {
                     g.bench_function(BenchmarkId::new(format!("batch-1024-split-bf16/{lname}"), &name), |b| {
                         b.iter(|| mt.eval_many_in(Arithmetic::SplitBf16, &prepared, black_box(&wi), black_box(&wo), &mut out))
                     });
+                    g.bench_function(BenchmarkId::new(format!("batch-1024-split-bf16x6/{lname}"), &name), |b| {
+                        b.iter(|| mt.eval_many_in(Arithmetic::SplitBf16x6, &prepared, black_box(&wi), black_box(&wo), &mut out))
+                    });
                 }
             }
             set_level(None);
@@ -255,7 +258,11 @@ fn bench_all_cores(c: &mut Criterion<WallTime>) {
         let amx = buf.enable_amx();
         let m = buf.model();
         let maths: &[(Arithmetic, &str)] = if amx {
-            &[(Arithmetic::F32, "batch-8x1024"), (Arithmetic::SplitBf16, "batch-8x1024-split-bf16")]
+            &[
+                (Arithmetic::F32, "batch-8x1024"),
+                (Arithmetic::SplitBf16, "batch-8x1024-split-bf16"),
+                (Arithmetic::SplitBf16x6, "batch-8x1024-split-bf16x6"),
+            ]
         } else {
             &[(Arithmetic::F32, "batch-8x1024")]
         };

@@ -9,10 +9,11 @@
 //! fixed point without one) for 1024 cosine-distributed direction pairs each, four ways: f32
 //! weights, f16 weights in f32 arithmetic (`eval_many`), f16 weights in f16 arithmetic
 //! (`eval_many_half`, `eval_half`), and f32 weights in split-bf16 arithmetic (`eval_many_in` with
-//! `Arithmetic::SplitBf16` after `ModelBuf::enable_amx`). It prints the relative differences of the
+//! `Arithmetic::SplitBf16` and `SplitBf16x6` after `ModelBuf::enable_amx`). It prints the relative differences of the
 //! colour values (RMS, 99th percentile, maximum; values below 1e-3 compared absolutely) and the time
 //! per pair, best of three. Where the CPU lacks AVX512-FP16 or AMX-BF16 those entry points are the f32
-//! ones, and the program says so.
+//! ones, and the program says so. As a yardstick for f32 rounding itself, the f32 model also runs on
+//! the portable kernels (multiply, then add: the same sums rounded twice as often as with FMA).
 
 use std::time::Instant;
 
@@ -71,8 +72,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         (seed >> 40) as f32 / (1u64 << 24) as f32
     };
     let n = 1024;
-    let (mut storage, mut math, mut total, mut single, mut split) = (vec![], vec![], vec![], vec![], vec![]);
-    let mut times = [0.0f64; 7];
+    let (mut storage, mut math, mut total, mut single, mut split, mut split6) = (vec![], vec![], vec![], vec![], vec![], vec![]);
+    let mut rounding = vec![];
+    let mut times = [0.0f64; 8];
     for v in 0..64u32 {
         let mut point = vec![0.1f32; m32.position_len()];
         if n_vertices > 0 {
@@ -86,7 +88,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         };
         let (wi, wo): (Vec<Vec3>, Vec<Vec3>) = (0..n).map(|_| (direction(), direction())).unzip();
         let (mut f32_w, mut f16_w, mut half, mut one) = (vec![[0.0; 3]; n], vec![[0.0; 3]; n], vec![[0.0; 3]; n], vec![[0.0; 3]; n]);
-        let mut tiled = vec![[0.0; 3]; n];
+        let (mut tiled, mut tiled6) = (vec![[0.0; 3]; n], vec![[0.0; 3]; n]);
         times[0] += best_of_three(|| m32.eval_many(&p32, &wi, &wo, &mut f32_w));
         times[1] += best_of_three(|| m16.eval_many(&p16, &wi, &wo, &mut f16_w));
         times[2] += best_of_three(|| m16.eval_many_half(&p16, &wi, &wo, &mut half));
@@ -95,22 +97,37 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         times[4] += best_of_three(|| wi.iter().zip(&wo).for_each(|(a, b)| sink += m16.eval(&p16, *a, *b)[0]));
         times[5] += best_of_three(|| one.iter_mut().zip(wi.iter().zip(&wo)).for_each(|(o, (a, b))| *o = m16.eval_half(&p16, *a, *b)));
         times[6] += best_of_three(|| m_tiled.eval_many_in(Arithmetic::SplitBf16, &p32, &wi, &wo, &mut tiled));
+        times[7] += best_of_three(|| m_tiled.eval_many_in(Arithmetic::SplitBf16x6, &p32, &wi, &wo, &mut tiled6));
         std::hint::black_box(sink);
         differences(&f32_w, &f16_w, &mut storage);
         differences(&f16_w, &half, &mut math);
         differences(&f32_w, &half, &mut total);
         differences(&f16_w, &one, &mut single);
         differences(&f32_w, &tiled, &mut split);
+        differences(&f32_w, &tiled6, &mut split6);
+        let mut portable = vec![[0.0; 3]; n];
+        nbrdf::kernels::set_level(Some(nbrdf::kernels::Level::Portable));
+        m32.eval_many(&p32, &wi, &wo, &mut portable);
+        nbrdf::kernels::set_level(None);
+        differences(&f32_w, &portable, &mut rounding);
     }
     println!("{} colour values at 64 points:", storage.len());
     summary("f16 weights against f32 weights", &mut storage);
     summary("half arithmetic against f16 weights (batch)", &mut math);
     summary("half arithmetic against f32 weights (batch)", &mut total);
     summary("half arithmetic against f16 weights (single)", &mut single);
-    summary("split bf16 against f32 (batch)", &mut split);
+    summary("split bf16 (bf16x3) against f32 (batch)", &mut split);
+    summary("split bf16 (bf16x6) against f32 (batch)", &mut split6);
+    summary("f32 without FMA against f32 (batch)", &mut rounding);
     let per = |t: f64| t / (64 * n) as f64 * 1e6;
     println!("µs per pair, batches of {n}: f32 {:.3}, f16 {:.3}, f16 half arithmetic {:.3} ({:.2}x f32)", per(times[0]), per(times[1]), per(times[2]), times[2] / times[0]);
-    println!("µs per pair, batches of {n}: split bf16 {:.3} ({:.2}x f32)", per(times[6]), times[6] / times[0]);
+    println!(
+        "µs per pair, batches of {n}: bf16x3 {:.3} ({:.2}x f32), bf16x6 {:.3} ({:.2}x f32)",
+        per(times[6]),
+        times[6] / times[0],
+        per(times[7]),
+        times[7] / times[0]
+    );
     println!("µs per pair, single queries: f32 {:.3}, f16 {:.3}, f16 half arithmetic {:.3} ({:.2}x f32)", per(times[3]), per(times[4]), per(times[5]), times[5] / times[3]);
     Ok(())
 }

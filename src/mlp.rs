@@ -76,16 +76,22 @@ pub enum Arithmetic {
     /// ([`crate::kernels::packet_half_math`]): twice the multiply-adds per instruction, each product
     /// and partial sum rounded to f16. The output layer, f32 weights and other CPUs: as [`F32`](Self::F32).
     HalfHidden,
-    /// Each product of the hidden layers as three bf16 products on AMX tiles, `x_hi·w_hi + x_hi·w_lo +
-    /// x_lo·w_hi` with f32 sums (`crate::kernels` "Split-bf16 arithmetic"): ~16 significant bits a
-    /// product, results within ~1e-5 relative of [`F32`](Self::F32), for packets of a network with
-    /// [`Tiled`] weights where [`crate::kernels::amx_available`]. The output layer, single queries,
-    /// networks without tiles and other CPUs: as [`F32`](Self::F32).
+    /// "bf16x3": each product of the hidden layers as three bf16 products on AMX tiles,
+    /// `x_0·w_0 + x_0·w_1 + x_1·w_0` with f32 sums (`x = x_0 + x_1`, `crate::kernels` "Split-bf16
+    /// arithmetic"): ~16 significant bits a product, results within a few 1e-6 relative of
+    /// [`F32`](Self::F32), for packets of a network with [`Tiled`] weights where
+    /// [`crate::kernels::amx_available`]. The output layer, single queries, networks without tiles
+    /// and other CPUs: as [`F32`](Self::F32).
     SplitBf16,
+    /// "bf16x6": as [`SplitBf16`](Self::SplitBf16) with each value in three bf16 parts and six
+    /// products, `x_0·w_0 + x_0·w_1 + x_1·w_0 + x_0·w_2 + x_1·w_1 + x_2·w_0`: ~24 significant bits a
+    /// product, results as close to [`F32`](Self::F32) as f32 sums in another order, at twice the
+    /// tile work of bf16x3.
+    SplitBf16x6,
 }
 
-/// A network's hidden-layer weights re-laid for the AMX tiles of [`Arithmetic::SplitBf16`]: bf16 high
-/// and low parts in the order the tiles read them, for a network whose last `n_tail` inputs are the
+/// A network's hidden-layer weights re-laid for the AMX tiles of [`Arithmetic::SplitBf16`] and
+/// [`Arithmetic::SplitBf16x6`]: three bf16 parts of each weight in the order the tiles read them, for a network whose last `n_tail` inputs are the
 /// per-query tail (the encoded angles). [`crate::model::ModelBuf::enable_amx`] makes and keeps them.
 #[derive(Clone, Copy, Debug)]
 // Read only where the AMX kernels are built (x86-64 Linux with `std`).
@@ -461,7 +467,8 @@ fn forward_chain<W: Weight>(math: Arithmetic, net: &Net<'_, W>, partial: &Partia
 /// Each weight row is read once per packet. With [`Arithmetic::F32`] every query gets the same bits as
 /// [`forward`] on its own tail (see [`crate::kernels`], "Determinism").
 ///
-/// With [`Arithmetic::SplitBf16`], `tiled` (the network's [`Tiled`] weights) runs the hidden layers on
+/// With [`Arithmetic::SplitBf16`] or [`Arithmetic::SplitBf16x6`], `tiled` (the network's [`Tiled`]
+/// weights) runs the hidden layers on
 /// AMX tiles where they apply: the CPU has them, the layout was made for `n_tail` tail inputs, and the
 /// head folded into `partial` is the rest of the input. Otherwise `tiled` is unused.
 ///
@@ -479,9 +486,10 @@ pub fn forward_packet<W: Weight>(
     out: &mut [f32],
     out_stride: usize,
 ) {
-    if let (Arithmetic::SplitBf16, Some(tiled)) = (math, tiled) {
+    if let (Arithmetic::SplitBf16 | Arithmetic::SplitBf16x6, Some(tiled)) = (math, tiled) {
         let mut h = core::mem::MaybeUninit::<[f32; PACKET * MAX_WIDTH]>::uninit();
-        if let Some(h) = hidden_tiled(tiled, net, partial, tails, tail_stride, n_tail, &mut h) {
+        let six = math == Arithmetic::SplitBf16x6;
+        if let Some(h) = hidden_tiled(six, tiled, net, partial, tails, tail_stride, n_tail, &mut h) {
             return output_layer::<W, PACKET>(net, h, out, out_stride);
         }
     }
@@ -490,11 +498,12 @@ pub fn forward_packet<W: Weight>(
     run::<W, PACKET>(math, net, partial, tails, tail_stride, n_tail, out, out_stride, &mut h, &mut t);
 }
 
-/// The hidden layers of a packet on AMX tiles ([`crate::kernels`], "Split-bf16 arithmetic"): the last
-/// activations (`PACKET × width`, written to the front of `h`), or `None` (nothing written) where the
+/// The hidden layers of a packet on AMX tiles ([`crate::kernels`], "Split-bf16 arithmetic"), in bf16x6
+/// (`six`) or bf16x3: the last activations (`PACKET × width`, written to the front of `h`), or `None` (nothing written) where the
 /// tiles do not apply (see [`forward_packet`]).
-#[allow(unused_variables)]
+#[allow(unused_variables, clippy::too_many_arguments)]
 fn hidden_tiled<'h, W: Weight>(
+    six: bool,
     tiled: Tiled<'_>,
     net: &Net<'_, W>,
     partial: &Partial,
@@ -524,7 +533,7 @@ fn hidden_tiled<'h, W: Weight>(
         // the tails extent was checked; `h` has room for `PACKET × MAX_WIDTH` floats, and `hidden`
         // writes the first `n` of them.
         unsafe {
-            amx::hidden(net, tiled.values, partial, tails, tail_stride, n_tail, h);
+            amx::hidden(six, net, tiled.values, partial, tails, tail_stride, n_tail, h);
             Some(core::slice::from_raw_parts(h, n))
         }
     }

@@ -408,14 +408,16 @@ impl<'a> Model<'a> {
     }
 
     /// [`Model::eval_many`] ([`Arithmetic::F32`]), [`Model::eval_many_half`] ([`Arithmetic::HalfHidden`])
-    /// or the split-bf16 arithmetic on AMX tiles ([`Arithmetic::SplitBf16`]), chosen at run time.
+    /// or the split-bf16 arithmetic on AMX tiles ([`Arithmetic::SplitBf16`],
+    /// [`Arithmetic::SplitBf16x6`]), chosen at run time.
     ///
-    /// With `SplitBf16`, where [`Model::amx`] says it applies (a [`ModelBuf`] after
+    /// With the split-bf16 arithmetic, where [`Model::amx`] says it applies (a [`ModelBuf`] after
     /// [`ModelBuf::enable_amx`], a CPU with AMX-BF16), each f32 product of the per-query network's
-    /// hidden layers is taken as three bf16 products with f32 sums (`crate::kernels`, "Split-bf16
-    /// arithmetic"): values move by ~1e-5 relative, not bit for bit those of [`Model::eval`] nor
-    /// exactly reciprocal; each pair's value still does not depend on the others of the batch.
-    /// Elsewhere exactly [`Model::eval_many`].
+    /// hidden layers is taken as three (`SplitBf16`) or six (`SplitBf16x6`) bf16 products with f32
+    /// sums (`crate::kernels`, "Split-bf16 arithmetic"): values move by a few 1e-6 relative with
+    /// three, by about what f32 sums in another order move them with six; not bit for bit those of
+    /// [`Model::eval`] nor exactly reciprocal; each pair's value still does not depend on the others
+    /// of the batch. Elsewhere exactly [`Model::eval_many`].
     ///
     /// ```
     /// use nbrdf::file::{encode, ModelBuf, ModelHeader, ModelKind, PositionEncoding, Reciprocity};
@@ -444,7 +446,7 @@ impl<'a> Model<'a> {
         self.eval_many_by(math, prepared, n, |i| (wi[i], wo[i]), |i, f| out[i] = f);
     }
 
-    /// Whether [`Arithmetic::SplitBf16`] runs on AMX tiles for this model here: its per-query
+    /// Whether [`Arithmetic::SplitBf16`] and [`Arithmetic::SplitBf16x6`] run on AMX tiles for this model here: its per-query
     /// network's tiles were made ([`ModelBuf::enable_amx`]) and [`crate::kernels::amx_available`].
     pub fn amx(&self) -> bool {
         self.tiles.is_some() && crate::kernels::amx_available()
@@ -767,11 +769,11 @@ impl ModelBuf {
         model
     }
 
-    /// Makes the tiled copy of the per-query network that [`Arithmetic::SplitBf16`] evaluates on AMX
-    /// tiles ([`Model::eval_many_in`]); `true` where it now applies: a neural model whose per-query
+    /// Makes the tiled copy of the per-query network that [`Arithmetic::SplitBf16`] and
+    /// [`Arithmetic::SplitBf16x6`] evaluate on AMX tiles ([`Model::eval_many_in`]); `true` where it now applies: a neural model whose per-query
     /// network has a hidden width of a multiple of 32 (the paper's 128), on a CPU and OS with AMX-BF16
-    /// ([`crate::kernels::amx_available`]; built with `std`, Linux). The copy holds a high and a low
-    /// bf16 part of each hidden weight: the bytes of the f32 network (twice those of an f16 one).
+    /// ([`crate::kernels::amx_available`]; built with `std`, Linux). The copy holds three bf16 parts of
+    /// each hidden weight: 1.5× the bytes of the f32 network (3× those of an f16 one).
     pub fn enable_amx(&mut self) -> bool {
         #[cfg(all(target_arch = "x86_64", target_os = "linux", feature = "std"))]
         {

@@ -478,8 +478,8 @@ fn neural_models_of_every_kind_and_precision_with_extreme_weights() {
 }
 
 /// The opt-in arithmetics keep the contract with extreme weights: half precision (f16 sums that
-/// overflow to inf at 65504) and split bf16 on AMX tiles (inf activations split into inf and NaN
-/// parts) give finite, non-negative values, exactly 0 off the upper hemisphere, in batches of every
+/// overflow to inf at 65504) and split bf16 on AMX tiles, bf16x3 and bf16x6 (inf activations split
+/// into inf and NaN parts) give finite, non-negative values, exactly 0 off the upper hemisphere, in batches of every
 /// pair of the edge grid. On a CPU without AVX512-FP16 or AMX these are the f32 paths, checked alike.
 #[test]
 fn half_and_split_bf16_arithmetic_with_extreme_weights() {
@@ -499,7 +499,7 @@ fn half_and_split_bf16_arithmetic_with_extreme_weights() {
                 let model = buf.model();
                 for p in points(h.position) {
                     let prepared = model.try_prepare(&p).unwrap();
-                    for math in [Arithmetic::HalfHidden, Arithmetic::SplitBf16] {
+                    for math in [Arithmetic::HalfHidden, Arithmetic::SplitBf16, Arithmetic::SplitBf16x6] {
                         let mut out = vec![[f32::NAN; 3]; pairs.len()];
                         model.eval_many_in(math, &prepared, &wi, &wo, &mut out);
                         for (&(a, b), f) in pairs.iter().zip(&out) {

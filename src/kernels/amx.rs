@@ -1,5 +1,6 @@
 //! A packet of queries through a network's hidden layers on AMX tiles (x86-64 AMX-BF16), each f32
-//! product as three bf16 products: the arithmetic [`crate::mlp::Arithmetic::SplitBf16`].
+//! product as three or six bf16 products: the arithmetics [`crate::mlp::Arithmetic::SplitBf16`]
+//! ("bf16x3") and [`crate::mlp::Arithmetic::SplitBf16x6`] ("bf16x6").
 //!
 //! An AMX `tdpbf16ps` multiplies a 16×32 bf16 tile by a 32×16 one into 16×16 f32 sums: 8192
 //! multiply-adds in 16 cycles, 16× what the two AVX-512 FMA ports do in f32. bf16 keeps 8 significant
@@ -11,14 +12,18 @@
 //! product, so a layer's sums are f32 sums of products good to ~16 bits, not to f32's 24: on fitted
 //! models the outputs move by 2–4e-6 RMS (at most ~4e-5), several hundred times less than with the
 //! f16 arithmetic of [`super::half_math`] (`docs/speed.md`), at three times the tile work, which still
-//! leaves the tiles ~5× the f32 FMA rate. Sums are f32 (the tile unit's
-//! own rounding; bf16 inputs below 2^-126 count as 0), so a query's value does not depend on the
-//! other queries of its packet.
+//! leaves the tiles ~5× the f32 FMA rate. With three parts, `x = x_0 + x_1 + x_2` (24 significant
+//! bits: every f32 whose exponent leaves room for them), and the six products
+//! `x_0·w_0 + x_0·w_1 + x_1·w_0 + x_0·w_2 + x_1·w_1 + x_2·w_0` (bf16x6, *ibid.*), the dropped terms are
+//! ~2^-24 of the product: f32's own rounding, at twice the tile work of bf16x3. Sums are f32 (the tile
+//! unit's own rounding; bf16 inputs below 2^-126 count as 0), so a query's value does not depend on
+//! the other queries of its packet.
 //!
 //! The weights are re-laid once ([`pack`], kept by [`crate::model::ModelBuf::enable_amx`]) in the
-//! order the tiles read them: per 32 outputs and 32 inputs, the high and low parts of two 32×16 "B"
-//! tiles (pairs of input rows interleaved per output, the layout `tdpbf16ps` expects). Activations
-//! stay row-major per query (an "A" tile is 16 queries × 32 inputs), split after each layer.
+//! order the tiles read them: per 32 outputs and 32 inputs, the three parts of two 32×16 "B" tiles
+//! (pairs of input rows interleaved per output, the layout `tdpbf16ps` expects); bf16x3 reads the
+//! first two. Activations stay row-major per query (an "A" tile is 16 queries × 32 inputs), split
+//! after each layer.
 //!
 //! Inline assembly, because Rust 1.95 has the AMX intrinsics only behind the unstable
 //! `x86_amx_intrinsics` feature; the tile registers are used by nothing else the compiler emits.
@@ -39,6 +44,8 @@ const K_TILE: usize = 32;
 const N_STEP: usize = 32;
 /// bf16 values of one 16-row tile.
 const TILE_VALUES: usize = 16 * K_TILE;
+/// Parts each weight is split into in the tiled layout (bf16x3 reads two of them).
+const PARTS: usize = 3;
 /// Largest padded tail (encoded angles) the activation buffers hold.
 const TAIL_MAX: usize = round_up(crate::model::MAX_ANGLE_INPUT, K_TILE);
 /// Largest activation row: a hidden layer's outputs and the padded tail.
@@ -117,30 +124,34 @@ pub(crate) fn fits(d: &NetDesc, n_tail: usize) -> bool {
     d.validate().is_ok() && width.is_multiple_of(N_STEP) && n_tail > 0 && tail_pad(n_tail) <= TAIL_MAX && n_tail <= d.n_in as usize
 }
 
-/// Number of bf16 values [`pack`] writes for a network (the high and low parts of every hidden weight
-/// it reads per query, tails padded); 0 where it does not [`fits`].
+/// Number of bf16 values [`pack`] writes for a network (the three parts of every hidden weight it
+/// reads per query, tails padded); 0 where it does not [`fits`].
 pub(crate) fn packed_len(d: &NetDesc, n_tail: usize) -> usize {
     if !fits(d, n_tail) {
         return 0;
     }
-    (0..d.hidden as usize).map(|l| 2 * layer_k(d, n_tail, l) * d.width as usize).sum()
+    (0..d.hidden as usize).map(|l| PARTS * layer_k(d, n_tail, l) * d.width as usize).sum()
 }
 
-/// `x` as `x_hi + x_lo`, both bf16 (round to nearest, ties to even), as their bits.
+/// `x` as `x_0 + x_1 + x_2`, each the bf16 rounding (to nearest, ties to even) of what the parts
+/// before it leave, as their bits. The remainders are exact (Sterbenz: a rounding is within a factor
+/// 2 of what it rounds).
 #[inline]
-fn split(x: f32) -> (u16, u16) {
-    let hi = half::bf16::from_f32(x);
-    let lo = half::bf16::from_f32(x - hi.to_f32());
-    (hi.to_bits(), lo.to_bits())
+fn split(x: f32) -> [u16; PARTS] {
+    let p0 = half::bf16::from_f32(x);
+    let r = x - p0.to_f32();
+    let p1 = half::bf16::from_f32(r);
+    let p2 = half::bf16::from_f32(r - p1.to_f32());
+    [p0.to_bits(), p1.to_bits(), p2.to_bits()]
 }
 
 /// Writes the hidden layers of `net` (whose last `n_tail` inputs are the per-query tail) to `out` in
 /// tile order; `out.len()` must be [`packed_len`] (non-zero).
 ///
-/// Per layer, per 32 outputs, per 32 inputs `k0..`: for each half `j` of the outputs the high then the
-/// low part of a "B" tile, whose row `r` holds, for output `n`, the weights of inputs `k0 + 2r` and
-/// `k0 + 2r + 1` side by side (Intel SDM, `TDPBF16PS`). Input rows past the layer's (tail padding)
-/// are 0.
+/// Per layer, per 32 outputs, per 32 inputs `k0..`: for each half `j` of the outputs the three parts
+/// (see [`split`]) of a "B" tile, whose row `r` holds, for output `n`, the weights of inputs `k0 + 2r`
+/// and `k0 + 2r + 1` side by side (Intel SDM, `TDPBF16PS`). Input rows past the layer's (tail
+/// padding) are 0.
 pub(crate) fn pack<W: Weight>(net: &Net<'_, W>, n_tail: usize, out: &mut [u16]) {
     let d = &net.desc;
     let (width, n_in) = (d.width as usize, d.n_in as usize);
@@ -162,16 +173,18 @@ pub(crate) fn pack<W: Weight>(net: &Net<'_, W>, n_tail: usize, out: &mut [u16]) 
         for n0 in (0..width).step_by(N_STEP) {
             for k0 in (0..k).step_by(K_TILE) {
                 for j in 0..2 {
-                    let (hi, lo) = out[o..o + 2 * TILE_VALUES].split_at_mut(TILE_VALUES);
+                    let tiles = &mut out[o..o + PARTS * TILE_VALUES];
                     for r in 0..16 {
                         for n in 0..16 {
                             for p in 0..2 {
                                 let w = row(k0 + 2 * r + p).map_or(0.0, |i| net.weights[off + i * width + n0 + 16 * j + n].to_f32());
-                                (hi[r * 32 + 2 * n + p], lo[r * 32 + 2 * n + p]) = split(w);
+                                for (part, bits) in split(w).into_iter().enumerate() {
+                                    tiles[part * TILE_VALUES + r * 32 + 2 * n + p] = bits;
+                                }
                             }
                         }
                     }
-                    o += 2 * TILE_VALUES;
+                    o += PARTS * TILE_VALUES;
                 }
             }
         }
@@ -200,17 +213,20 @@ const CONFIG: Config = {
 #[repr(C, align(64))]
 struct Aligned<T>(T);
 
-/// One hidden layer on the tiles: `out[q][o] = init[o] + Σ_i x[q][i] w[i][o]` for the 16 queries, in
-/// steps of 32 outputs (accumulators `tmm0`, `tmm1`; inputs `tmm2` high, `tmm3` low; weights `tmm4`..`tmm7`).
+/// Bytes of the weight tiles of one step of 32 outputs and 32 inputs: both halves, every part.
+const STEP_BYTES: usize = 2 * PARTS * TILE_VALUES * 2;
+
+/// One hidden layer on the tiles in bf16x3: `out[q][o] = init[o] + Σ_i x[q][i] w[i][o]` for the 16
+/// queries, in steps of 32 outputs (accumulators `tmm0`, `tmm1`; inputs `tmm2` = `x_0`, `tmm3` = `x_1`;
+/// weights `tmm4`..`tmm7` = `w_0`, `w_1` of each half).
 ///
 /// # Safety
-/// Tiles configured with [`CONFIG`]; `w` holds the layer's `k / 32 * n / 32` steps of 4 tiles; `xh`
-/// and `xl` 16 rows `x_stride` bytes apart of `k` values; `init` `n` floats; `out` 16 rows of `n`
-/// floats, `n * 4` bytes apart; `k`, `n` positive multiples of 32.
+/// Tiles configured with [`CONFIG`]; `w` holds the layer's `k / 32 * n / 32` steps of [`STEP_BYTES`];
+/// `x[p]` 16 rows `x_stride` bytes apart of `k` values (parts 0 and 1 read); `init` `n` floats; `out`
+/// 16 rows of `n` floats, `n * 4` bytes apart; `k`, `n` positive multiples of 32.
 #[inline]
-#[allow(clippy::too_many_arguments)]
 #[target_feature(enable = "avx512f")]
-unsafe fn layer(w: *const u16, k: usize, n: usize, xh: *const u16, xl: *const u16, x_stride: usize, init: *const f32, out: *mut f32) {
+unsafe fn layer_x3(w: *const u16, k: usize, n: usize, x: [*const u16; PARTS], x_stride: usize, init: *const f32, out: *mut f32) {
     let mut w = w;
     for n0 in (0..n).step_by(N_STEP) {
         // SAFETY: every tile read and written lies in the extents of the contract.
@@ -220,13 +236,13 @@ unsafe fn layer(w: *const u16, k: usize, n: usize, xh: *const u16, xl: *const u1
                 "tileloadd tmm0, [{init} + {zero}*1]",
                 "tileloadd tmm1, [{init} + {zero}*1 + 64]",
                 "2:",
-                "tileloadd tmm2, [{xh} + {xs}*1]",
-                "tileloadd tmm3, [{xl} + {xs}*1]",
+                "tileloadd tmm2, [{x0} + {xs}*1]",
+                "tileloadd tmm3, [{x1} + {xs}*1]",
                 "tileloadd tmm4, [{w} + {s64}*1]",
                 "tileloadd tmm5, [{w} + {s64}*1 + 1024]",
-                "tileloadd tmm6, [{w} + {s64}*1 + 2048]",
-                "tileloadd tmm7, [{w} + {s64}*1 + 3072]",
-                // Small terms first: x_lo·w_hi, x_hi·w_lo, then x_hi·w_hi; the two accumulators
+                "tileloadd tmm6, [{w} + {s64}*1 + 3072]",
+                "tileloadd tmm7, [{w} + {s64}*1 + 4096]",
+                // Small terms first: x_1·w_0, x_0·w_1, then x_0·w_0; the two accumulators
                 // alternate so that neither waits on its own previous product.
                 "tdpbf16ps tmm0, tmm3, tmm4",
                 "tdpbf16ps tmm1, tmm3, tmm6",
@@ -234,9 +250,9 @@ unsafe fn layer(w: *const u16, k: usize, n: usize, xh: *const u16, xl: *const u1
                 "tdpbf16ps tmm1, tmm2, tmm7",
                 "tdpbf16ps tmm0, tmm2, tmm4",
                 "tdpbf16ps tmm1, tmm2, tmm6",
-                "add {w}, 4096",
-                "add {xh}, 64",
-                "add {xl}, 64",
+                "add {w}, {step}",
+                "add {x0}, 64",
+                "add {x1}, 64",
                 "sub {kb}, 1",
                 "jnz 2b",
                 "tilestored [{out} + {os}*1], tmm0",
@@ -247,8 +263,9 @@ unsafe fn layer(w: *const u16, k: usize, n: usize, xh: *const u16, xl: *const u1
                 zero = in(reg) 0usize,
                 s64 = in(reg) 64usize,
                 xs = in(reg) x_stride,
-                xh = inout(reg) xh => _,
-                xl = inout(reg) xl => _,
+                step = const STEP_BYTES,
+                x0 = inout(reg) x[0] => _,
+                x1 = inout(reg) x[1] => _,
                 w = inout(reg) w,
                 kb = inout(reg) k / K_TILE => _,
                 options(nostack),
@@ -257,32 +274,113 @@ unsafe fn layer(w: *const u16, k: usize, n: usize, xh: *const u16, xl: *const u1
     }
 }
 
-/// Splits 16 values into bf16 high and low parts (round to nearest even, AVX512-BF16), stored at `xh`
-/// and `xl`: `lo = bf16(v - hi)`, where `v - hi` is exact (Sterbenz: `hi` is within a factor 2 of `v`).
+/// [`layer_x3`] in bf16x6 (inputs `tmm2`..`tmm4` = `x_0`..`x_2`; weights `tmm5`..`tmm7` = `w_0`..`w_2`
+/// of one half at a time).
 ///
 /// # Safety
-/// `xh` and `xl` have room for 16 values.
+/// As [`layer_x3`], all three parts of `x` read.
 #[inline]
-#[target_feature(enable = "avx512f,avx512bw,avx512bf16,avx512vl")]
-unsafe fn split16(v: __m512, xh: *mut u16, xl: *mut u16) {
-    // SAFETY: `__m256bh` and `__m256i` are both 256 bits of plain data; the stores are in the room.
-    unsafe {
-        let hi: __m256i = core::mem::transmute(_mm512_cvtneps_pbh(v));
-        let back = _mm512_castsi512_ps(_mm512_slli_epi32::<16>(_mm512_cvtepu16_epi32(hi)));
-        let lo: __m256i = core::mem::transmute(_mm512_cvtneps_pbh(_mm512_sub_ps(v, back)));
-        _mm256_storeu_si256(xh.cast(), hi);
-        _mm256_storeu_si256(xl.cast(), lo);
+#[target_feature(enable = "avx512f")]
+unsafe fn layer_x6(w: *const u16, k: usize, n: usize, x: [*const u16; PARTS], x_stride: usize, init: *const f32, out: *mut f32) {
+    let mut w = w;
+    for n0 in (0..n).step_by(N_STEP) {
+        // SAFETY: every tile read and written lies in the extents of the contract.
+        unsafe {
+            asm!(
+                "tileloadd tmm0, [{init} + {zero}*1]",
+                "tileloadd tmm1, [{init} + {zero}*1 + 64]",
+                "2:",
+                "tileloadd tmm2, [{x0} + {xs}*1]",
+                "tileloadd tmm3, [{x1} + {xs}*1]",
+                "tileloadd tmm4, [{x2} + {xs}*1]",
+                "tileloadd tmm5, [{w} + {s64}*1]",
+                "tileloadd tmm6, [{w} + {s64}*1 + 1024]",
+                "tileloadd tmm7, [{w} + {s64}*1 + 2048]",
+                // Small terms first: x_2·w_0, x_1·w_1, x_0·w_2, x_1·w_0, x_0·w_1, x_0·w_0.
+                "tdpbf16ps tmm0, tmm4, tmm5",
+                "tdpbf16ps tmm0, tmm3, tmm6",
+                "tdpbf16ps tmm0, tmm2, tmm7",
+                "tdpbf16ps tmm0, tmm3, tmm5",
+                "tdpbf16ps tmm0, tmm2, tmm6",
+                "tdpbf16ps tmm0, tmm2, tmm5",
+                "tileloadd tmm5, [{w} + {s64}*1 + 3072]",
+                "tileloadd tmm6, [{w} + {s64}*1 + 4096]",
+                "tileloadd tmm7, [{w} + {s64}*1 + 5120]",
+                "tdpbf16ps tmm1, tmm4, tmm5",
+                "tdpbf16ps tmm1, tmm3, tmm6",
+                "tdpbf16ps tmm1, tmm2, tmm7",
+                "tdpbf16ps tmm1, tmm3, tmm5",
+                "tdpbf16ps tmm1, tmm2, tmm6",
+                "tdpbf16ps tmm1, tmm2, tmm5",
+                "add {w}, {step}",
+                "add {x0}, 64",
+                "add {x1}, 64",
+                "add {x2}, 64",
+                "sub {kb}, 1",
+                "jnz 2b",
+                "tilestored [{out} + {os}*1], tmm0",
+                "tilestored [{out} + {os}*1 + 64], tmm1",
+                init = in(reg) init.add(n0),
+                out = in(reg) out.add(n0),
+                os = in(reg) n * 4,
+                zero = in(reg) 0usize,
+                s64 = in(reg) 64usize,
+                xs = in(reg) x_stride,
+                step = const STEP_BYTES,
+                x0 = inout(reg) x[0] => _,
+                x1 = inout(reg) x[1] => _,
+                x2 = inout(reg) x[2] => _,
+                w = inout(reg) w,
+                kb = inout(reg) k / K_TILE => _,
+                options(nostack),
+            );
+        }
     }
 }
 
-/// ReLU of the 16 rows of `n` sums at `y`: back to `y` (`xh` null: the last layer), or split into
-/// bf16 high and low parts at `xh`, `xl` (rows `x_row` values apart) as the next layer's input.
+/// Splits 16 values into bf16 parts (round to nearest even, AVX512-BF16), as [`split`]: part 0 at
+/// `x[0]`, part 1 at `x[1]`, and part 2 at `x[2]` unless it is null (bf16x3 needs two).
 ///
 /// # Safety
-/// `y` holds `16 * n` floats, `xh`/`xl` null or 16 rows of `x_row ≥ n` values; `n` a multiple of 16.
+/// Each non-null `x[p]` has room for 16 values; `x[0]` and `x[1]` are not null.
 #[inline]
 #[target_feature(enable = "avx512f,avx512bw,avx512bf16,avx512vl")]
-unsafe fn relu_split(y: *mut f32, n: usize, xh: *mut u16, xl: *mut u16, x_row: usize) {
+unsafe fn split16(v: __m512, x: [*mut u16; PARTS]) {
+    // SAFETY: `__m256bh` and `__m256i` are both 256 bits of plain data; the stores are in the room.
+    unsafe {
+        let p0: __m256i = core::mem::transmute(_mm512_cvtneps_pbh(v));
+        let r = _mm512_sub_ps(v, widen(p0));
+        let p1: __m256i = core::mem::transmute(_mm512_cvtneps_pbh(r));
+        _mm256_storeu_si256(x[0].cast(), p0);
+        _mm256_storeu_si256(x[1].cast(), p1);
+        if !x[2].is_null() {
+            let p2: __m256i = core::mem::transmute(_mm512_cvtneps_pbh(_mm512_sub_ps(r, widen(p1))));
+            _mm256_storeu_si256(x[2].cast(), p2);
+        }
+    }
+}
+
+/// 16 bf16 values as f32 (their bits in the high half of each lane).
+#[inline]
+#[target_feature(enable = "avx512f,avx512bw")]
+fn widen(p: __m256i) -> __m512 {
+    _mm512_castsi512_ps(_mm512_slli_epi32::<16>(_mm512_cvtepu16_epi32(p)))
+}
+
+/// `x[p] + offset` for the parts in use (null stays null).
+#[inline(always)]
+fn offset(x: [*mut u16; PARTS], by: usize) -> [*mut u16; PARTS] {
+    x.map(|p| if p.is_null() { p } else { p.wrapping_add(by) })
+}
+
+/// ReLU of the 16 rows of `n` sums at `y`: back to `y` (`x` `None`: the last layer), or split into
+/// bf16 parts at `x` (rows `x_row` values apart, see [`split16`]) as the next layer's input.
+///
+/// # Safety
+/// `y` holds `16 * n` floats, each non-null `x[p]` 16 rows of `x_row ≥ n` values; `n` a multiple of 16.
+#[inline]
+#[target_feature(enable = "avx512f,avx512bw,avx512bf16,avx512vl")]
+unsafe fn relu_split(y: *mut f32, n: usize, x: Option<[*mut u16; PARTS]>, x_row: usize) {
     // SAFETY: every access within the extents of the contract.
     unsafe {
         let zero = _mm512_setzero_ps();
@@ -290,39 +388,48 @@ unsafe fn relu_split(y: *mut f32, n: usize, xh: *mut u16, xl: *mut u16, x_row: u
             for i in (0..n).step_by(16) {
                 let p = y.add(q * n + i);
                 let v = _mm512_max_ps(_mm512_loadu_ps(p), zero);
-                if xh.is_null() {
-                    _mm512_storeu_ps(p, v);
-                } else {
-                    split16(v, xh.add(q * x_row + i), xl.add(q * x_row + i));
+                match x {
+                    None => _mm512_storeu_ps(p, v),
+                    Some(x) => split16(v, offset(x, q * x_row + i)),
                 }
             }
         }
     }
 }
 
-/// The hidden layers of `net` for [`PACKET`] queries at one prepared point, on tiles: query `q`'s tail
-/// at `tails[q * tail_stride..][..n_tail]`, its last hidden activation (after ReLU) to
-/// `h[q * width..][..width]` (every one of those `PACKET * width` values written). `tiles` is
-/// [`pack`]'s output for `net` and `n_tail`.
+/// The hidden layers of `net` for [`PACKET`] queries at one prepared point, on tiles, in bf16x6 (`six`)
+/// or bf16x3: query `q`'s tail at `tails[q * tail_stride..][..n_tail]`, its last hidden activation
+/// (after ReLU) to `h[q * width..][..width]` (every one of those `PACKET * width` values written).
+/// `tiles` is [`pack`]'s output for `net` and `n_tail`.
 ///
 /// # Safety
 /// [`available`]; `net` [`fits`] with `n_tail`, `tiles` as above, `partial.head_len + n_tail` the
 /// network's input count; `tails` readable as described; `h` writable for `PACKET * width` floats.
 #[target_feature(enable = "avx512f,avx512bw,avx512bf16,avx512vl")]
-pub(crate) unsafe fn hidden<W: Weight>(net: &Net<'_, W>, tiles: &[u16], partial: &Partial, tails: &[f32], tail_stride: usize, n_tail: usize, h: *mut f32) {
+#[allow(clippy::too_many_arguments)]
+pub(crate) unsafe fn hidden<W: Weight>(
+    six: bool,
+    net: &Net<'_, W>,
+    tiles: &[u16],
+    partial: &Partial,
+    tails: &[f32],
+    tail_stride: usize,
+    n_tail: usize,
+    h: *mut f32,
+) {
     let d = &net.desc;
     let width = d.width as usize;
     let tp = tail_pad(n_tail);
     let row = width + tp;
-    // Activation rows `[hidden outputs | tail, zero padded]`, high and low parts. Not zeroed (26 KB a
-    // packet): the tail part is written in full below, the hidden part by each layer before the next
-    // reads it, and the tiles read nothing else.
-    let mut xh = MaybeUninit::<Aligned<[u16; PACKET * ROW_MAX]>>::uninit();
-    let mut xl = MaybeUninit::<Aligned<[u16; PACKET * ROW_MAX]>>::uninit();
-    let (xh, xl) = (xh.as_mut_ptr().cast::<u16>(), xl.as_mut_ptr().cast::<u16>());
+    // Activation rows `[hidden outputs | tail, zero padded]`, one buffer per part (the third for
+    // bf16x6 only). Not zeroed (13 KB a part a packet): the tail part is written in full below, the
+    // hidden part by each layer before the next reads it, and the tiles read nothing else.
+    let mut buf = MaybeUninit::<[Aligned<[u16; PACKET * ROW_MAX]>; PARTS]>::uninit();
+    let base = buf.as_mut_ptr().cast::<u16>();
+    let x: [*mut u16; PARTS] = core::array::from_fn(|p| if p < 2 || six { base.wrapping_add(p * PACKET * ROW_MAX) } else { core::ptr::null_mut() });
     let mut bias = [0.0f32; MAX_WIDTH];
     let mut w = tiles.as_ptr();
-    // SAFETY: the buffers hold the extents `split16`, `layer` and `relu_split` are given (rows of
+    // SAFETY: the buffers hold the extents `split16`, the layers and `relu_split` are given (rows of
     // `row ≤ ROW_MAX` values); the masked loads read only the `n_tail` values of each tail; tiles are
     // configured before the first tile instruction and released after the last.
     unsafe {
@@ -331,7 +438,7 @@ pub(crate) unsafe fn hidden<W: Weight>(net: &Net<'_, W>, tiles: &[u16], partial:
             let t = tails.as_ptr().wrapping_add(q * tail_stride);
             for i in (0..tp).step_by(16) {
                 let m = mask(n_tail.saturating_sub(i));
-                split16(_mm512_maskz_loadu_ps(m, t.wrapping_add(i)), xh.add(q * row + width + i), xl.add(q * row + width + i));
+                split16(_mm512_maskz_loadu_ps(m, t.wrapping_add(i)), offset(x, q * row + width + i));
             }
         }
         asm!("ldtilecfg [{}]", in(reg) CONFIG.0.as_ptr(), options(nostack, readonly));
@@ -347,14 +454,15 @@ pub(crate) unsafe fn hidden<W: Weight>(net: &Net<'_, W>, tiles: &[u16], partial:
                 &bias[..width]
             };
             // Layer 0 reads the tail (after the hidden part of the rows); the others from the start.
-            let x0 = if l == 0 { width } else { 0 };
-            layer(w, k, width, xh.add(x0), xl.add(x0), 2 * row, init.as_ptr(), h);
-            w = w.add(2 * k * width);
-            if l + 1 == d.hidden as usize {
-                relu_split(h, width, core::ptr::null_mut(), core::ptr::null_mut(), row);
+            let input = offset(x, if l == 0 { width } else { 0 }).map(|p| p.cast_const());
+            if six {
+                layer_x6(w, k, width, input, 2 * row, init.as_ptr(), h);
             } else {
-                relu_split(h, width, xh, xl, row);
+                layer_x3(w, k, width, input, 2 * row, init.as_ptr(), h);
             }
+            w = w.add(PARTS * k * width);
+            let next = (l + 1 < d.hidden as usize).then_some(x);
+            relu_split(h, width, next, row);
         }
         asm!("tilerelease", options(nostack, nomem));
     }
@@ -386,8 +494,9 @@ mod tests {
     }
 
     /// Reads `pack`'s output back with the B-tile layout of Intel's SDM (`TDPBF16PS`: element `(k, n)`
-    /// of a 32×16 tile at row `k / 2`, column `2n + k % 2`): every weight of the tiled rows is
-    /// `hi + lo` to 2^-16 of itself, the padding rows are 0. Runs on any x86-64 CPU.
+    /// of a 32×16 tile at row `k / 2`, column `2n + k % 2`): every weight of the tiled rows is its
+    /// first two parts to 2^-16 of itself and its three parts to 2^-24, the padding rows are 0. Runs
+    /// on any x86-64 CPU.
     #[test]
     fn pack_lays_out_the_weights_the_tiles_read() {
         let n_tail = 11;
@@ -406,7 +515,7 @@ mod tests {
             for n0 in (0..width).step_by(32) {
                 for k0 in (0..k).step_by(32) {
                     for j in 0..2 {
-                        let (hi, lo) = (&tiles[o..o + 512], &tiles[o + 512..o + 1024]);
+                        let part = |p: usize| &tiles[o + 512 * p..o + 512 * (p + 1)];
                         for kk in 0..32 {
                             for n in 0..16 {
                                 let at = (kk / 2) * 32 + 2 * n + kk % 2;
@@ -416,12 +525,15 @@ mod tests {
                                     1 => Some(i),
                                     _ => if i < width { Some(i) } else { (i - width < n_tail).then_some(width + head + i - width) },
                                 };
-                                let want = row.map_or(0.0, |r| w[off + r * width + n0 + 16 * j + n]);
-                                let got = bf(hi[at]) + bf(lo[at]);
-                                assert!((got - want).abs() <= want.abs() * 2f32.powi(-16), "layer {l} input {i} output {}: {got} vs {want}", n0 + 16 * j + n);
+                                let want = row.map_or(0.0, |r| w[off + r * width + n0 + 16 * j + n]) as f64;
+                                let two = bf(part(0)[at]) as f64 + bf(part(1)[at]) as f64;
+                                let three = two + bf(part(2)[at]) as f64;
+                                let at_out = n0 + 16 * j + n;
+                                assert!((two - want).abs() <= want.abs() * 2f64.powi(-16), "layer {l} input {i} output {at_out}: {two} vs {want}");
+                                assert!((three - want).abs() <= want.abs() * 2f64.powi(-24), "layer {l} input {i} output {at_out}: {three} vs {want}");
                             }
                         }
-                        o += 1024;
+                        o += 3 * 512;
                     }
                 }
             }
@@ -431,7 +543,8 @@ mod tests {
 
     /// One tiled layer against exact sums: with inputs and weights split into bf16 pairs and f32
     /// sums, `|y - exact| ≤ (2^-15 + K·2^-23) Σ|x_i w_i|` (each product to ~3·2^-18, Henry et al.
-    /// Sec. IV; the f32 sums' γ_K). Layer 0 (the tail, padded to a tile) with a head folded into
+    /// Sec. IV; the f32 sums' γ_K); in three parts (bf16x6), `≤ (2^-21 + K·2^-23) Σ|x_i w_i|`, each
+    /// product to ~3·2^-24 and then f32's own sums. Layer 0 (the tail, padded to a tile) with a head folded into
     /// `partial`; then the skip layer and a plain hidden layer, fed exact activations by a layer 0
     /// that copies bf16-exact tail values (0/1 weights).
     #[test]
@@ -441,7 +554,7 @@ mod tests {
             return;
         }
         let n_tail = 36;
-        for (hidden, skip, copy_layer0) in [(1u8, 0u8, false), (2, 1, true), (2, 0, true)] {
+        for (six, (hidden, skip, copy_layer0)) in [false, true].into_iter().flat_map(|six| [(1u8, 0u8, false), (2, 1, true), (2, 0, true)].map(|c| (six, c))) {
             let d = NetDesc { n_in: 7 + n_tail as u16, width: 128, hidden, n_out: 0, skip };
             let (width, head_len) = (128usize, 7usize);
             let mut w = random(d.n_weights(), 11 + hidden as u32 + skip as u32, 0.3);
@@ -464,7 +577,8 @@ mod tests {
             pack(&net, n_tail, &mut tiles);
             let tiled = Tiled { values: &tiles, n_tail };
             let mut out = alloc::vec![f32::NAN; PACKET * width];
-            forward_packet(Arithmetic::SplitBf16, Some(tiled), &net, &p, &tails, n_tail, n_tail, &mut out, width);
+            let math = if six { Arithmetic::SplitBf16x6 } else { Arithmetic::SplitBf16 };
+            forward_packet(math, Some(tiled), &net, &p, &tails, n_tail, n_tail, &mut out, width);
             for q in 0..PACKET {
                 let x: alloc::vec::Vec<f64> = head.iter().chain(&tails[q * n_tail..(q + 1) * n_tail]).map(|&v| v as f64).collect();
                 // Exact activations of the layers before the last, then the last layer's sums.
@@ -484,11 +598,76 @@ mod tests {
                         next[o] = sum.max(0.0);
                         if l + 1 == hidden as usize {
                             let got = out[q * width + o] as f64;
-                            let bound = (2f64.powi(-15) + k as f64 * 2f64.powi(-23)) * mag;
-                            assert!((got - next[o]).abs() <= bound, "hidden {hidden} skip {skip} query {q} output {o}: {got} vs {} (bound {bound:e})", next[o]);
+                            let bound = (2f64.powi(if six { -21 } else { -15 }) + k as f64 * 2f64.powi(-23)) * mag;
+                            assert!((got - next[o]).abs() <= bound, "six {six} hidden {hidden} skip {skip} query {q} output {o}: {got} vs {} (bound {bound:e})", next[o]);
                         }
                     }
                     h = next;
+                }
+            }
+        }
+    }
+
+    /// Each part and product counts: layers whose outputs each read one input (so the f32 sums add
+    /// nothing), with full 24-bit inputs and weights, against exact products. bf16x6 must give every
+    /// output to 2^-20 of `x·w`, which dropping any of its six products or any third part would miss
+    /// by ~2^-17; bf16x3 to 2^-15. Layer 0 (the tail) alone; then the skip layer and a plain layer,
+    /// fed by a layer 0 that copies the tail (exact in bf16x6: `x_0 + x_1 + x_2 = x`).
+    #[test]
+    fn every_part_of_the_split_counts() {
+        if !available() {
+            std::eprintln!("amx: this CPU has no AMX-BF16 (or the OS denies the tiles); skipping");
+            return;
+        }
+        let (n_tail, head_len, width) = (36usize, 3usize, 128usize);
+        for six in [false, true] {
+            for (hidden, skip) in [(1u8, 0u8), (2, 1), (2, 0)] {
+                let d = NetDesc { n_in: (head_len + n_tail) as u16, width: width as u16, hidden, n_out: 0, skip };
+                let last = hidden as usize - 1;
+                let k_last = d.layer_inputs(last);
+                // The one input row each output of the last layer reads: a tail row for layer 0, else
+                // spread over the hidden rows and (skip layer) the tail rows after them.
+                let pick = |o: usize| if last == 0 { head_len + o % n_tail } else { (o * 5) % k_last };
+                let mut w = alloc::vec![0.0f32; d.n_weights()];
+                let values = random(width, 19 + six as u32, 0.9);
+                for o in 0..width {
+                    if last == 1 {
+                        w[(head_len + o % n_tail) * width + o] = 1.0;
+                    }
+                    let w_last = d.layer_offset(last) + pick(o) * width + o;
+                    w[w_last] = values[o] + 0.05f32.copysign(values[o]);
+                }
+                let net = Net { desc: d, weights: &w[..] };
+                let tails = random(PACKET * n_tail, 23, 1.0);
+                let p = partial(&net, &[0.0; 3]);
+                let mut tiles = alloc::vec![0u16; packed_len(&d, n_tail)];
+                pack(&net, n_tail, &mut tiles);
+                let mut out = alloc::vec![f32::NAN; PACKET * width];
+                let math = if six { Arithmetic::SplitBf16x6 } else { Arithmetic::SplitBf16 };
+                forward_packet(math, Some(Tiled { values: &tiles, n_tail }), &net, &p, &tails, n_tail, n_tail, &mut out, width);
+                for q in 0..PACKET {
+                    let tail = &tails[q * n_tail..(q + 1) * n_tail];
+                    // The input the last layer's output `o` reads, exactly.
+                    let input = |o: usize| -> f64 {
+                        let i = pick(o);
+                        let x = if last == 0 {
+                            tail[i - head_len]
+                        } else if i < width {
+                            tail[i % n_tail].max(0.0)
+                        } else if i < width + head_len {
+                            0.0 // a head row: the head (all 0) is in `partial`
+                        } else {
+                            tail[i - width - head_len]
+                        };
+                        x as f64
+                    };
+                    for o in 0..width {
+                        let wo = w[d.layer_offset(last) + pick(o) * width + o] as f64;
+                        let exact = (input(o) * wo).max(0.0);
+                        let got = out[q * width + o] as f64;
+                        let bound = 2f64.powi(if six { -20 } else { -15 }) * (input(o) * wo).abs();
+                        assert!((got - exact).abs() <= bound, "six {six} hidden {hidden} skip {skip} query {q} output {o}: {got} vs {exact}");
+                    }
                 }
             }
         }

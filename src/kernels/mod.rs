@@ -31,8 +31,8 @@
 //!
 //! # Split-bf16 arithmetic on AMX tiles
 //! `amx.rs` runs a packet's hidden layers on AMX-BF16 tiles (Sapphire Rapids and later, Linux), each
-//! f32 product as three bf16 products (~16 significant bits, f32 sums), over weights re-laid once in
-//! tile order ([`crate::model::ModelBuf::enable_amx`]), where [`amx_available`]. Outside the
+//! f32 product as three bf16 products (~16 significant bits, f32 sums) or six (~24 bits), over
+//! weights re-laid once in tile order ([`crate::model::ModelBuf::enable_amx`]), where [`amx_available`]. Outside the
 //! determinism promise too (other bits than the f32 kernels); each query still depends on itself only.
 
 #[cfg(all(target_arch = "x86_64", target_os = "linux", feature = "std"))]
@@ -443,7 +443,7 @@ pub fn half_math_available() -> bool {
     }
 }
 
-/// Whether the split-bf16 arithmetic ([`crate::mlp::Arithmetic::SplitBf16`]) runs here: the CPU has
+/// Whether the split-bf16 arithmetics ([`crate::mlp::Arithmetic::SplitBf16`], [`crate::mlp::Arithmetic::SplitBf16x6`]) run here: the CPU has
 /// AMX-BF16 and AVX512-BF16 (Sapphire Rapids and later Intel cores), the OS lets the process use the
 /// tiles (Linux: asked for once through `arch_prctl`, on the first call), [`level`] is AVX-512, and
 /// the crate was built with `std`.
