@@ -90,13 +90,14 @@ fn tiny_study_writes_every_table_and_reuses_jobs() {
     let (half, amx) = (nbrdf::kernels::half_math_available(), nbrdf::kernels::amx_available());
     for r in &results {
         let rows = cost.matches(&format!("| {} |", r.model)).count();
-        assert_eq!(rows, if r.model == "rp" { 1 } else { 2 + half as usize + amx as usize }, "{}:\n{cost}", r.model);
+        assert_eq!(rows, if r.model == "rp" { 1 } else { 2 + half as usize + 2 * amx as usize }, "{}:\n{cost}", r.model);
         assert_eq!(r.eval_f16_half.is_some(), half && r.model != "rp", "{}", r.model);
         if let (Some(f16), Some(h)) = (&r.eval_f16, &r.eval_f16_half) {
             assert!((h.image.psnr - f16.image.psnr).abs() < 0.5, "{}: half arithmetic moved PSNR by more than 0.5 dB", r.model);
         }
         assert_eq!(r.eval_split_bf16.is_some(), amx && r.model != "rp", "{}", r.model);
-        if let Some(sb) = &r.eval_split_bf16 {
+        assert_eq!(r.eval_split_bf16x6.is_some(), amx && r.model != "rp", "{}", r.model);
+        for sb in [&r.eval_split_bf16, &r.eval_split_bf16x6].into_iter().flatten() {
             assert!((sb.image.psnr - r.eval.image.psnr).abs() < 0.01, "{}: split bf16 {} dB vs f32 {} dB", r.model, sb.image.psnr, r.eval.image.psnr);
             assert!(sb.eval_batch_ns_per_query.is_some());
         }
@@ -107,12 +108,13 @@ fn tiny_study_writes_every_table_and_reuses_jobs() {
     // A result.json written before the half-arithmetic field still loads (without it); a truncated one
     // is a parse error (the study then runs the job again).
     let mut old = serde_json::to_value(&results[1]).unwrap();
-    for field in ["eval_f16_half", "eval_split_bf16"] {
+    for field in ["eval_f16_half", "eval_split_bf16", "eval_split_bf16x6"] {
         old.as_object_mut().unwrap().remove(field);
     }
     old["eval"].as_object_mut().unwrap().remove("eval_batch_ns_per_query");
     let loaded: study::JobResult = serde_json::from_value(old).unwrap();
-    assert!(loaded.eval_f16_half.is_none() && loaded.eval_split_bf16.is_none() && loaded.eval_f16.is_some());
+    assert!(loaded.eval_f16_half.is_none() && loaded.eval_split_bf16.is_none() && loaded.eval_split_bf16x6.is_none());
+    assert!(loaded.eval_f16.is_some());
     assert!(loaded.eval.eval_batch_ns_per_query.is_none());
     let json = serde_json::to_string(&results[1]).unwrap();
     assert!(serde_json::from_str::<study::JobResult>(&json[..json.len() / 2]).is_err());

@@ -8,7 +8,8 @@
 //! - the evaluation cost is timed in-process on the reciprocity pairs: one query at a time (`eval_in`), and
 //!   in batches of many directions at one point (`eval_many_in`).
 //!
-//! With [`Arithmetic::SplitBf16`] (batches only: single queries keep f32) every value is taken from a
+//! With [`Arithmetic::SplitBf16`] or [`Arithmetic::SplitBf16x6`] (batches only: single queries keep
+//! f32) every value is taken from a
 //! batch: a pair's value does not depend on the batch it is in, so a batch of one gives the value any
 //! batch would.
 
@@ -79,18 +80,20 @@ pub fn evaluate(
     math: Arithmetic,
 ) -> Result<Evaluation> {
     let mut buf = ModelBuf::load(model_path).map_err(Error::Core)?;
-    if math == Arithmetic::SplitBf16 && !buf.enable_amx() {
+    let split = matches!(math, Arithmetic::SplitBf16 | Arithmetic::SplitBf16x6);
+    if split && !buf.enable_amx() {
         return Err(Error::Invalid(format!("{}: split-bf16 arithmetic does not apply (no AMX here, or not a neural model)", model_path.display())));
     }
     let model = buf.model();
     // Every query of the evaluation, in the arithmetic under test.
-    let eval = |p: &Prepared, wi: Vec3, wo: Vec3| match math {
-        Arithmetic::SplitBf16 => {
+    let eval = |p: &Prepared, wi: Vec3, wo: Vec3| {
+        if split {
             let mut f = [[0.0; 3]];
             model.eval_many_in(math, p, &[wi], &[wo], &mut f);
             f[0]
+        } else {
+            model.eval_in(math, p, wi, wo)
         }
-        _ => model.eval_in(math, p, wi, wo),
     };
     let mut image_metrics = Vec::new();
     let (mut pred_brdf, mut ref_brdf, mut keep) = (Vec::<Rgb>::new(), Vec::<Rgb>::new(), Vec::new());

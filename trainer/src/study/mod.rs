@@ -59,6 +59,9 @@ pub struct JobResult {
     /// where the machine has it.
     #[serde(default)]
     pub eval_split_bf16: Option<Evaluation>,
+    /// The same in six products (`Arithmetic::SplitBf16x6`).
+    #[serde(default)]
+    pub eval_split_bf16x6: Option<Evaluation>,
 }
 
 /// Which jobs this process runs: job `j` (in scene-major order) belongs to shard `j % count`.
@@ -233,9 +236,9 @@ pub fn run(config: &StudyConfig, out: &Path, shard: Option<Shard>, progress: boo
                     .transpose()?;
                 (Some(f16), Some(bytes.len() as u64), half)
             };
-            let eval_split_bf16 = (!config::is_parametric(&spec.model) && nbrdf::kernels::amx_available())
-                .then(|| evaluate::evaluate(&ds, &model_path, &lpips, config, Arithmetic::SplitBf16))
-                .transpose()?;
+            let amx = !config::is_parametric(&spec.model) && nbrdf::kernels::amx_available();
+            let split = |math| amx.then(|| evaluate::evaluate(&ds, &model_path, &lpips, config, math)).transpose();
+            let (eval_split_bf16, eval_split_bf16x6) = (split(Arithmetic::SplitBf16)?, split(Arithmetic::SplitBf16x6)?);
             let r = JobResult {
                 scene: scene.id(),
                 model: name.clone(),
@@ -250,6 +253,7 @@ pub fn run(config: &StudyConfig, out: &Path, shard: Option<Shard>, progress: boo
                 size_bytes_f16,
                 eval_f16_half,
                 eval_split_bf16,
+                eval_split_bf16x6,
             };
             let json = serde_json::to_vec_pretty(&r).map_err(|e| Error::io(&result_path, e))?;
             crate::train::write_atomic(&result_path, &json)?;

@@ -41,6 +41,8 @@ pub struct ModelSummary {
     pub f16_half: Option<F16Summary>,
     /// The f32 model in split-bf16 arithmetic on AMX tiles (`None` unless every object has it).
     pub split_bf16: Option<F16Summary>,
+    /// The same in six products (bf16x6).
+    pub split_bf16x6: Option<F16Summary>,
 }
 
 /// Means over the objects of one more evaluation of a model: its f16-weight copy, or another
@@ -92,6 +94,7 @@ pub fn summarize(results: &[JobResult]) -> Vec<ModelSummary> {
                 f16: f16_summary(rs.iter().map(|r| r.eval_f16.as_ref().zip(r.size_bytes_f16))),
                 f16_half: f16_summary(rs.iter().map(|r| r.eval_f16_half.as_ref().zip(r.size_bytes_f16))),
                 split_bf16: f16_summary(rs.iter().map(|r| r.eval_split_bf16.as_ref().map(|e| (e, r.size_bytes)))),
+                split_bf16x6: f16_summary(rs.iter().map(|r| r.eval_split_bf16x6.as_ref().map(|e| (e, r.size_bytes)))),
             }
         })
         .collect()
@@ -277,7 +280,8 @@ pub fn pareto_plots(out: &Path, config: &StudyConfig, results: &[JobResult]) -> 
     for (suffix, pick) in [
         ("f16", (|m: &ModelSummary| m.f16.as_ref()) as fn(&ModelSummary) -> Option<&F16Summary>),
         ("f16 half", |m| m.f16_half.as_ref()),
-        ("split bf16", |m| m.split_bf16.as_ref()),
+        ("bf16x3", |m| m.split_bf16.as_ref()),
+        ("bf16x6", |m| m.split_bf16x6.as_ref()),
     ] {
         batch.extend(full.iter().filter_map(|m| {
             let f = pick(m)?;
@@ -453,8 +457,8 @@ pub fn markdown(
         "Every variant. Training wall time on this machine (CPU, shared), core evaluation ns per query (one thread, point \
          prepared), model file size; `f16` rows are the same fit re-encoded with f16 network weights (no retraining), \
          evaluated the same way; `f16, half arithmetic` rows evaluate that copy with `Model::eval_half` (f16 multiply-adds, \
-         on CPUs with AVX512-FP16 only); `f32, split bf16 (AMX)` rows evaluate the f32 model with \
-         `Model::eval_many_in(Arithmetic::SplitBf16, ..)` (each product as three bf16 products on AMX tiles, on CPUs with \
+         on CPUs with AVX512-FP16 only); `f32, bf16x3 (AMX)` and `f32, bf16x6 (AMX)` rows evaluate the f32 model with \
+         `Model::eval_many_in(Arithmetic::SplitBf16 | SplitBf16x6, ..)` (each product as three or six bf16 products on AMX tiles, on CPUs with \
          AMX-BF16 only; batches only, single queries stay f32). Batched: ns per pair of `eval_many_in` over batches of {} \
          directions at one point. Means over the objects column.\n",
         super::evaluate::BATCH
@@ -475,7 +479,12 @@ pub fn markdown(
             m.psnr,
             m.brdf_rmse_cbrt * 100.0
         );
-        for (weights, f) in [("f16", &m.f16), ("f16, half arithmetic", &m.f16_half), ("f32, split bf16 (AMX)", &m.split_bf16)] {
+        for (weights, f) in [
+            ("f16", &m.f16),
+            ("f16, half arithmetic", &m.f16_half),
+            ("f32, bf16x3 (AMX)", &m.split_bf16),
+            ("f32, bf16x6 (AMX)", &m.split_bf16x6),
+        ] {
             let Some(f) = f else { continue };
             let _ = writeln!(
                 md,
@@ -543,7 +552,8 @@ pub fn csv(results: &[JobResult]) -> String {
          energy_median_above_one,energy_mean_albedo,train_wall_s,eval_ns_per_query,n_weights,size_bytes,steps,final_loss,\
          psnr_f16,brdf_rmse_cbrt_f16,eval_ns_per_query_f16,size_bytes_f16,psnr_f16_half,brdf_rmse_cbrt_f16_half,\
          eval_ns_per_query_f16_half,eval_batch_ns_per_query,eval_batch_ns_per_query_f16,eval_batch_ns_per_query_f16_half,\
-         psnr_split_bf16,brdf_rmse_cbrt_split_bf16,eval_batch_ns_per_query_split_bf16\n",
+         psnr_split_bf16,brdf_rmse_cbrt_split_bf16,eval_batch_ns_per_query_split_bf16,\
+         psnr_split_bf16x6,brdf_rmse_cbrt_split_bf16x6,eval_batch_ns_per_query_split_bf16x6\n",
     );
     let o = |v: Option<f64>| v.map_or(String::new(), |x| x.to_string());
     for r in results {
@@ -551,9 +561,10 @@ pub fn csv(results: &[JobResult]) -> String {
         let f16 = r.eval_f16.as_ref();
         let half = r.eval_f16_half.as_ref();
         let split = r.eval_split_bf16.as_ref();
+        let split6 = r.eval_split_bf16x6.as_ref();
         let _ = writeln!(
             out,
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             r.scene,
             r.model,
             e.image.psnr,
@@ -585,6 +596,9 @@ pub fn csv(results: &[JobResult]) -> String {
             o(split.map(|e| e.image.psnr)),
             o(split.map(|e| e.brdf_rmse_cbrt.value)),
             o(split.and_then(|e| e.eval_batch_ns_per_query)),
+            o(split6.map(|e| e.image.psnr)),
+            o(split6.map(|e| e.brdf_rmse_cbrt.value)),
+            o(split6.and_then(|e| e.eval_batch_ns_per_query)),
         );
     }
     out
