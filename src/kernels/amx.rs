@@ -216,124 +216,102 @@ struct Aligned<T>(T);
 /// Bytes of the weight tiles of one step of 32 outputs and 32 inputs: both halves, every part.
 const STEP_BYTES: usize = 2 * PARTS * TILE_VALUES * 2;
 
-/// One hidden layer on the tiles in bf16x3: `out[q][o] = init[o] + Σ_i x[q][i] w[i][o]` for the 16
-/// queries, in steps of 32 outputs (accumulators `tmm0`, `tmm1`; inputs `tmm2` = `x_0`, `tmm3` = `x_1`;
-/// weights `tmm4`..`tmm7` = `w_0`, `w_1` of each half).
+/// One step of a layer, 32 outputs: the accumulators `tmm0`, `tmm1` start as 16 rows of `init`
+/// (stride 0), then per 32 inputs the loop `body` multiplies in the input and weight tiles, and the sums
+/// go to `out`. The operands the bodies use: `{x0}`..`{x2}` (the parts of the inputs, advanced 64 bytes
+/// a loop), `{xs}` (their row stride), `{w}` (advanced one step of weights a loop), `{s64}`.
+macro_rules! tile_step {
+    ($w:expr, $k:expr, $x:expr, $x_stride:expr, $init:expr, $out:expr, $out_stride:expr, [$($body:literal),* $(,)?]) => {
+        asm!(
+            "tileloadd tmm0, [{init} + {zero}*1]",
+            "tileloadd tmm1, [{init} + {zero}*1 + 64]",
+            "2:",
+            $($body,)*
+            "add {w}, {step}",
+            "add {x0}, 64",
+            "add {x1}, 64",
+            "add {x2}, 64",
+            "sub {kb}, 1",
+            "jnz 2b",
+            "tilestored [{out} + {os}*1], tmm0",
+            "tilestored [{out} + {os}*1 + 64], tmm1",
+            init = in(reg) $init,
+            out = in(reg) $out,
+            os = in(reg) $out_stride,
+            zero = in(reg) 0usize,
+            s64 = in(reg) 64usize,
+            xs = in(reg) $x_stride,
+            step = const STEP_BYTES,
+            x0 = inout(reg) $x[0] => _,
+            x1 = inout(reg) $x[1] => _,
+            x2 = inout(reg) $x[2] => _,
+            w = inout(reg) $w => _,
+            kb = inout(reg) $k / K_TILE => _,
+            options(nostack),
+        )
+    };
+}
+
+/// One hidden layer on the tiles: `out[q][o] = init[o] + Σ_i x[q][i] w[i][o]` for the 16 queries, in
+/// steps of 32 outputs, in bf16x6 (`SIX`; inputs `tmm2`..`tmm4` = `x_0`..`x_2`, weights `tmm5`..`tmm7`
+/// = `w_0`..`w_2` of one half of the outputs at a time) or bf16x3 (inputs `tmm2`, `tmm3` = `x_0`,
+/// `x_1`; weights `tmm4`..`tmm7` = `w_0`, `w_1` of both halves).
 ///
 /// # Safety
 /// Tiles configured with [`CONFIG`]; `w` holds the layer's `k / 32 * n / 32` steps of [`STEP_BYTES`];
-/// `x[p]` 16 rows `x_stride` bytes apart of `k` values (parts 0 and 1 read); `init` `n` floats; `out`
-/// 16 rows of `n` floats, `n * 4` bytes apart; `k`, `n` positive multiples of 32.
+/// `x[p]` 16 rows `x_stride` bytes apart of `k` values (part 2 read in bf16x6 only); `init` `n` floats;
+/// `out` 16 rows of `n` floats, `n * 4` bytes apart; `k`, `n` positive multiples of 32.
 #[inline]
 #[target_feature(enable = "avx512f")]
-unsafe fn layer_x3(w: *const u16, k: usize, n: usize, x: [*const u16; PARTS], x_stride: usize, init: *const f32, out: *mut f32) {
-    let mut w = w;
+unsafe fn layer<const SIX: bool>(w: *const u16, k: usize, n: usize, x: [*const u16; PARTS], x_stride: usize, init: *const f32, out: *mut f32) {
     for n0 in (0..n).step_by(N_STEP) {
+        let w = w.wrapping_byte_add(n0 / N_STEP * (k / K_TILE) * STEP_BYTES);
+        let (init, out) = (init.wrapping_add(n0), out.wrapping_add(n0));
         // SAFETY: every tile read and written lies in the extents of the contract.
         unsafe {
-            asm!(
-                // Every row of an accumulator starts as the 16 `init` values (stride 0).
-                "tileloadd tmm0, [{init} + {zero}*1]",
-                "tileloadd tmm1, [{init} + {zero}*1 + 64]",
-                "2:",
-                "tileloadd tmm2, [{x0} + {xs}*1]",
-                "tileloadd tmm3, [{x1} + {xs}*1]",
-                "tileloadd tmm4, [{w} + {s64}*1]",
-                "tileloadd tmm5, [{w} + {s64}*1 + 1024]",
-                "tileloadd tmm6, [{w} + {s64}*1 + 3072]",
-                "tileloadd tmm7, [{w} + {s64}*1 + 4096]",
-                // Small terms first: x_1·w_0, x_0·w_1, then x_0·w_0; the two accumulators
-                // alternate so that neither waits on its own previous product.
-                "tdpbf16ps tmm0, tmm3, tmm4",
-                "tdpbf16ps tmm1, tmm3, tmm6",
-                "tdpbf16ps tmm0, tmm2, tmm5",
-                "tdpbf16ps tmm1, tmm2, tmm7",
-                "tdpbf16ps tmm0, tmm2, tmm4",
-                "tdpbf16ps tmm1, tmm2, tmm6",
-                "add {w}, {step}",
-                "add {x0}, 64",
-                "add {x1}, 64",
-                "sub {kb}, 1",
-                "jnz 2b",
-                "tilestored [{out} + {os}*1], tmm0",
-                "tilestored [{out} + {os}*1 + 64], tmm1",
-                init = in(reg) init.add(n0),
-                out = in(reg) out.add(n0),
-                os = in(reg) n * 4,
-                zero = in(reg) 0usize,
-                s64 = in(reg) 64usize,
-                xs = in(reg) x_stride,
-                step = const STEP_BYTES,
-                x0 = inout(reg) x[0] => _,
-                x1 = inout(reg) x[1] => _,
-                w = inout(reg) w,
-                kb = inout(reg) k / K_TILE => _,
-                options(nostack),
-            );
-        }
-    }
-}
-
-/// [`layer_x3`] in bf16x6 (inputs `tmm2`..`tmm4` = `x_0`..`x_2`; weights `tmm5`..`tmm7` = `w_0`..`w_2`
-/// of one half at a time).
-///
-/// # Safety
-/// As [`layer_x3`], all three parts of `x` read.
-#[inline]
-#[target_feature(enable = "avx512f")]
-unsafe fn layer_x6(w: *const u16, k: usize, n: usize, x: [*const u16; PARTS], x_stride: usize, init: *const f32, out: *mut f32) {
-    let mut w = w;
-    for n0 in (0..n).step_by(N_STEP) {
-        // SAFETY: every tile read and written lies in the extents of the contract.
-        unsafe {
-            asm!(
-                "tileloadd tmm0, [{init} + {zero}*1]",
-                "tileloadd tmm1, [{init} + {zero}*1 + 64]",
-                "2:",
-                "tileloadd tmm2, [{x0} + {xs}*1]",
-                "tileloadd tmm3, [{x1} + {xs}*1]",
-                "tileloadd tmm4, [{x2} + {xs}*1]",
-                "tileloadd tmm5, [{w} + {s64}*1]",
-                "tileloadd tmm6, [{w} + {s64}*1 + 1024]",
-                "tileloadd tmm7, [{w} + {s64}*1 + 2048]",
-                // Small terms first: x_2·w_0, x_1·w_1, x_0·w_2, x_1·w_0, x_0·w_1, x_0·w_0.
-                "tdpbf16ps tmm0, tmm4, tmm5",
-                "tdpbf16ps tmm0, tmm3, tmm6",
-                "tdpbf16ps tmm0, tmm2, tmm7",
-                "tdpbf16ps tmm0, tmm3, tmm5",
-                "tdpbf16ps tmm0, tmm2, tmm6",
-                "tdpbf16ps tmm0, tmm2, tmm5",
-                "tileloadd tmm5, [{w} + {s64}*1 + 3072]",
-                "tileloadd tmm6, [{w} + {s64}*1 + 4096]",
-                "tileloadd tmm7, [{w} + {s64}*1 + 5120]",
-                "tdpbf16ps tmm1, tmm4, tmm5",
-                "tdpbf16ps tmm1, tmm3, tmm6",
-                "tdpbf16ps tmm1, tmm2, tmm7",
-                "tdpbf16ps tmm1, tmm3, tmm5",
-                "tdpbf16ps tmm1, tmm2, tmm6",
-                "tdpbf16ps tmm1, tmm2, tmm5",
-                "add {w}, {step}",
-                "add {x0}, 64",
-                "add {x1}, 64",
-                "add {x2}, 64",
-                "sub {kb}, 1",
-                "jnz 2b",
-                "tilestored [{out} + {os}*1], tmm0",
-                "tilestored [{out} + {os}*1 + 64], tmm1",
-                init = in(reg) init.add(n0),
-                out = in(reg) out.add(n0),
-                os = in(reg) n * 4,
-                zero = in(reg) 0usize,
-                s64 = in(reg) 64usize,
-                xs = in(reg) x_stride,
-                step = const STEP_BYTES,
-                x0 = inout(reg) x[0] => _,
-                x1 = inout(reg) x[1] => _,
-                x2 = inout(reg) x[2] => _,
-                w = inout(reg) w,
-                kb = inout(reg) k / K_TILE => _,
-                options(nostack),
-            );
+            if SIX {
+                tile_step!(w, k, x, x_stride, init, out, n * 4, [
+                    "tileloadd tmm2, [{x0} + {xs}*1]",
+                    "tileloadd tmm3, [{x1} + {xs}*1]",
+                    "tileloadd tmm4, [{x2} + {xs}*1]",
+                    "tileloadd tmm5, [{w} + {s64}*1]",
+                    "tileloadd tmm6, [{w} + {s64}*1 + 1024]",
+                    "tileloadd tmm7, [{w} + {s64}*1 + 2048]",
+                    // Small terms first: x_2·w_0, x_1·w_1, x_0·w_2, x_1·w_0, x_0·w_1, x_0·w_0.
+                    "tdpbf16ps tmm0, tmm4, tmm5",
+                    "tdpbf16ps tmm0, tmm3, tmm6",
+                    "tdpbf16ps tmm0, tmm2, tmm7",
+                    "tdpbf16ps tmm0, tmm3, tmm5",
+                    "tdpbf16ps tmm0, tmm2, tmm6",
+                    "tdpbf16ps tmm0, tmm2, tmm5",
+                    "tileloadd tmm5, [{w} + {s64}*1 + 3072]",
+                    "tileloadd tmm6, [{w} + {s64}*1 + 4096]",
+                    "tileloadd tmm7, [{w} + {s64}*1 + 5120]",
+                    "tdpbf16ps tmm1, tmm4, tmm5",
+                    "tdpbf16ps tmm1, tmm3, tmm6",
+                    "tdpbf16ps tmm1, tmm2, tmm7",
+                    "tdpbf16ps tmm1, tmm3, tmm5",
+                    "tdpbf16ps tmm1, tmm2, tmm6",
+                    "tdpbf16ps tmm1, tmm2, tmm5",
+                ]);
+            } else {
+                tile_step!(w, k, x, x_stride, init, out, n * 4, [
+                    "tileloadd tmm2, [{x0} + {xs}*1]",
+                    "tileloadd tmm3, [{x1} + {xs}*1]",
+                    "tileloadd tmm4, [{w} + {s64}*1]",
+                    "tileloadd tmm5, [{w} + {s64}*1 + 1024]",
+                    "tileloadd tmm6, [{w} + {s64}*1 + 3072]",
+                    "tileloadd tmm7, [{w} + {s64}*1 + 4096]",
+                    // Small terms first: x_1·w_0, x_0·w_1, then x_0·w_0; the two accumulators
+                    // alternate so that neither waits on its own previous product.
+                    "tdpbf16ps tmm0, tmm3, tmm4",
+                    "tdpbf16ps tmm1, tmm3, tmm6",
+                    "tdpbf16ps tmm0, tmm2, tmm5",
+                    "tdpbf16ps tmm1, tmm2, tmm7",
+                    "tdpbf16ps tmm0, tmm2, tmm4",
+                    "tdpbf16ps tmm1, tmm2, tmm6",
+                ]);
+            }
         }
     }
 }
@@ -456,9 +434,9 @@ pub(crate) unsafe fn hidden<W: Weight>(
             // Layer 0 reads the tail (after the hidden part of the rows); the others from the start.
             let input = offset(x, if l == 0 { width } else { 0 }).map(|p| p.cast_const());
             if six {
-                layer_x6(w, k, width, input, 2 * row, init.as_ptr(), h);
+                layer::<true>(w, k, width, input, 2 * row, init.as_ptr(), h);
             } else {
-                layer_x3(w, k, width, input, 2 * row, init.as_ptr(), h);
+                layer::<false>(w, k, width, input, 2 * row, init.as_ptr(), h);
             }
             w = w.add(PARTS * k * width);
             let next = (l + 1 < d.hidden as usize).then_some(x);
