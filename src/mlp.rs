@@ -91,8 +91,9 @@ pub enum Arithmetic {
 }
 
 /// A network's hidden-layer weights re-laid for the AMX tiles of [`Arithmetic::SplitBf16`] and
-/// [`Arithmetic::SplitBf16x6`]: three bf16 parts of each weight in the order the tiles read them, for a network whose last `n_tail` inputs are the
-/// per-query tail (the encoded angles). [`crate::model::ModelBuf::enable_amx`] makes and keeps them.
+/// [`Arithmetic::SplitBf16x6`]: three bf16 parts of each weight in the order the tiles read them, for
+/// a network whose last `n_tail` inputs are the per-query tail (the encoded angles).
+/// [`crate::model::ModelBuf::enable_amx`] makes and keeps them.
 #[derive(Clone, Copy, Debug)]
 // Read only where the AMX kernels are built (x86-64 Linux with `std`).
 #[cfg_attr(not(all(target_arch = "x86_64", target_os = "linux", feature = "std")), allow(dead_code))]
@@ -498,9 +499,9 @@ pub fn forward_packet<W: Weight>(
     run::<W, PACKET>(math, net, partial, tails, tail_stride, n_tail, out, out_stride, &mut h, &mut t);
 }
 
-/// The hidden layers of a packet on AMX tiles ([`crate::kernels`], "Split-bf16 arithmetic"), in bf16x6
-/// (`six`) or bf16x3: the last activations (`PACKET × width`, written to the front of `h`), or `None` (nothing written) where the
-/// tiles do not apply (see [`forward_packet`]).
+/// The hidden layers of a packet on AMX tiles ([`crate::kernels`], "Split-bf16 arithmetic"), in
+/// bf16x6 (`six`) or bf16x3: the last activations (`PACKET × width`, written to the front of `h`), or
+/// `None` (nothing written) where the tiles do not apply (see [`forward_packet`]).
 #[allow(unused_variables, clippy::too_many_arguments)]
 fn hidden_tiled<'h, W: Weight>(
     six: bool,

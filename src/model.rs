@@ -432,12 +432,14 @@ impl<'a> Model<'a> {
     /// let p = model.prepare(&[0.1; 64]);
     /// let wi = [Vec3::new(0.3, 0.1, 0.9).normalize(); 32];
     /// let wo = [Vec3::new(-0.2, 0.4, 0.8).normalize(); 32];
-    /// let (mut exact, mut fast) = ([[0.0; 3]; 32], [[0.0; 3]; 32]);
+    /// let (mut exact, mut x3, mut x6) = ([[0.0; 3]; 32], [[0.0; 3]; 32], [[0.0; 3]; 32]);
     /// model.eval_many(&p, &wi, &wo, &mut exact);
-    /// model.eval_many_in(Arithmetic::SplitBf16, &p, &wi, &wo, &mut fast);
-    /// for (e, f) in exact.iter().zip(&fast) {
+    /// model.eval_many_in(Arithmetic::SplitBf16, &p, &wi, &wo, &mut x3);
+    /// model.eval_many_in(Arithmetic::SplitBf16x6, &p, &wi, &wo, &mut x6);
+    /// for ((e, a), b) in exact.iter().zip(&x3).zip(&x6) {
     ///     for c in 0..3 {
-    ///         assert!((e[c] - f[c]).abs() <= 1e-4 * e[c] + 1e-6);
+    ///         assert!((e[c] - a[c]).abs() <= 1e-4 * e[c] + 1e-6);
+    ///         assert!((e[c] - b[c]).abs() <= 2e-6 * e[c] + 1e-7);
     ///     }
     /// }
     /// ```
@@ -446,8 +448,9 @@ impl<'a> Model<'a> {
         self.eval_many_by(math, prepared, n, |i| (wi[i], wo[i]), |i, f| out[i] = f);
     }
 
-    /// Whether [`Arithmetic::SplitBf16`] and [`Arithmetic::SplitBf16x6`] run on AMX tiles for this model here: its per-query
-    /// network's tiles were made ([`ModelBuf::enable_amx`]) and [`crate::kernels::amx_available`].
+    /// Whether [`Arithmetic::SplitBf16`] and [`Arithmetic::SplitBf16x6`] run on AMX tiles for this model
+    /// here: its per-query network's tiles were made ([`ModelBuf::enable_amx`]) and
+    /// [`crate::kernels::amx_available`].
     pub fn amx(&self) -> bool {
         self.tiles.is_some() && crate::kernels::amx_available()
     }
@@ -770,9 +773,10 @@ impl ModelBuf {
     }
 
     /// Makes the tiled copy of the per-query network that [`Arithmetic::SplitBf16`] and
-    /// [`Arithmetic::SplitBf16x6`] evaluate on AMX tiles ([`Model::eval_many_in`]); `true` where it now applies: a neural model whose per-query
-    /// network has a hidden width of a multiple of 32 (the paper's 128), on a CPU and OS with AMX-BF16
-    /// ([`crate::kernels::amx_available`]; built with `std`, Linux). The copy holds three bf16 parts of
+    /// [`Arithmetic::SplitBf16x6`] evaluate on AMX tiles ([`Model::eval_many_in`]); `true` where it now
+    /// applies: a neural model whose per-query network has a hidden width of a multiple of 32 (the
+    /// paper's 128), on a CPU and OS with AMX-BF16 ([`crate::kernels::amx_available`]; built with
+    /// `std`, Linux). The copy holds three bf16 parts of
     /// each hidden weight: 1.5× the bytes of the f32 network (3× those of an f16 one).
     pub fn enable_amx(&mut self) -> bool {
         #[cfg(all(target_arch = "x86_64", target_os = "linux", feature = "std"))]
