@@ -100,6 +100,34 @@ pub fn summarize(results: &[JobResult]) -> Vec<ModelSummary> {
         .collect()
 }
 
+/// One further evaluation of a model (the rows under it in the accuracy-versus-cost table).
+struct Alternative<'a> {
+    /// Label suffix in the Pareto plots.
+    suffix: &'static str,
+    /// The table's "weights" column.
+    weights: &'static str,
+    summary: Option<&'a F16Summary>,
+    /// Whether its single-query cost is its own (the split-bf16 arithmetics run single queries in f32).
+    single: bool,
+}
+
+/// Number of [`alternatives`].
+const ALTERNATIVES: usize = 4;
+
+/// The further evaluations of a model, in table order: its f16 copy, that copy in half arithmetic, the
+/// f32 model in bf16x3 and in bf16x6.
+fn alternatives(m: &ModelSummary) -> [Alternative<'_>; ALTERNATIVES] {
+    fn a<'a>(suffix: &'static str, weights: &'static str, summary: Option<&'a F16Summary>, single: bool) -> Alternative<'a> {
+        Alternative { suffix, weights, summary, single }
+    }
+    [
+        a("f16", "f16", m.f16.as_ref(), true),
+        a("f16 half", "f16, half arithmetic", m.f16_half.as_ref(), true),
+        a("bf16x3", "f32, bf16x3 (AMX)", m.split_bf16.as_ref(), false),
+        a("bf16x6", "f32, bf16x6 (AMX)", m.split_bf16x6.as_ref(), false),
+    ]
+}
+
 /// Means over the objects of f16 evaluations, `None` unless every object has one.
 fn f16_summary<'a>(v: impl Iterator<Item = Option<(&'a Evaluation, u64)>>) -> Option<F16Summary> {
     v.collect::<Option<Vec<_>>>().filter(|v| !v.is_empty()).map(|v| F16Summary {
@@ -261,33 +289,25 @@ pub fn pareto_plots(out: &Path, config: &StudyConfig, results: &[JobResult]) -> 
     let full: Vec<&ModelSummary> = s.iter().filter(|m| m.objects == all).collect();
     let train: Vec<CostPoint> =
         full.iter().map(|m| CostPoint { label: short_label(&m.model, config), cost: m.train_wall_s, accuracy: m.psnr }).collect();
-    let mut eval: Vec<CostPoint> =
-        full.iter().map(|m| CostPoint { label: short_label(&m.model, config), cost: m.eval_ns_per_query, accuracy: m.psnr }).collect();
-    for (suffix, pick) in [("f16", (|m: &ModelSummary| m.f16.as_ref()) as fn(&ModelSummary) -> Option<&F16Summary>), ("f16 half", |m| m.f16_half.as_ref())] {
-        eval.extend(full.iter().filter_map(|m| {
-            pick(m).map(|f| CostPoint {
-                label: format!("{} {suffix}", short_label(&m.model, config)),
-                cost: f.eval_ns_per_query,
-                accuracy: f.psnr,
-            })
-        }));
-    }
-    // Batched cost: every row with a batched timing, the split-bf16 arithmetic (batches only) too.
-    let mut batch: Vec<CostPoint> = full
-        .iter()
-        .filter_map(|m| m.eval_batch_ns_per_query.map(|cost| CostPoint { label: short_label(&m.model, config), cost, accuracy: m.psnr }))
-        .collect();
-    for (suffix, pick) in [
-        ("f16", (|m: &ModelSummary| m.f16.as_ref()) as fn(&ModelSummary) -> Option<&F16Summary>),
-        ("f16 half", |m| m.f16_half.as_ref()),
-        ("bf16x3", |m| m.split_bf16.as_ref()),
-        ("bf16x6", |m| m.split_bf16x6.as_ref()),
-    ] {
-        batch.extend(full.iter().filter_map(|m| {
-            let f = pick(m)?;
-            Some(CostPoint { label: format!("{} {suffix}", short_label(&m.model, config)), cost: f.eval_batch_ns_per_query?, accuracy: f.psnr })
-        }));
-    }
+    // Each model's point, then those of its further evaluations that have the cost, one evaluation
+    // after the other.
+    let points = |cost: fn(&ModelSummary) -> Option<f64>, alt_cost: fn(&Alternative) -> Option<f64>| {
+        let mut pts: Vec<CostPoint> = full
+            .iter()
+            .filter_map(|m| Some(CostPoint { label: short_label(&m.model, config), cost: cost(m)?, accuracy: m.psnr }))
+            .collect();
+        for i in 0..ALTERNATIVES {
+            pts.extend(full.iter().filter_map(|m| {
+                let a = &alternatives(m)[i];
+                let f = a.summary?;
+                Some(CostPoint { label: format!("{} {}", short_label(&m.model, config), a.suffix), cost: alt_cost(a)?, accuracy: f.psnr })
+            }));
+        }
+        pts
+    };
+    // Single queries: the split-bf16 arithmetics run in batches only (their single queries are f32).
+    let eval = points(|m| Some(m.eval_ns_per_query), |a| a.summary.filter(|_| a.single).map(|f| f.eval_ns_per_query));
+    let batch = points(|m| m.eval_batch_ns_per_query, |a| a.summary?.eval_batch_ns_per_query);
     let mut plots = vec![
         ("PSNR against training wall time", "figures/pareto-train.png", "training wall time (s, log)", train),
         ("PSNR against evaluation cost", "figures/pareto-eval.png", "core eval ns per query (log)", eval),
@@ -479,17 +499,13 @@ pub fn markdown(
             m.psnr,
             m.brdf_rmse_cbrt * 100.0
         );
-        for (weights, f) in [
-            ("f16", &m.f16),
-            ("f16, half arithmetic", &m.f16_half),
-            ("f32, bf16x3 (AMX)", &m.split_bf16),
-            ("f32, bf16x6 (AMX)", &m.split_bf16x6),
-        ] {
-            let Some(f) = f else { continue };
+        for a in alternatives(m) {
+            let Some(f) = a.summary else { continue };
             let _ = writeln!(
                 md,
-                "| {} | {weights} | {} | {:.1} | {:.0} | {} | {} | {:.1} | {:.2} | {:.2} |",
+                "| {} | {} | {} | {:.1} | {:.0} | {} | {} | {:.1} | {:.2} | {:.2} |",
                 m.model,
+                a.weights,
                 m.objects,
                 m.train_wall_s,
                 f.eval_ns_per_query,
