@@ -36,6 +36,7 @@ use core::mem::MaybeUninit;
 
 use crate::mlp::{Net, NetDesc, Partial, Weight, MAX_WIDTH};
 
+use super::x86::mask16;
 use super::PACKET;
 
 /// Inputs and outputs per tile edge: a tile row is 64 bytes, 32 bf16 inputs or 16 f32 sums.
@@ -415,7 +416,7 @@ pub(crate) unsafe fn hidden<W: Weight>(
             // `wrapping_add`: past the tail the pointer may leave the slice; the mask reads nothing there.
             let t = tails.as_ptr().wrapping_add(q * tail_stride);
             for i in (0..tp).step_by(16) {
-                let m = mask(n_tail.saturating_sub(i));
+                let m = mask16(n_tail.saturating_sub(i));
                 split16(_mm512_maskz_loadu_ps(m, t.wrapping_add(i)), offset(x, q * row + width + i));
             }
         }
@@ -443,16 +444,6 @@ pub(crate) unsafe fn hidden<W: Weight>(
             relu_split(h, width, next, row);
         }
         asm!("tilerelease", options(nostack, nomem));
-    }
-}
-
-/// The first `min(n, 16)` lanes.
-#[inline(always)]
-fn mask(n: usize) -> __mmask16 {
-    if n >= 16 {
-        0xffff
-    } else {
-        ((1u32 << n) - 1) as __mmask16
     }
 }
 
