@@ -90,6 +90,20 @@ pub enum Arithmetic {
     SplitBf16x6,
 }
 
+impl Arithmetic {
+    /// Whether this arithmetic runs on AMX tiles (the split-bf16 ones): batches of a network with
+    /// [`Tiled`] weights only; single queries stay in f32.
+    ///
+    /// ```
+    /// use nbrdf::mlp::Arithmetic;
+    /// assert!(Arithmetic::SplitBf16x6.on_tiles() && !Arithmetic::HalfHidden.on_tiles());
+    /// ```
+    #[inline]
+    pub const fn on_tiles(self) -> bool {
+        matches!(self, Arithmetic::SplitBf16 | Arithmetic::SplitBf16x6)
+    }
+}
+
 /// A network's hidden-layer weights re-laid for the AMX tiles of [`Arithmetic::SplitBf16`] and
 /// [`Arithmetic::SplitBf16x6`]: three bf16 parts of each weight in the order the tiles read them, for
 /// a network whose last `n_tail` inputs are the per-query tail (the encoded angles).
@@ -469,9 +483,9 @@ fn forward_chain<W: Weight>(math: Arithmetic, net: &Net<'_, W>, partial: &Partia
 /// [`forward`] on its own tail (see [`crate::kernels`], "Determinism").
 ///
 /// With [`Arithmetic::SplitBf16`] or [`Arithmetic::SplitBf16x6`], `tiled` (the network's [`Tiled`]
-/// weights) runs the hidden layers on
-/// AMX tiles where they apply: the CPU has them, the layout was made for `n_tail` tail inputs, and the
-/// head folded into `partial` is the rest of the input. Otherwise `tiled` is unused.
+/// weights) runs the hidden layers on AMX tiles where they apply: the CPU has them, the layout was made
+/// for `n_tail` tail inputs, and the head folded into `partial` is the rest of the input. Otherwise
+/// `tiled` is unused.
 ///
 /// Panics when `tails` or `out` is too short for the packet.
 #[inline]
@@ -487,7 +501,7 @@ pub fn forward_packet<W: Weight>(
     out: &mut [f32],
     out_stride: usize,
 ) {
-    if let (Arithmetic::SplitBf16 | Arithmetic::SplitBf16x6, Some(tiled)) = (math, tiled) {
+    if let (true, Some(tiled)) = (math.on_tiles(), tiled) {
         let mut h = core::mem::MaybeUninit::<[f32; PACKET * MAX_WIDTH]>::uninit();
         let six = math == Arithmetic::SplitBf16x6;
         if let Some(h) = hidden_tiled(six, tiled, net, partial, tails, tail_stride, n_tail, &mut h) {

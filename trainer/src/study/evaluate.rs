@@ -5,13 +5,12 @@
 //! - the rendered BRDF values are compared with the stored raw ground-truth ones in cube-root RMSE, on
 //!   lit pixels within the angle limit of [`brdf_rmse::keep`];
 //! - reciprocity RMSE and the energy analysis use points and directions of the test samples;
-//! - the evaluation cost is timed in-process on the reciprocity pairs: one query at a time (`eval_in`), and
-//!   in batches of many directions at one point (`eval_many_in`).
+//! - the evaluation cost is timed in-process on the reciprocity pairs: one query at a time (`eval_in`),
+//!   and in batches of many directions at one point (`eval_many_in`).
 //!
 //! With [`Arithmetic::SplitBf16`] or [`Arithmetic::SplitBf16x6`] (batches only: single queries keep
-//! f32) every value is taken from a
-//! batch: a pair's value does not depend on the batch it is in, so a batch of one gives the value any
-//! batch would.
+//! f32) every value is taken from a batch: a pair's value does not depend on the batch it is in, so a
+//! batch of one gives the value any batch would.
 
 use std::time::Instant;
 
@@ -80,7 +79,7 @@ pub fn evaluate(
     math: Arithmetic,
 ) -> Result<Evaluation> {
     let mut buf = ModelBuf::load(model_path).map_err(Error::Core)?;
-    let split = matches!(math, Arithmetic::SplitBf16 | Arithmetic::SplitBf16x6);
+    let split = math.on_tiles();
     if split && !buf.enable_amx() {
         return Err(Error::Invalid(format!("{}: split-bf16 arithmetic does not apply (no AMX here, or not a neural model)", model_path.display())));
     }
@@ -184,8 +183,8 @@ fn time_batches(model: &Model<'_>, math: Arithmetic, prepared: &[Prepared], pair
     ns
 }
 
-/// Mean ns per single `eval` over the pairs, repeated to at least ~200k queries so the timer resolution and
-/// the first cold calls do not dominate.
+/// Mean ns per single `eval` over the pairs, repeated to at least ~200k queries so the timer resolution
+/// and the first cold calls do not dominate.
 fn time_eval(eval: &impl Fn(&Prepared, Vec3, Vec3) -> Rgb, prepared: &[Prepared], pairs: &[DirectionPair]) -> f64 {
     if pairs.is_empty() {
         return f64::NAN;
