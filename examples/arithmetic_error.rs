@@ -9,9 +9,9 @@
 //! fixed point without one) for 1024 cosine-distributed direction pairs each, four ways: f32
 //! weights, f16 weights in f32 arithmetic (`eval_many`), f16 weights in f16 arithmetic
 //! (`eval_many_half`, `eval_half`), and f32 weights in split-bf16 arithmetic (`eval_many_in` with
-//! `Arithmetic::SplitBf16` and `SplitBf16x6` after `ModelBuf::enable_amx`). It prints the relative differences of the
-//! colour values (RMS, 99th percentile, maximum; values below 1e-3 compared absolutely) and the time
-//! per pair, best of three. Where the CPU lacks AVX512-FP16 or AMX-BF16 those entry points are the f32
+//! `Arithmetic::SplitBf16` and `SplitBf16x6` after `ModelBuf::enable_amx`). It prints the relative
+//! differences of the colour values (RMS, 99th percentile, maximum; values below 1e-3 compared
+//! absolutely) and the time per pair, best of three. Where the CPU lacks AVX512-FP16 or AMX-BF16 those entry points are the f32
 //! ones, and the program says so. As a yardstick for f32 rounding itself, the f32 model also runs on
 //! the portable kernels (multiply, then add: the same sums rounded twice as often as with FMA).
 
@@ -51,18 +51,18 @@ fn best_of_three(mut f: impl FnMut()) -> f64 {
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let path = std::env::args().nth(1).ok_or("usage: arithmetic_error MODEL.nbrdf (f32 weights)")?;
-    let b32 = ModelBuf::load(&path)?;
+    let mut b32 = ModelBuf::load(&path)?;
+    // The tiles serve only the split-bf16 arithmetic; every other path reads the file's weights.
+    let tiled = b32.enable_amx();
     let m32 = b32.model();
     let b16 = ModelBuf::from_bytes(&m32.to_f16()?)?;
     let m16 = b16.model();
     if !m16.half_math() {
         println!("half arithmetic does not apply here (needs AVX512-FP16 and a neural model): the half entry points are the f32 ones");
     }
-    let mut b_tiled = b32.clone();
-    if !b_tiled.enable_amx() {
+    if !tiled {
         println!("split-bf16 arithmetic does not apply here (needs AMX-BF16 and a neural model of width 32k): it is f32");
     }
-    let m_tiled = b_tiled.model();
     let n_vertices = m32.header().n_vertices;
     let mut seed = 0x2545f4914f6cdd1du64;
     let mut uniform = move || {
@@ -96,8 +96,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         times[3] += best_of_three(|| wi.iter().zip(&wo).for_each(|(a, b)| sink += m32.eval(&p32, *a, *b)[0]));
         times[4] += best_of_three(|| wi.iter().zip(&wo).for_each(|(a, b)| sink += m16.eval(&p16, *a, *b)[0]));
         times[5] += best_of_three(|| one.iter_mut().zip(wi.iter().zip(&wo)).for_each(|(o, (a, b))| *o = m16.eval_half(&p16, *a, *b)));
-        times[6] += best_of_three(|| m_tiled.eval_many_in(Arithmetic::SplitBf16, &p32, &wi, &wo, &mut tiled));
-        times[7] += best_of_three(|| m_tiled.eval_many_in(Arithmetic::SplitBf16x6, &p32, &wi, &wo, &mut tiled6));
+        times[6] += best_of_three(|| m32.eval_many_in(Arithmetic::SplitBf16, &p32, &wi, &wo, &mut tiled));
+        times[7] += best_of_three(|| m32.eval_many_in(Arithmetic::SplitBf16x6, &p32, &wi, &wo, &mut tiled6));
         std::hint::black_box(sink);
         differences(&f32_w, &f16_w, &mut storage);
         differences(&f16_w, &half, &mut math);
