@@ -176,9 +176,11 @@ fn bench_models(c: &mut Criterion<Clock>) {
                         b.iter(|| m.eval_many_half(&prepared, black_box(&wi), black_box(&wo), &mut out))
                     });
                 }
-                if level == Level::Avx512 && m.amx() {
+                if level == Level::Avx512 && (m.amx() || m.bf16()) {
                     g.throughput(Throughput::Elements(wi.len() as u64));
-                    for (math, id) in [(Arithmetic::SplitBf16, "split-bf16"), (Arithmetic::SplitBf16x6, "split-bf16x6")] {
+                    let tiles = [(Arithmetic::SplitBf16, "split-bf16"), (Arithmetic::SplitBf16x6, "split-bf16x6")];
+                    let maths = tiles.iter().filter(|_| m.amx()).chain([(Arithmetic::Bf16, "bf16")].iter().filter(|_| m.bf16()));
+                    for &(math, id) in maths {
                         g.bench_function(BenchmarkId::new(format!("batch-1024-{id}/{lname}"), &name), |b| {
                             b.iter(|| m.eval_many_in(math, &prepared, black_box(&wi), black_box(&wo), &mut out))
                         });
@@ -252,18 +254,11 @@ fn bench_all_cores(c: &mut Criterion<WallTime>) {
     g.throughput(Throughput::Elements((threads * 8 * wi.len()) as u64));
     for (name, h) in variants().into_iter().filter(|(n, _)| !ParametricKind::ALL.iter().any(|k| k.id() == n)) {
         let mut buf = ModelBuf::from_bytes(&encode(&h, &weights(h.n_weights()), None).unwrap()).unwrap();
-        let amx = buf.enable_amx();
+        buf.enable_amx();
         let m = buf.model();
-        let maths: &[(Arithmetic, &str)] = if amx {
-            &[
-                (Arithmetic::F32, "batch-8x1024"),
-                (Arithmetic::SplitBf16, "batch-8x1024-split-bf16"),
-                (Arithmetic::SplitBf16x6, "batch-8x1024-split-bf16x6"),
-            ]
-        } else {
-            &[(Arithmetic::F32, "batch-8x1024")]
-        };
-        for &(math, id) in maths {
+        let tiles = [(Arithmetic::SplitBf16, "batch-8x1024-split-bf16"), (Arithmetic::SplitBf16x6, "batch-8x1024-split-bf16x6")];
+        let maths = [(Arithmetic::F32, "batch-8x1024")].into_iter().chain(tiles.into_iter().filter(|_| m.amx()));
+        for (math, id) in maths.chain([(Arithmetic::Bf16, "batch-8x1024-bf16")].into_iter().filter(|_| m.bf16())) {
             g.bench_function(BenchmarkId::new(id, &name), |b| {
                 b.iter(|| {
                     std::thread::scope(|s| {

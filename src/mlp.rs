@@ -88,11 +88,20 @@ pub enum Arithmetic {
     /// product, results as close to [`F32`](Self::F32) as f32 sums in another order, at twice the
     /// tile work of bf16x3.
     SplitBf16x6,
+    /// "bf16": each product of the hidden layers as one bf16 product (activations and weights rounded
+    /// to bf16, 8 significant bits) with f32 sums, `vdpbf16ps` on AVX512-BF16 vectors: twice the
+    /// multiply-adds of an f32 FMA per instruction, results ~1e-3 relative from [`F32`](Self::F32)
+    /// (`docs/speed.md`), for packets of a network with [`Tiled`] weights where
+    /// [`crate::kernels::bf16_available`] (the CPUs without AMX or AVX512-FP16 among them, such as
+    /// AMD Zen 4). The output layer, single queries, networks without tiles and other CPUs: as
+    /// [`F32`](Self::F32).
+    Bf16,
 }
 
 impl Arithmetic {
-    /// Whether this arithmetic runs on AMX tiles (the split-bf16 ones): batches of a network with
-    /// [`Tiled`] weights only; single queries stay in f32.
+    /// Whether this arithmetic reads the bf16 copy of a network's weights ([`Tiled`]: the split-bf16
+    /// arithmetics on AMX tiles, bf16 on vectors): batches of a network with that copy only; single
+    /// queries stay in f32.
     ///
     /// ```
     /// use nbrdf::mlp::Arithmetic;
@@ -100,7 +109,7 @@ impl Arithmetic {
     /// ```
     #[inline]
     pub const fn on_tiles(self) -> bool {
-        matches!(self, Arithmetic::SplitBf16 | Arithmetic::SplitBf16x6)
+        matches!(self, Arithmetic::SplitBf16 | Arithmetic::SplitBf16x6 | Arithmetic::Bf16)
     }
 }
 
@@ -503,8 +512,7 @@ pub fn forward_packet<W: Weight>(
 ) {
     if let (true, Some(tiled)) = (math.on_tiles(), tiled) {
         let mut h = core::mem::MaybeUninit::<[f32; PACKET * MAX_WIDTH]>::uninit();
-        let six = math == Arithmetic::SplitBf16x6;
-        if let Some(h) = hidden_tiled(six, tiled, net, partial, tails, tail_stride, n_tail, &mut h) {
+        if let Some(h) = hidden_tiled(math, tiled, net, partial, tails, tail_stride, n_tail, &mut h) {
             return output_layer::<W, PACKET>(net, h, out, out_stride);
         }
     }
@@ -513,12 +521,12 @@ pub fn forward_packet<W: Weight>(
     run::<W, PACKET>(math, net, partial, tails, tail_stride, n_tail, out, out_stride, &mut h, &mut t);
 }
 
-/// The hidden layers of a packet on AMX tiles ([`crate::kernels`], "Split-bf16 arithmetic"), in
-/// bf16x6 (`six`) or bf16x3: the last activations (`PACKET × width`, written to the front of `h`), or
+/// The hidden layers of a packet in a bf16 arithmetic (`math`: bf16x3 or bf16x6 on AMX tiles,
+/// [`crate::kernels`] "Split-bf16 arithmetic", or bf16 on vectors): the last activations (`PACKET × width`, written to the front of `h`), or
 /// `None` (nothing written) where the tiles do not apply (see [`forward_packet`]).
 #[allow(unused_variables, clippy::too_many_arguments)]
 fn hidden_tiled<'h, W: Weight>(
-    six: bool,
+    math: Arithmetic,
     tiled: Tiled<'_>,
     net: &Net<'_, W>,
     partial: &Partial,
@@ -531,7 +539,9 @@ fn hidden_tiled<'h, W: Weight>(
     {
         use crate::kernels::amx;
         let d = &net.desc;
-        let applies = crate::kernels::amx_available()
+        let vectors = math == Arithmetic::Bf16;
+        let here = if vectors { crate::kernels::bf16_available() } else { crate::kernels::amx_available() };
+        let applies = here
             && n_tail == tiled.n_tail
             && partial.head_len + n_tail == d.n_in as usize
             && !tiled.values.is_empty()
@@ -543,12 +553,16 @@ fn hidden_tiled<'h, W: Weight>(
         assert!(tails.len() >= (PACKET - 1) * tail_stride + n_tail, "tails too short for a packet");
         let n = PACKET * d.width as usize;
         let h = h.as_mut_ptr().cast::<f32>();
-        // SAFETY: the CPU and OS have the tiles; the layout fits `net` and `n_tail` (its length is
+        // SAFETY: the CPU (and for the tiles the OS) has what the arithmetic runs on; the layout fits `net` and `n_tail` (its length is
         // `packed_len`, which is non-zero only where `fits`); the head is the rest of the input;
-        // the tails extent was checked; `h` has room for `PACKET × MAX_WIDTH` floats, and `hidden`
-        // writes the first `n` of them.
+        // the tails extent was checked; `h` has room for `PACKET × MAX_WIDTH` floats, and the kernels
+        // write the first `n` of them.
         unsafe {
-            amx::hidden(six, net, tiled.values, partial, tails, tail_stride, n_tail, h);
+            if vectors {
+                amx::hidden_vectors(net, tiled.values, partial, tails, tail_stride, n_tail, h);
+            } else {
+                amx::hidden(math == Arithmetic::SplitBf16x6, net, tiled.values, partial, tails, tail_stride, n_tail, h);
+            }
             Some(core::slice::from_raw_parts(h, n))
         }
     }

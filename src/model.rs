@@ -455,6 +455,12 @@ impl<'a> Model<'a> {
         self.tiles.is_some() && crate::kernels::amx_available()
     }
 
+    /// Whether [`Arithmetic::Bf16`] runs in bf16 for this model here: its bf16 copy was made
+    /// ([`ModelBuf::enable_amx`]) and [`crate::kernels::bf16_available`].
+    pub fn bf16(&self) -> bool {
+        self.tiles.is_some() && crate::kernels::bf16_available()
+    }
+
     /// The model re-encoded with f16 network weights ([`Precision::F16`]: half the weight bytes, and
     /// the half-precision arithmetic of [`Model::eval_half`] where the CPU has it), as the bytes of a
     /// `.nbrdf` file. Object parameters and the position table stay f32, as the file format keeps
@@ -772,20 +778,22 @@ impl ModelBuf {
         model
     }
 
-    /// Makes the tiled copy of the per-query network that [`Arithmetic::SplitBf16`] and
-    /// [`Arithmetic::SplitBf16x6`] evaluate on AMX tiles ([`Model::eval_many_in`]); `true` where it now
-    /// applies: a neural model whose per-query network has a hidden width of a multiple of 32 (the
-    /// paper's 128), on a CPU and OS with AMX-BF16 ([`crate::kernels::amx_available`]; built with
-    /// `std`, Linux). The copy holds three bf16 parts of
-    /// each hidden weight: 1.5× the bytes of the f32 network (3× those of an f16 one).
+    /// Makes the bf16 copy of the per-query network that [`Arithmetic::SplitBf16`] and
+    /// [`Arithmetic::SplitBf16x6`] evaluate on AMX tiles and [`Arithmetic::Bf16`] on AVX512-BF16
+    /// vectors ([`Model::eval_many_in`]); `true` where it now serves one of them: a neural model whose
+    /// per-query network has a hidden width of a multiple of 32 (the paper's 128), on a CPU (and OS)
+    /// with AMX-BF16 ([`crate::kernels::amx_available`]) or AVX512-BF16
+    /// ([`crate::kernels::bf16_available`]; built with `std`, Linux). The copy holds three bf16 parts
+    /// of each hidden weight, in tile order: 1.5× the bytes of the f32 network (3× those of an f16 one).
     pub fn enable_amx(&mut self) -> bool {
         #[cfg(all(target_arch = "x86_64", target_os = "linux", feature = "std"))]
         {
             use crate::kernels::amx;
+            let here = crate::kernels::amx_available() || crate::kernels::bf16_available();
             if self.tiles.is_some() {
-                return crate::kernels::amx_available();
+                return here;
             }
-            if !crate::kernels::amx_available() || matches!(self.header.kind, ModelKind::Parametric(_)) {
+            if !here || matches!(self.header.kind, ModelKind::Parametric(_)) {
                 return false;
             }
             let n_tail = self.header.angle_input_len();

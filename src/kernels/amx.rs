@@ -447,6 +447,177 @@ pub(crate) unsafe fn hidden<W: Weight>(
     }
 }
 
+/// Pairs of activations, pair-major: `xp[p * PACKET + q]` holds query `q`'s inputs `2p` (low half)
+/// and `2p + 1` as bf16 bits, so that one pair of all 16 queries is one cache line and each
+/// `vdpbf16ps` broadcasts its pair from a fixed offset of a moving pointer.
+type Pairs = Aligned<[u32; PACKET * ROW_MAX / 2]>;
+
+/// Writes 16 rows of 32 values (`row(q)` gives query `q`'s two vectors, low 16 first) to the pairs
+/// `xp[p0..p0 + 16]`, each value rounded to bf16 (nearest, ties to even).
+///
+/// # Safety
+/// `xp` has room for pairs `p0..p0 + 16` of [`PACKET`] queries.
+#[inline]
+#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c,avx512bf16")]
+unsafe fn to_pairs(mut row: impl FnMut(usize) -> (__m512, __m512), xp: *mut u32, p0: usize) {
+    // `vcvtne2ps2bf16 dst, hi, lo` puts `lo` in the low 16 bf16: 32-bit lane `i` is the pair
+    // (`2i`, `2i + 1`) of the 32 values; the transpose turns query rows into pair rows.
+    let rows: [__m512; PACKET] = core::array::from_fn(|q| {
+        let (lo, hi) = row(q);
+        _mm512_castsi512_ps(unsafe { core::mem::transmute::<__m512bh, __m512i>(_mm512_cvtne2ps_pbh(hi, lo)) })
+    });
+    for (c, v) in super::x86::transpose16(rows).into_iter().enumerate() {
+        // SAFETY: pair `p0 + c < p0 + 16` lies in the room of the contract.
+        unsafe { _mm512_store_ps(xp.add((p0 + c) * PACKET).cast(), v) };
+    }
+}
+
+/// One hidden layer in bf16 products on AVX512-BF16 vectors: `out[q][o] = init[o] + Σ_i x[q][i] w[i][o]`
+/// for the 16 queries, each product of the bf16 roundings of `x` and `w` (exact in f32) added in f32
+/// pairs by `vdpbf16ps`. The weights are part 0 of the tiled layout (a B tile's row is one vector:
+/// 16 outputs × one pair of inputs), so the same copy serves the tiles and the vectors.
+///
+/// # Safety
+/// `w` holds the layer's `k / 32 * n / 32` steps of [`STEP_BYTES`]; `xp` the `k / 2` pairs of the
+/// layer's inputs (see [`Pairs`]), 64-byte aligned; `init` `n` floats; `out` 16 rows of `n` floats;
+/// `k`, `n` positive multiples of 32.
+#[inline]
+#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512bf16")]
+unsafe fn layer_vectors(w: *const u16, k: usize, n: usize, xp: *const u32, init: *const f32, out: *mut f32) {
+    // SAFETY (whole body): every access within the extents of the contract.
+    unsafe {
+        for n0 in (0..n).step_by(N_STEP) {
+            let step = w.byte_add(n0 / N_STEP * (k / K_TILE) * STEP_BYTES);
+            for j in 0..2 {
+                let mut acc = [_mm512_loadu_ps(init.add(n0 + 16 * j)); PACKET];
+                // Part 0 of half `j`'s B tile, then the same tile of each further 32 inputs.
+                let mut wt = step.byte_add(j * PARTS * TILE_VALUES * 2);
+                let mut x = xp;
+                for _ in 0..k / K_TILE {
+                    for r in 0..16 {
+                        let wv = _mm512_loadu_ps(wt.add(r * 32).cast());
+                        // Inline asm for the embedded broadcast (`{1to16}`), which LLVM does not fold
+                        // into `vdpbf16ps`: a separate `vbroadcastss` per product took 1.26× the time on Zen 4.
+                        let xr = x.add(r * PACKET);
+                        asm!(
+                            "vdpbf16ps {a0}, {w}, dword ptr [{x}]{{1to16}}",
+                            "vdpbf16ps {a1}, {w}, dword ptr [{x} + 4]{{1to16}}",
+                            "vdpbf16ps {a2}, {w}, dword ptr [{x} + 8]{{1to16}}",
+                            "vdpbf16ps {a3}, {w}, dword ptr [{x} + 12]{{1to16}}",
+                            "vdpbf16ps {a4}, {w}, dword ptr [{x} + 16]{{1to16}}",
+                            "vdpbf16ps {a5}, {w}, dword ptr [{x} + 20]{{1to16}}",
+                            "vdpbf16ps {a6}, {w}, dword ptr [{x} + 24]{{1to16}}",
+                            "vdpbf16ps {a7}, {w}, dword ptr [{x} + 28]{{1to16}}",
+                            "vdpbf16ps {a8}, {w}, dword ptr [{x} + 32]{{1to16}}",
+                            "vdpbf16ps {a9}, {w}, dword ptr [{x} + 36]{{1to16}}",
+                            "vdpbf16ps {a10}, {w}, dword ptr [{x} + 40]{{1to16}}",
+                            "vdpbf16ps {a11}, {w}, dword ptr [{x} + 44]{{1to16}}",
+                            "vdpbf16ps {a12}, {w}, dword ptr [{x} + 48]{{1to16}}",
+                            "vdpbf16ps {a13}, {w}, dword ptr [{x} + 52]{{1to16}}",
+                            "vdpbf16ps {a14}, {w}, dword ptr [{x} + 56]{{1to16}}",
+                            "vdpbf16ps {a15}, {w}, dword ptr [{x} + 60]{{1to16}}",
+                            w = in(zmm_reg) wv,
+                            x = in(reg) xr,
+                            a0 = inout(zmm_reg) acc[0], a1 = inout(zmm_reg) acc[1],
+                            a2 = inout(zmm_reg) acc[2], a3 = inout(zmm_reg) acc[3],
+                            a4 = inout(zmm_reg) acc[4], a5 = inout(zmm_reg) acc[5],
+                            a6 = inout(zmm_reg) acc[6], a7 = inout(zmm_reg) acc[7],
+                            a8 = inout(zmm_reg) acc[8], a9 = inout(zmm_reg) acc[9],
+                            a10 = inout(zmm_reg) acc[10], a11 = inout(zmm_reg) acc[11],
+                            a12 = inout(zmm_reg) acc[12], a13 = inout(zmm_reg) acc[13],
+                            a14 = inout(zmm_reg) acc[14], a15 = inout(zmm_reg) acc[15],
+                            options(nostack, pure, readonly),
+                        );
+                    }
+                    wt = wt.byte_add(STEP_BYTES);
+                    x = x.add(16 * PACKET);
+                }
+                for (q, a) in acc.iter().enumerate() {
+                    _mm512_storeu_ps(out.add(q * n + n0 + 16 * j), *a);
+                }
+            }
+        }
+    }
+}
+
+/// [`hidden`] in the arithmetic [`crate::mlp::Arithmetic::Bf16`]: every product of the hidden layers
+/// one bf16 product (activations and weights rounded to bf16), sums in f32, on AVX512-BF16 vectors
+/// ([`layer_vectors`]); the activations between layers ReLU'd in f32 and rounded once.
+///
+/// # Safety
+/// AVX512-BF16 and AVX-512 ([`vectors_available`]); the rest as [`hidden`].
+#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c,avx512bf16")]
+#[allow(clippy::too_many_arguments)]
+pub(crate) unsafe fn hidden_vectors<W: Weight>(
+    net: &Net<'_, W>,
+    tiles: &[u16],
+    partial: &Partial,
+    tails: &[f32],
+    tail_stride: usize,
+    n_tail: usize,
+    h: *mut f32,
+) {
+    let d = &net.desc;
+    let width = d.width as usize;
+    let tp = tail_pad(n_tail);
+    // Pairs `[hidden outputs | tail, zero padded]`; not zeroed: the tail pairs are written in full
+    // below, the hidden ones by each layer before the next reads them.
+    let mut xp = MaybeUninit::<Pairs>::uninit();
+    let xp = xp.as_mut_ptr().cast::<u32>();
+    let mut bias = [0.0f32; MAX_WIDTH];
+    let mut w = tiles.as_ptr();
+    let zero = _mm512_setzero_ps();
+    // SAFETY: the pairs buffer holds `(width + tp) / 2 ≤ ROW_MAX / 2` pairs of every query; the
+    // masked loads read only the `n_tail` values of each tail; `h` is writable for `PACKET * width`.
+    unsafe {
+        for i in (0..tp).step_by(K_TILE) {
+            let load = |q: usize, i: usize| {
+                // `wrapping_add`: past the tail the pointer may leave the slice; the mask reads nothing there.
+                let t = tails.as_ptr().wrapping_add(q * tail_stride);
+                _mm512_maskz_loadu_ps(mask16(n_tail.saturating_sub(i)), t.wrapping_add(i))
+            };
+            to_pairs(|q| (load(q, i), load(q, i + 16)), xp, (width + i) / 2);
+        }
+        for l in 0..d.hidden as usize {
+            let k = layer_k(d, n_tail, l);
+            let init = if l == 0 {
+                &partial.layer0[..width]
+            } else if d.skip as usize == l {
+                &partial.skip[..width]
+            } else {
+                let off = d.layer_offset(l) + width * width;
+                W::widen(&net.weights[off..off + width], &mut bias[..width]);
+                &bias[..width]
+            };
+            // Layer 0 reads the tail (after the hidden pairs); the others from the start.
+            let input = xp.add(if l == 0 { width / 2 * PACKET } else { 0 });
+            layer_vectors(w, k, width, input, init.as_ptr(), h);
+            w = w.add(PARTS * k * width);
+            if l + 1 < d.hidden as usize {
+                for i in (0..width).step_by(K_TILE) {
+                    let relu = |q: usize, i: usize| _mm512_max_ps(_mm512_loadu_ps(h.add(q * width + i)), zero);
+                    to_pairs(|q| (relu(q, i), relu(q, i + 16)), xp, i / 2);
+                }
+            } else {
+                for q in 0..PACKET {
+                    for i in (0..width).step_by(16) {
+                        let p = h.add(q * width + i);
+                        _mm512_storeu_ps(p, _mm512_max_ps(_mm512_loadu_ps(p), zero));
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Whether the CPU has AVX512-BF16 (with AVX-512 F, BW, VL) for [`hidden_vectors`].
+pub(super) fn vectors_available() -> bool {
+    std::is_x86_feature_detected!("avx512bf16")
+        && std::is_x86_feature_detected!("avx512f")
+        && std::is_x86_feature_detected!("avx512bw")
+        && std::is_x86_feature_detected!("avx512vl")
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -513,17 +684,21 @@ mod tests {
     /// One tiled layer against exact sums: with inputs and weights split into bf16 pairs and f32
     /// sums, `|y - exact| ≤ (2^-15 + K·2^-23) Σ|x_i w_i|` (each product to ~3·2^-18, Henry et al.
     /// Sec. IV; the f32 sums' γ_K); in three parts (bf16x6), `≤ (2^-21 + K·2^-23) Σ|x_i w_i|`, each
-    /// product to ~3·2^-24 and then f32's own sums. Layer 0 (the tail, padded to a tile) with a head folded into
-    /// `partial`; then the skip layer and a plain hidden layer, fed exact activations by a layer 0
-    /// that copies bf16-exact tail values (0/1 weights).
+    /// product to ~3·2^-24 and then f32's own sums; in one (bf16 on vectors), `≤ (2^-7 + K·2^-23)
+    /// Σ|x_i w_i|`, each factor rounded to 8 significant bits (2^-8 each). Layer 0 (the tail, padded to
+    /// a tile) with a head folded into `partial`; then the skip layer and a plain hidden layer, fed
+    /// exact activations by a layer 0 that copies bf16-exact tail values (0/1 weights).
     #[test]
     fn tiled_layers_stay_within_the_split_bf16_error_bound() {
-        if !available() {
-            std::eprintln!("amx: this CPU has no AMX-BF16 (or the OS denies the tiles); skipping");
-            return;
-        }
         let n_tail = 36;
-        for (six, (hidden, skip, copy_layer0)) in [false, true].into_iter().flat_map(|six| [(1u8, 0u8, false), (2, 1, true), (2, 0, true)].map(|c| (six, c))) {
+        let maths = [(Arithmetic::SplitBf16, -15, available()), (Arithmetic::SplitBf16x6, -21, available()), (Arithmetic::Bf16, -7, vectors_available())];
+        for &(math, _, here) in &maths {
+            if !here {
+                std::eprintln!("amx: {math:?} does not run on this CPU (no AMX-BF16 tiles, or no AVX512-BF16); skipping it");
+            }
+        }
+        let cases = maths.into_iter().filter(|m| m.2).flat_map(|(math, e, _)| [(1u8, 0u8, false), (2, 1, true), (2, 0, true)].map(|c| (math, e, c)));
+        for (math, exponent, (hidden, skip, copy_layer0)) in cases {
             let d = NetDesc { n_in: 7 + n_tail as u16, width: 128, hidden, n_out: 0, skip };
             let (width, head_len) = (128usize, 7usize);
             let mut w = random(d.n_weights(), 11 + hidden as u32 + skip as u32, 0.3);
@@ -546,7 +721,6 @@ mod tests {
             pack(&net, n_tail, &mut tiles);
             let tiled = Tiled { values: &tiles, n_tail };
             let mut out = alloc::vec![f32::NAN; PACKET * width];
-            let math = if six { Arithmetic::SplitBf16x6 } else { Arithmetic::SplitBf16 };
             forward_packet(math, Some(tiled), &net, &p, &tails, n_tail, n_tail, &mut out, width);
             for q in 0..PACKET {
                 let x: alloc::vec::Vec<f64> = head.iter().chain(&tails[q * n_tail..(q + 1) * n_tail]).map(|&v| v as f64).collect();
@@ -567,8 +741,8 @@ mod tests {
                         next[o] = sum.max(0.0);
                         if l + 1 == hidden as usize {
                             let got = out[q * width + o] as f64;
-                            let bound = (2f64.powi(if six { -21 } else { -15 }) + k as f64 * 2f64.powi(-23)) * mag;
-                            assert!((got - next[o]).abs() <= bound, "six {six} hidden {hidden} skip {skip} query {q} output {o}: {got} vs {} (bound {bound:e})", next[o]);
+                            let bound = (2f64.powi(exponent) + k as f64 * 2f64.powi(-23)) * mag;
+                            assert!((got - next[o]).abs() <= bound, "{math:?} hidden {hidden} skip {skip} query {q} output {o}: {got} vs {} (bound {bound:e})", next[o]);
                         }
                     }
                     h = next;

@@ -459,6 +459,21 @@ pub fn amx_available() -> bool {
     }
 }
 
+/// Whether the bf16 arithmetic on vectors ([`crate::mlp::Arithmetic::Bf16`]) runs here: the CPU has
+/// AVX512-BF16 (AMD Zen 4 and later, Intel Cooper Lake and Sapphire Rapids and later), [`level`] is
+/// AVX-512, and the crate was built with `std` for Linux (as the tiles, whose weight layout it reads).
+#[inline]
+pub fn bf16_available() -> bool {
+    #[cfg(all(target_arch = "x86_64", target_os = "linux", feature = "std"))]
+    {
+        level() == Level::Avx512 && amx::vectors_available()
+    }
+    #[cfg(not(all(target_arch = "x86_64", target_os = "linux", feature = "std")))]
+    {
+        false
+    }
+}
+
 /// Runs a layer of half weights for [`PACKET`] queries (as [`Kernels::packet`]) with every
 /// multiply-add in half precision, where [`half_math_available`]; returns `false` and writes nothing
 /// elsewhere. Twice the multiply-adds per instruction of the f32 kernels, each product and partial
