@@ -141,7 +141,7 @@ fn bench_models(c: &mut Criterion<Clock>) {
             h.precision = precision;
             let mut buf = ModelBuf::from_bytes(&encode(&h, &weights(h.n_weights()), None).unwrap()).unwrap();
             // The AMX tiles of the per-query network, where the CPU has them (unused by the other paths).
-            buf.enable_amx();
+            buf.enable_bf16();
             let m = buf.model();
             for (level, lname) in levels() {
                 set_level(Some(level));
@@ -254,7 +254,7 @@ fn bench_all_cores(c: &mut Criterion<WallTime>) {
     g.throughput(Throughput::Elements((threads * 8 * wi.len()) as u64));
     for (name, h) in variants().into_iter().filter(|(n, _)| !ParametricKind::ALL.iter().any(|k| k.id() == n)) {
         let mut buf = ModelBuf::from_bytes(&encode(&h, &weights(h.n_weights()), None).unwrap()).unwrap();
-        buf.enable_amx();
+        buf.enable_bf16();
         let m = buf.model();
         let tiles = [(Arithmetic::SplitBf16, "batch-8x1024-split-bf16"), (Arithmetic::SplitBf16x6, "batch-8x1024-split-bf16x6")];
         let maths = [(Arithmetic::F32, "batch-8x1024")].into_iter().chain(tiles.into_iter().filter(|_| m.amx()));

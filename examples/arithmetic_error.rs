@@ -1,5 +1,6 @@
 //! What the faster arithmetics cost in accuracy and save in time, on a trained model: half precision
-//! (f16 weights and sums) and split bf16 (three bf16 products per f32 product on AMX tiles).
+//! (f16 weights and sums), split bf16 (three or six bf16 products per f32 product on AMX tiles) and
+//! bf16 (one bf16 product per f32 product on AVX512-BF16 vectors).
 //!
 //! ```text
 //! cargo run --release --example arithmetic_error -- fitted.nbrdf
@@ -9,9 +10,10 @@
 //! fixed point without one) for 1024 cosine-distributed direction pairs each, four ways: f32
 //! weights, f16 weights in f32 arithmetic (`eval_many`), f16 weights in f16 arithmetic
 //! (`eval_many_half`, `eval_half`), and f32 weights in split-bf16 arithmetic (`eval_many_in` with
-//! `Arithmetic::SplitBf16` and `SplitBf16x6` after `ModelBuf::enable_amx`). It prints the relative
+//! `Arithmetic::SplitBf16` and `SplitBf16x6` after `ModelBuf::enable_bf16`) and bf16
+//! (`Arithmetic::Bf16`, the same copy). It prints the relative
 //! differences of the colour values (RMS, 99th percentile, maximum; values below 1e-3 compared
-//! absolutely) and the time per pair, best of three. Where the CPU lacks AVX512-FP16 or AMX-BF16 those entry points are the f32
+//! absolutely) and the time per pair, best of three. Where the CPU lacks AVX512-FP16, AMX-BF16 or AVX512-BF16 those entry points are the f32
 //! ones, and the program says so. As a yardstick for f32 rounding itself, the f32 model also runs on
 //! the portable kernels (multiply, then add: the same sums rounded twice as often as with FMA).
 
@@ -52,16 +54,19 @@ fn best_of_three(mut f: impl FnMut()) -> f64 {
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let path = std::env::args().nth(1).ok_or("usage: arithmetic_error MODEL.nbrdf (f32 weights)")?;
     let mut b32 = ModelBuf::load(&path)?;
-    // The tiles serve only the split-bf16 arithmetic; every other path reads the file's weights.
-    let tiled = b32.enable_amx();
+    // The bf16 copy serves only the bf16 arithmetics; every other path reads the file's weights.
+    b32.enable_bf16();
     let m32 = b32.model();
     let b16 = ModelBuf::from_bytes(&m32.to_f16()?)?;
     let m16 = b16.model();
     if !m16.half_math() {
         println!("half arithmetic does not apply here (needs AVX512-FP16 and a neural model): the half entry points are the f32 ones");
     }
-    if !tiled {
+    if !m32.amx() {
         println!("split-bf16 arithmetic does not apply here (needs AMX-BF16 and a neural model of width 32k): it is f32");
+    }
+    if !m32.bf16() {
+        println!("bf16 arithmetic does not apply here (needs AVX512-BF16 and a neural model of width 32k): it is f32");
     }
     let n_vertices = m32.header().n_vertices;
     let mut seed = 0x2545f4914f6cdd1du64;
@@ -72,9 +77,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         (seed >> 40) as f32 / (1u64 << 24) as f32
     };
     let n = 1024;
-    let (mut storage, mut math, mut total, mut single, mut split, mut split6) = (vec![], vec![], vec![], vec![], vec![], vec![]);
+    let (mut storage, mut math, mut total, mut single, mut split, mut split6, mut split1) = (vec![], vec![], vec![], vec![], vec![], vec![], vec![]);
     let mut rounding = vec![];
-    let mut times = [0.0f64; 8];
+    let mut times = [0.0f64; 9];
     for v in 0..64u32 {
         let mut point = vec![0.1f32; m32.position_len()];
         if n_vertices > 0 {
@@ -88,7 +93,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         };
         let (wi, wo): (Vec<Vec3>, Vec<Vec3>) = (0..n).map(|_| (direction(), direction())).unzip();
         let (mut f32_w, mut f16_w, mut half, mut one) = (vec![[0.0; 3]; n], vec![[0.0; 3]; n], vec![[0.0; 3]; n], vec![[0.0; 3]; n]);
-        let (mut tiled, mut tiled6) = (vec![[0.0; 3]; n], vec![[0.0; 3]; n]);
+        let (mut tiled, mut tiled6, mut bf16) = (vec![[0.0; 3]; n], vec![[0.0; 3]; n], vec![[0.0; 3]; n]);
         times[0] += best_of_three(|| m32.eval_many(&p32, &wi, &wo, &mut f32_w));
         times[1] += best_of_three(|| m16.eval_many(&p16, &wi, &wo, &mut f16_w));
         times[2] += best_of_three(|| m16.eval_many_half(&p16, &wi, &wo, &mut half));
@@ -98,6 +103,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         times[5] += best_of_three(|| one.iter_mut().zip(wi.iter().zip(&wo)).for_each(|(o, (a, b))| *o = m16.eval_half(&p16, *a, *b)));
         times[6] += best_of_three(|| m32.eval_many_in(Arithmetic::SplitBf16, &p32, &wi, &wo, &mut tiled));
         times[7] += best_of_three(|| m32.eval_many_in(Arithmetic::SplitBf16x6, &p32, &wi, &wo, &mut tiled6));
+        times[8] += best_of_three(|| m32.eval_many_in(Arithmetic::Bf16, &p32, &wi, &wo, &mut bf16));
         std::hint::black_box(sink);
         differences(&f32_w, &f16_w, &mut storage);
         differences(&f16_w, &half, &mut math);
@@ -105,6 +111,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         differences(&f16_w, &one, &mut single);
         differences(&f32_w, &tiled, &mut split);
         differences(&f32_w, &tiled6, &mut split6);
+        differences(&f32_w, &bf16, &mut split1);
         let mut portable = vec![[0.0; 3]; n];
         nbrdf::kernels::set_level(Some(nbrdf::kernels::Level::Portable));
         m32.eval_many(&p32, &wi, &wo, &mut portable);
@@ -118,15 +125,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     summary("half arithmetic against f16 weights (single)", &mut single);
     summary("split bf16 (bf16x3) against f32 (batch)", &mut split);
     summary("split bf16 (bf16x6) against f32 (batch)", &mut split6);
+    summary("bf16 against f32 (batch)", &mut split1);
     summary("f32 without FMA against f32 (batch)", &mut rounding);
     let per = |t: f64| t / (64 * n) as f64 * 1e6;
     println!("µs per pair, batches of {n}: f32 {:.3}, f16 {:.3}, f16 half arithmetic {:.3} ({:.2}x f32)", per(times[0]), per(times[1]), per(times[2]), times[2] / times[0]);
     println!(
-        "µs per pair, batches of {n}: bf16x3 {:.3} ({:.2}x f32), bf16x6 {:.3} ({:.2}x f32)",
+        "µs per pair, batches of {n}: bf16x3 {:.3} ({:.2}x f32), bf16x6 {:.3} ({:.2}x f32), bf16 {:.3} ({:.2}x f32)",
         per(times[6]),
         times[6] / times[0],
         per(times[7]),
-        times[7] / times[0]
+        times[7] / times[0],
+        per(times[8]),
+        times[8] / times[0]
     );
     println!("µs per pair, single queries: f32 {:.3}, f16 {:.3}, f16 half arithmetic {:.3} ({:.2}x f32)", per(times[3]), per(times[4]), per(times[5]), times[5] / times[3]);
     Ok(())

@@ -116,7 +116,7 @@ impl Arithmetic {
 /// A network's hidden-layer weights re-laid for the AMX tiles of [`Arithmetic::SplitBf16`] and
 /// [`Arithmetic::SplitBf16x6`]: three bf16 parts of each weight in the order the tiles read them, for
 /// a network whose last `n_tail` inputs are the per-query tail (the encoded angles).
-/// [`crate::model::ModelBuf::enable_amx`] makes and keeps them.
+/// [`crate::model::ModelBuf::enable_bf16`] makes and keeps them.
 #[derive(Clone, Copy, Debug)]
 // Read only where the AMX kernels are built (x86-64 Linux with `std`).
 #[cfg_attr(not(all(target_arch = "x86_64", target_os = "linux", feature = "std")), allow(dead_code))]

@@ -84,7 +84,7 @@ pub struct Model<'a> {
     /// A cache-line-aligned copy of the per-query (last) network's weights that replaces them in
     /// evaluation, where the file's own cannot be aligned (see [`ModelBuf`]).
     query: Option<Weights<'a>>,
-    /// The per-query network's hidden weights in AMX tile order ([`ModelBuf::enable_amx`]).
+    /// The per-query network's hidden weights in bf16 parts, in AMX tile order ([`ModelBuf::enable_bf16`]).
     tiles: Option<&'a [u16]>,
     object: [f32; MAX_OBJECT],
     table: &'a [f32],
@@ -408,16 +408,18 @@ impl<'a> Model<'a> {
     }
 
     /// [`Model::eval_many`] ([`Arithmetic::F32`]), [`Model::eval_many_half`] ([`Arithmetic::HalfHidden`])
-    /// or the split-bf16 arithmetic on AMX tiles ([`Arithmetic::SplitBf16`],
-    /// [`Arithmetic::SplitBf16x6`]), chosen at run time.
+    /// or a bf16 arithmetic (split on AMX tiles: [`Arithmetic::SplitBf16`], [`Arithmetic::SplitBf16x6`];
+    /// on vectors: [`Arithmetic::Bf16`]), chosen at run time.
     ///
     /// With the split-bf16 arithmetic, where [`Model::amx`] says it applies (a [`ModelBuf`] after
-    /// [`ModelBuf::enable_amx`], a CPU with AMX-BF16), each f32 product of the per-query network's
+    /// [`ModelBuf::enable_bf16`], a CPU with AMX-BF16), each f32 product of the per-query network's
     /// hidden layers is taken as three (`SplitBf16`) or six (`SplitBf16x6`) bf16 products with f32
     /// sums (`crate::kernels`, "Split-bf16 arithmetic"): values move by a few 1e-6 relative with
     /// three, by about what f32 sums in another order move them with six; not bit for bit those of
     /// [`Model::eval`] nor exactly reciprocal; each pair's value still does not depend on the others
-    /// of the batch. Elsewhere exactly [`Model::eval_many`].
+    /// of the batch. With [`Arithmetic::Bf16`], where [`Model::bf16`] says it applies (the same copy, a
+    /// CPU with AVX512-BF16), each product is one bf16 product with f32 sums: ~1e-3 relative, twice
+    /// the multiply-adds per instruction of f32. Elsewhere exactly [`Model::eval_many`].
     ///
     /// ```
     /// use nbrdf::file::{encode, ModelBuf, ModelHeader, ModelKind, PositionEncoding, Reciprocity};
@@ -426,20 +428,22 @@ impl<'a> Model<'a> {
     /// let h = ModelHeader::paper(ModelKind::SingleMlp, false, Reciprocity::Exact, PositionEncoding::Intrinsic { k: 64 }, 4);
     /// let w: Vec<f32> = (0..h.n_weights()).map(|i| ((i * 7919 % 1000) as f32 - 500.0) * 2e-4).collect();
     /// let mut buf = ModelBuf::from_bytes(&encode(&h, &w, None).unwrap()).unwrap();
-    /// let tiled = buf.enable_amx(); // false without AMX: then SplitBf16 is F32
+    /// let made = buf.enable_bf16(); // false without AMX and AVX512-BF16: then all three are F32
     /// let model = buf.model();
-    /// assert_eq!(model.amx(), tiled);
+    /// assert_eq!(model.amx() || model.bf16(), made);
     /// let p = model.prepare(&[0.1; 64]);
     /// let wi = [Vec3::new(0.3, 0.1, 0.9).normalize(); 32];
     /// let wo = [Vec3::new(-0.2, 0.4, 0.8).normalize(); 32];
-    /// let (mut exact, mut x3, mut x6) = ([[0.0; 3]; 32], [[0.0; 3]; 32], [[0.0; 3]; 32]);
+    /// let (mut exact, mut x3, mut x6, mut x1) = ([[0.0; 3]; 32], [[0.0; 3]; 32], [[0.0; 3]; 32], [[0.0; 3]; 32]);
     /// model.eval_many(&p, &wi, &wo, &mut exact);
     /// model.eval_many_in(Arithmetic::SplitBf16, &p, &wi, &wo, &mut x3);
     /// model.eval_many_in(Arithmetic::SplitBf16x6, &p, &wi, &wo, &mut x6);
-    /// for ((e, a), b) in exact.iter().zip(&x3).zip(&x6) {
+    /// model.eval_many_in(Arithmetic::Bf16, &p, &wi, &wo, &mut x1);
+    /// for (((e, a), b), d) in exact.iter().zip(&x3).zip(&x6).zip(&x1) {
     ///     for c in 0..3 {
     ///         assert!((e[c] - a[c]).abs() <= 1e-4 * e[c] + 1e-6);
     ///         assert!((e[c] - b[c]).abs() <= 2e-6 * e[c] + 1e-7);
+    ///         assert!((e[c] - d[c]).abs() <= 1e-2 * e[c] + 1e-4);
     ///     }
     /// }
     /// ```
@@ -449,14 +453,14 @@ impl<'a> Model<'a> {
     }
 
     /// Whether [`Arithmetic::SplitBf16`] and [`Arithmetic::SplitBf16x6`] run on AMX tiles for this model
-    /// here: its per-query network's tiles were made ([`ModelBuf::enable_amx`]) and
+    /// here: its per-query network's tiles were made ([`ModelBuf::enable_bf16`]) and
     /// [`crate::kernels::amx_available`].
     pub fn amx(&self) -> bool {
         self.tiles.is_some() && crate::kernels::amx_available()
     }
 
     /// Whether [`Arithmetic::Bf16`] runs in bf16 for this model here: its bf16 copy was made
-    /// ([`ModelBuf::enable_amx`]) and [`crate::kernels::bf16_available`].
+    /// ([`ModelBuf::enable_bf16`]) and [`crate::kernels::bf16_available`].
     pub fn bf16(&self) -> bool {
         self.tiles.is_some() && crate::kernels::bf16_available()
     }
@@ -685,7 +689,7 @@ pub struct ModelBuf {
     /// The aligned copy of the per-query network's weights, where the file's cannot be aligned.
     query: Option<alloc::vec::Vec<CacheLine>>,
     /// The per-query network's hidden weights in AMX tile order and their number of bf16 values
-    /// ([`ModelBuf::enable_amx`]).
+    /// ([`ModelBuf::enable_bf16`]).
     tiles: Option<(alloc::vec::Vec<CacheLine>, usize)>,
     /// Where the file starts in `lines`, in bytes (a multiple of 4, below 64).
     shift: usize,
@@ -772,7 +776,7 @@ impl ModelBuf {
             model.query = Some(unsafe { weights_of(self.header.precision, &CacheLine::bytes(copy)[..n]) });
         }
         if let Some((lines, n)) = &self.tiles {
-            // SAFETY: the lines are 64-byte aligned and hold `n` u16 values (`enable_amx`).
+            // SAFETY: the lines are 64-byte aligned and hold `n` u16 values (`enable_bf16`).
             model.tiles = Some(unsafe { &cast_slice::<u16>(CacheLine::bytes(lines))[..*n] });
         }
         model
@@ -785,7 +789,7 @@ impl ModelBuf {
     /// with AMX-BF16 ([`crate::kernels::amx_available`]) or AVX512-BF16
     /// ([`crate::kernels::bf16_available`]; built with `std`, Linux). The copy holds three bf16 parts
     /// of each hidden weight, in tile order: 1.5× the bytes of the f32 network (3× those of an f16 one).
-    pub fn enable_amx(&mut self) -> bool {
+    pub fn enable_bf16(&mut self) -> bool {
         #[cfg(all(target_arch = "x86_64", target_os = "linux", feature = "std"))]
         {
             use crate::kernels::amx;

@@ -495,11 +495,11 @@ fn half_and_split_bf16_arithmetic_with_extreme_weights() {
             for (what, w) in weight_sets(h.n_weights(), precision, 3) {
                 let name = format!("{kind:?} {precision:?} {what}");
                 let mut buf = ModelBuf::from_bytes(&encode(&h, &w, None).unwrap()).unwrap_or_else(|e| panic!("{name}: {e}"));
-                assert_eq!(buf.enable_amx(), nbrdf::kernels::amx_available(), "{name}");
+                assert_eq!(buf.enable_bf16(), nbrdf::kernels::amx_available() || nbrdf::kernels::bf16_available(), "{name}");
                 let model = buf.model();
                 for p in points(h.position) {
                     let prepared = model.try_prepare(&p).unwrap();
-                    for math in [Arithmetic::HalfHidden, Arithmetic::SplitBf16, Arithmetic::SplitBf16x6] {
+                    for math in [Arithmetic::HalfHidden, Arithmetic::SplitBf16, Arithmetic::SplitBf16x6, Arithmetic::Bf16] {
                         let mut out = vec![[f32::NAN; 3]; pairs.len()];
                         model.eval_many_in(math, &prepared, &wi, &wo, &mut out);
                         for (&(a, b), f) in pairs.iter().zip(&out) {

@@ -555,19 +555,23 @@ fn half_math_batches_stay_close_to_f32_and_independent_of_their_neighbours() {
     }
 }
 
-/// `eval_many_in(SplitBf16 | SplitBf16x6, ..)`: without tiles (no `enable_amx`, a parametric model, a
-/// CPU without AMX) exactly `eval_many`; with them, within 1e-4 relative of the f32 arithmetic
-/// (bf16x3 products are good to ~16 bits) and 2e-6 (bf16x6, ~24 bits), differing from it (the tiles
-/// ran), and each pair's value independent of the batch around it.
+/// `eval_many_in(SplitBf16 | SplitBf16x6 | Bf16, ..)`: without the bf16 copy (no `enable_bf16`, a
+/// parametric model, a CPU without AMX or AVX512-BF16) exactly `eval_many`; with it, within 1e-4
+/// relative of the f32 arithmetic (bf16x3 products are good to ~16 bits), 2e-6 (bf16x6, ~24 bits) and
+/// 5e-3 (bf16, 8 bits), differing from it (the bf16 kernels ran), and each pair's value independent of
+/// the batch around it.
 #[test]
 fn split_bf16_batches_stay_close_to_f32_and_independent_of_their_neighbours() {
     use nbrdf::mlp::Arithmetic;
     let point = [0.1, 0.5, -0.3, 0.2, 0.0, 0.9];
     let parametric = ModelHeader::paper(ModelKind::Parametric(ParametricKind::Phong), false, Reciprocity::None, PositionEncoding::Intrinsic { k: 6 }, 0);
     let mut buf = ModelBuf::from_bytes(&encode(&parametric, &weights(parametric.n_weights(), 5, 0.1), None).unwrap()).unwrap();
-    assert!(!buf.enable_amx() && !buf.model().amx(), "parametric models have no per-query network");
+    assert!(!buf.enable_bf16() && !buf.model().amx() && !buf.model().bf16(), "parametric models have no per-query network");
     if !nbrdf::kernels::amx_available() {
-        eprintln!("split_bf16: this CPU has no AMX-BF16 (or the OS denies the tiles): checking the f32 fallback only");
+        eprintln!("split_bf16: this CPU has no AMX-BF16 (or the OS denies the tiles): checking the split arithmetics' f32 fallback only");
+    }
+    if !nbrdf::kernels::bf16_available() {
+        eprintln!("split_bf16: this CPU has no AVX512-BF16: checking the bf16 arithmetic's f32 fallback only");
     }
     for kind in [ModelKind::SingleMlp, ModelKind::AdditiveSeparate, ModelKind::AdditiveShared] {
         for precision in [Precision::F32, Precision::F16] {
@@ -579,18 +583,19 @@ fn split_bf16_batches_stay_close_to_f32_and_independent_of_their_neighbours() {
             let (mut exact, mut fast) = (vec![[f32::NAN; 3]; n], vec![[f32::NAN; 3]; n]);
             let p = buf.model().prepare(&point);
             buf.model().eval_many(&p, &wi, &wo, &mut exact);
-            for math in [Arithmetic::SplitBf16, Arithmetic::SplitBf16x6] {
+            for math in [Arithmetic::SplitBf16, Arithmetic::SplitBf16x6, Arithmetic::Bf16] {
                 buf.model().eval_many_in(math, &p, &wi, &wo, &mut fast);
-                assert_eq!(fast, exact, "{kind:?} {precision:?} {math:?}: no tiles yet, the same bits");
+                assert_eq!(fast, exact, "{kind:?} {precision:?} {math:?}: no bf16 copy yet, the same bits");
             }
-            let tiled = buf.enable_amx();
-            assert_eq!(tiled, nbrdf::kernels::amx_available(), "{kind:?}: the paper's width 128 fits the tiles");
+            let made = buf.enable_bf16();
+            let (amx, bf16) = (nbrdf::kernels::amx_available(), nbrdf::kernels::bf16_available());
+            assert_eq!(made, amx || bf16, "{kind:?}: the paper's width 128 fits the tiles");
             let model = buf.model();
-            assert_eq!(model.amx(), tiled);
-            for (math, tolerance) in [(Arithmetic::SplitBf16, 1e-4), (Arithmetic::SplitBf16x6, 2e-6)] {
+            assert_eq!((model.amx(), model.bf16()), (amx, bf16));
+            for (math, tolerance, runs) in [(Arithmetic::SplitBf16, 1e-4, amx), (Arithmetic::SplitBf16x6, 2e-6, amx), (Arithmetic::Bf16, 5e-3, bf16)] {
                 model.eval_many_in(math, &p, &wi, &wo, &mut fast);
-                if !tiled {
-                    assert_eq!(fast, exact, "{kind:?} {precision:?} {math:?}: no AMX, the same bits");
+                if !runs {
+                    assert_eq!(fast, exact, "{kind:?} {precision:?} {math:?}: not on this CPU, the same bits");
                     continue;
                 }
                 let (mut worst, mut differ) = (0.0f32, 0);
@@ -606,7 +611,7 @@ fn split_bf16_batches_stay_close_to_f32_and_independent_of_their_neighbours() {
                     }
                 }
                 assert!(worst < tolerance, "{kind:?} {precision:?} {math:?}: worst relative difference {worst}");
-                assert!(differ > n / 4, "{kind:?} {precision:?} {math:?}: the hidden layers ran on the tiles ({differ} values differ)");
+                assert!(differ > n / 4, "{kind:?} {precision:?} {math:?}: the hidden layers ran in bf16 ({differ} values differ)");
                 // Single queries keep the f32 arithmetic.
                 assert_eq!(model.eval_in(math, &p, wi[0], wo[0]), model.eval(&p, wi[0], wo[0]));
             }

@@ -6,7 +6,7 @@
 //! the diffuse term and every evaluation are finite and non-negative; exactly 0 off the upper
 //! hemisphere; bitwise reciprocal for Θ networks and parametric models. The half-precision entry points
 //! (`eval_half`, `eval_many_half`: f16 sums that overflow to infinity) and the split-bf16 arithmetic on
-//! AMX tiles (`eval_many_in(SplitBf16 | SplitBf16x6, ..)` after `enable_amx`, where the CPU has AMX: width-32
+//! AMX tiles (`eval_many_in(SplitBf16 | SplitBf16x6, ..)` after `enable_bf16`, where the CPU has AMX: width-32
 //! networks) keep the first two.
 #![no_main]
 
@@ -31,7 +31,7 @@ fuzz_target!(|input: (u8, u8, u64, u8, [f32; 3], [f32; 6], Vec<(u16, f32)>)| {
     // Non-finite weights, and f16 weights beyond ±65504, are export errors (tests/bad_input.rs).
     let Ok(bytes) = encode(&h, &w, None) else { return };
     let mut buf = ModelBuf::from_bytes(&bytes).expect("encode's output loads");
-    buf.enable_amx();
+    buf.enable_bf16();
     let model = buf.model();
     let len = model.position_len().min(3);
     let prepared = model.prepare(&point[..len]);

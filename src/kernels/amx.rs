@@ -19,7 +19,7 @@
 //! unit's own rounding; bf16 inputs below 2^-126 count as 0), so a query's value does not depend on
 //! the other queries of its packet.
 //!
-//! The weights are re-laid once ([`pack`], kept by [`crate::model::ModelBuf::enable_amx`]) in the
+//! The weights are re-laid once ([`pack`], kept by [`crate::model::ModelBuf::enable_bf16`]) in the
 //! order the tiles read them: per 32 outputs and 32 inputs, the three parts of two 32×16 "B" tiles
 //! (pairs of input rows interleaved per output, the layout `tdpbf16ps` expects); bf16x3 reads the
 //! first two. Activations stay row-major per query (an "A" tile is 16 queries × 32 inputs), split

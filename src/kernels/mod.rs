@@ -32,7 +32,7 @@
 //! # Split-bf16 arithmetic on AMX tiles
 //! `amx.rs` runs a packet's hidden layers on AMX-BF16 tiles (Sapphire Rapids and later, Linux), each
 //! f32 product as three bf16 products (~16 significant bits, f32 sums) or six (~24 bits), over
-//! weights re-laid once in tile order ([`crate::model::ModelBuf::enable_amx`]), where [`amx_available`]. Outside the
+//! weights re-laid once in tile order ([`crate::model::ModelBuf::enable_bf16`]), where [`amx_available`]. Outside the
 //! determinism promise too (other bits than the f32 kernels); each query still depends on itself only.
 
 #[cfg(all(target_arch = "x86_64", target_os = "linux", feature = "std"))]

@@ -80,10 +80,14 @@ pub fn evaluate(
 ) -> Result<Evaluation> {
     let mut buf = ModelBuf::load(model_path).map_err(Error::Core)?;
     let split = math.on_tiles();
-    if split && !buf.enable_amx() {
-        return Err(Error::Invalid(format!("{}: split-bf16 arithmetic does not apply (no AMX here, or not a neural model)", model_path.display())));
+    if split {
+        buf.enable_bf16();
     }
     let model = buf.model();
+    let runs = if math == Arithmetic::Bf16 { model.bf16() } else { model.amx() };
+    if split && !runs {
+        return Err(Error::Invalid(format!("{}: {math:?} does not run here (no AMX or AVX512-BF16, or not a neural model)", model_path.display())));
+    }
     // Every query of the evaluation, in the arithmetic under test.
     let eval = |p: &Prepared, wi: Vec3, wo: Vec3| {
         if split {

@@ -62,6 +62,10 @@ pub struct JobResult {
     /// The same in six products (`Arithmetic::SplitBf16x6`).
     #[serde(default)]
     pub eval_split_bf16x6: Option<Evaluation>,
+    /// The f32 model in bf16 products on AVX512-BF16 vectors (`Arithmetic::Bf16`: batches only), where
+    /// the machine has them.
+    #[serde(default)]
+    pub eval_bf16: Option<Evaluation>,
 }
 
 /// Which jobs this process runs: job `j` (in scene-major order) belongs to shard `j % count`.
@@ -239,6 +243,8 @@ pub fn run(config: &StudyConfig, out: &Path, shard: Option<Shard>, progress: boo
             let amx = !config::is_parametric(&spec.model) && nbrdf::kernels::amx_available();
             let split = |math| amx.then(|| evaluate::evaluate(&ds, &model_path, &lpips, config, math)).transpose();
             let (eval_split_bf16, eval_split_bf16x6) = (split(Arithmetic::SplitBf16)?, split(Arithmetic::SplitBf16x6)?);
+            let bf16 = !config::is_parametric(&spec.model) && nbrdf::kernels::bf16_available();
+            let eval_bf16 = bf16.then(|| evaluate::evaluate(&ds, &model_path, &lpips, config, Arithmetic::Bf16)).transpose()?;
             let r = JobResult {
                 scene: scene.id(),
                 model: name.clone(),
@@ -254,6 +260,7 @@ pub fn run(config: &StudyConfig, out: &Path, shard: Option<Shard>, progress: boo
                 eval_f16_half,
                 eval_split_bf16,
                 eval_split_bf16x6,
+                eval_bf16,
             };
             let json = serde_json::to_vec_pretty(&r).map_err(|e| Error::io(&result_path, e))?;
             crate::train::write_atomic(&result_path, &json)?;

@@ -43,6 +43,8 @@ pub struct ModelSummary {
     pub split_bf16: Option<F16Summary>,
     /// The same in six products (bf16x6).
     pub split_bf16x6: Option<F16Summary>,
+    /// The f32 model in bf16 products on vectors (`None` unless every object has it).
+    pub bf16: Option<F16Summary>,
 }
 
 /// Means over the objects of one more evaluation of a model: its f16-weight copy, or another
@@ -95,6 +97,7 @@ pub fn summarize(results: &[JobResult]) -> Vec<ModelSummary> {
                 f16_half: f16_summary(rs.iter().map(|r| r.eval_f16_half.as_ref().zip(r.size_bytes_f16))),
                 split_bf16: f16_summary(rs.iter().map(|r| r.eval_split_bf16.as_ref().map(|e| (e, r.size_bytes)))),
                 split_bf16x6: f16_summary(rs.iter().map(|r| r.eval_split_bf16x6.as_ref().map(|e| (e, r.size_bytes)))),
+                bf16: f16_summary(rs.iter().map(|r| r.eval_bf16.as_ref().map(|e| (e, r.size_bytes)))),
             }
         })
         .collect()
@@ -112,10 +115,10 @@ struct Alternative<'a> {
 }
 
 /// Number of [`alternatives`].
-const ALTERNATIVES: usize = 4;
+const ALTERNATIVES: usize = 5;
 
 /// The further evaluations of a model, in table order: its f16 copy, that copy in half arithmetic, the
-/// f32 model in bf16x3 and in bf16x6.
+/// f32 model in bf16x3, in bf16x6 and in bf16.
 fn alternatives(m: &ModelSummary) -> [Alternative<'_>; ALTERNATIVES] {
     fn a<'a>(suffix: &'static str, weights: &'static str, summary: Option<&'a F16Summary>, single: bool) -> Alternative<'a> {
         Alternative { suffix, weights, summary, single }
@@ -125,6 +128,7 @@ fn alternatives(m: &ModelSummary) -> [Alternative<'_>; ALTERNATIVES] {
         a("f16 half", "f16, half arithmetic", m.f16_half.as_ref(), true),
         a("bf16x3", "f32, bf16x3 (AMX)", m.split_bf16.as_ref(), false),
         a("bf16x6", "f32, bf16x6 (AMX)", m.split_bf16x6.as_ref(), false),
+        a("bf16", "f32, bf16 (AVX512-BF16)", m.bf16.as_ref(), false),
     ]
 }
 
@@ -479,7 +483,9 @@ pub fn markdown(
          evaluated the same way; `f16, half arithmetic` rows evaluate that copy with `Model::eval_half` (f16 multiply-adds, \
          on CPUs with AVX512-FP16 only); `f32, bf16x3 (AMX)` and `f32, bf16x6 (AMX)` rows evaluate the f32 model with \
          `Model::eval_many_in(Arithmetic::SplitBf16 | SplitBf16x6, ..)` (each product as three or six bf16 products on AMX tiles, on CPUs with \
-         AMX-BF16 only; batches only, single queries stay f32). Batched: ns per pair of `eval_many_in` over batches of {} \
+         AMX-BF16 only; batches only, single queries stay f32); `f32, bf16 (AVX512-BF16)` rows with \
+         `Arithmetic::Bf16` (each product one bf16 product with f32 sums, on CPUs with AVX512-BF16; batches only). \
+         Batched: ns per pair of `eval_many_in` over batches of {} \
          directions at one point. Means over the objects column.\n",
         super::evaluate::BATCH
     );
@@ -569,7 +575,8 @@ pub fn csv(results: &[JobResult]) -> String {
          psnr_f16,brdf_rmse_cbrt_f16,eval_ns_per_query_f16,size_bytes_f16,psnr_f16_half,brdf_rmse_cbrt_f16_half,\
          eval_ns_per_query_f16_half,eval_batch_ns_per_query,eval_batch_ns_per_query_f16,eval_batch_ns_per_query_f16_half,\
          psnr_split_bf16,brdf_rmse_cbrt_split_bf16,eval_batch_ns_per_query_split_bf16,\
-         psnr_split_bf16x6,brdf_rmse_cbrt_split_bf16x6,eval_batch_ns_per_query_split_bf16x6\n",
+         psnr_split_bf16x6,brdf_rmse_cbrt_split_bf16x6,eval_batch_ns_per_query_split_bf16x6,\
+         psnr_bf16,brdf_rmse_cbrt_bf16,eval_batch_ns_per_query_bf16\n",
     );
     let o = |v: Option<f64>| v.map_or(String::new(), |x| x.to_string());
     for r in results {
@@ -578,9 +585,10 @@ pub fn csv(results: &[JobResult]) -> String {
         let half = r.eval_f16_half.as_ref();
         let split = r.eval_split_bf16.as_ref();
         let split6 = r.eval_split_bf16x6.as_ref();
+        let bf16 = r.eval_bf16.as_ref();
         let _ = writeln!(
             out,
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             r.scene,
             r.model,
             e.image.psnr,
@@ -615,6 +623,9 @@ pub fn csv(results: &[JobResult]) -> String {
             o(split6.map(|e| e.image.psnr)),
             o(split6.map(|e| e.brdf_rmse_cbrt.value)),
             o(split6.and_then(|e| e.eval_batch_ns_per_query)),
+            o(bf16.map(|e| e.image.psnr)),
+            o(bf16.map(|e| e.brdf_rmse_cbrt.value)),
+            o(bf16.and_then(|e| e.eval_batch_ns_per_query)),
         );
     }
     out
