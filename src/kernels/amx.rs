@@ -25,6 +25,11 @@
 //! first two. Activations stay row-major per query (an "A" tile is 16 queries × 32 inputs), split
 //! after each layer.
 //!
+//! The same copy serves [`crate::mlp::Arithmetic::Bf16`] on CPUs with AVX512-BF16 but no tiles (AMD
+//! Zen 4, say): [`hidden_vectors`] reads part 0 only, one B-tile row (16 outputs × one pair of
+//! inputs) per `vdpbf16ps`, which multiplies 32 bf16 pairs into 16 f32 sums: twice the multiply-adds
+//! of an f32 FMA in the same issue slot, each product of 8-bit factors (~2^-8 relative apiece).
+//!
 //! Inline assembly, because Rust 1.95 has the AMX intrinsics only behind the unstable
 //! `x86_amx_intrinsics` feature; the tile registers are used by nothing else the compiler emits.
 //! Linux hands the 8 KB of tile state to a process only after `arch_prctl(ARCH_REQ_XCOMP_PERM)`,
