@@ -381,6 +381,23 @@ unsafe fn relu_split(y: *mut f32, n: usize, x: Option<[*mut u16; PARTS]>, x_row:
     }
 }
 
+/// What hidden layer `l`'s sums start from: the folded head of layer 0 and of the skip layer
+/// (`partial`), the bias (widened into `bias`) of the others.
+#[inline]
+fn layer_init<'a, W: Weight>(net: &Net<'_, W>, partial: &'a Partial, l: usize, bias: &'a mut [f32; MAX_WIDTH]) -> &'a [f32] {
+    let d = &net.desc;
+    let width = d.width as usize;
+    if l == 0 {
+        &partial.layer0[..width]
+    } else if d.skip as usize == l {
+        &partial.skip[..width]
+    } else {
+        let off = d.layer_offset(l) + width * width;
+        W::widen(&net.weights[off..off + width], &mut bias[..width]);
+        &bias[..width]
+    }
+}
+
 /// The hidden layers of `net` for [`PACKET`] queries at one prepared point, on tiles, in bf16x6 (`six`)
 /// or bf16x3: query `q`'s tail at `tails[q * tail_stride..][..n_tail]`, its last hidden activation
 /// (after ReLU) to `h[q * width..][..width]` (every one of those `PACKET * width` values written).
@@ -428,15 +445,7 @@ pub(crate) unsafe fn hidden<W: Weight>(
         asm!("ldtilecfg [{}]", in(reg) CONFIG.0.as_ptr(), options(nostack, readonly));
         for l in 0..d.hidden as usize {
             let k = layer_k(d, n_tail, l);
-            let init = if l == 0 {
-                &partial.layer0[..width]
-            } else if d.skip as usize == l {
-                &partial.skip[..width]
-            } else {
-                let off = d.layer_offset(l) + width * width;
-                W::widen(&net.weights[off..off + width], &mut bias[..width]);
-                &bias[..width]
-            };
+            let init = layer_init(net, partial, l, &mut bias);
             // Layer 0 reads the tail (after the hidden part of the rows); the others from the start.
             let input = offset(x, if l == 0 { width } else { 0 }).map(|p| p.cast_const());
             if six {
@@ -585,15 +594,7 @@ pub(crate) unsafe fn hidden_vectors<W: Weight>(
         }
         for l in 0..d.hidden as usize {
             let k = layer_k(d, n_tail, l);
-            let init = if l == 0 {
-                &partial.layer0[..width]
-            } else if d.skip as usize == l {
-                &partial.skip[..width]
-            } else {
-                let off = d.layer_offset(l) + width * width;
-                W::widen(&net.weights[off..off + width], &mut bias[..width]);
-                &bias[..width]
-            };
+            let init = layer_init(net, partial, l, &mut bias);
             // Layer 0 reads the tail (after the hidden pairs); the others from the start.
             let input = xp.add(if l == 0 { width / 2 * PACKET } else { 0 });
             layer_vectors(w, k, width, input, init.as_ptr(), h);
