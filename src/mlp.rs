@@ -114,8 +114,9 @@ impl Arithmetic {
 }
 
 /// A network's hidden-layer weights re-laid for the AMX tiles of [`Arithmetic::SplitBf16`] and
-/// [`Arithmetic::SplitBf16x6`]: three bf16 parts of each weight in the order the tiles read them, for
-/// a network whose last `n_tail` inputs are the per-query tail (the encoded angles).
+/// [`Arithmetic::SplitBf16x6`]: three bf16 parts of each weight in the order the tiles read them (whose
+/// first part [`Arithmetic::Bf16`] reads on vectors), for a network whose last `n_tail` inputs are the
+/// per-query tail (the encoded angles).
 /// [`crate::model::ModelBuf::enable_bf16`] makes and keeps them.
 #[derive(Clone, Copy, Debug)]
 // Read only where the AMX kernels are built (x86-64 Linux with `std`).
@@ -493,8 +494,9 @@ fn forward_chain<W: Weight>(math: Arithmetic, net: &Net<'_, W>, partial: &Partia
 ///
 /// With [`Arithmetic::SplitBf16`] or [`Arithmetic::SplitBf16x6`], `tiled` (the network's [`Tiled`]
 /// weights) runs the hidden layers on AMX tiles where they apply: the CPU has them, the layout was made
-/// for `n_tail` tail inputs, and the head folded into `partial` is the rest of the input. Otherwise
-/// `tiled` is unused.
+/// for `n_tail` tail inputs, and the head folded into `partial` is the rest of the input; with
+/// [`Arithmetic::Bf16`] on AVX512-BF16 vectors, where the CPU has those, under the same conditions.
+/// Otherwise `tiled` is unused.
 ///
 /// Panics when `tails` or `out` is too short for the packet.
 #[inline]

@@ -77,11 +77,7 @@ pub(super) fn available() -> bool {
 }
 
 fn detect() -> bool {
-    if !(std::is_x86_feature_detected!("avx512bf16")
-        && std::is_x86_feature_detected!("avx512f")
-        && std::is_x86_feature_detected!("avx512bw")
-        && std::is_x86_feature_detected!("avx512vl"))
-    {
+    if !vectors_available() {
         return false;
     }
     // CPUID.(EAX=7, ECX=0):EDX bit 22 AMX-BF16, bit 24 AMX-TILE (Intel SDM Vol. 2A, CPUID).
@@ -605,12 +601,7 @@ pub(crate) unsafe fn hidden_vectors<W: Weight>(
                     to_pairs(|q| (relu(q, i), relu(q, i + 16)), xp, i / 2);
                 }
             } else {
-                for q in 0..PACKET {
-                    for i in (0..width).step_by(16) {
-                        let p = h.add(q * width + i);
-                        _mm512_storeu_ps(p, _mm512_max_ps(_mm512_loadu_ps(p), zero));
-                    }
-                }
+                relu_split(h, width, None, width);
             }
         }
     }

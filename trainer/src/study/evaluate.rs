@@ -8,8 +8,8 @@
 //! - the evaluation cost is timed in-process on the reciprocity pairs: one query at a time (`eval_in`),
 //!   and in batches of many directions at one point (`eval_many_in`).
 //!
-//! With [`Arithmetic::SplitBf16`] or [`Arithmetic::SplitBf16x6`] (batches only: single queries keep
-//! f32) every value is taken from a batch: a pair's value does not depend on the batch it is in, so a
+//! With the bf16 arithmetics ([`Arithmetic::SplitBf16`], [`Arithmetic::SplitBf16x6`], [`Arithmetic::Bf16`];
+//! batches only: single queries keep f32) every value is taken from a batch: a pair's value does not depend on the batch it is in, so a
 //! batch of one gives the value any batch would.
 
 use std::time::Instant;
@@ -79,18 +79,18 @@ pub fn evaluate(
     math: Arithmetic,
 ) -> Result<Evaluation> {
     let mut buf = ModelBuf::load(model_path).map_err(Error::Core)?;
-    let split = math.on_tiles();
-    if split {
+    let batches_only = math.on_tiles();
+    if batches_only {
         buf.enable_bf16();
     }
     let model = buf.model();
     let runs = if math == Arithmetic::Bf16 { model.bf16() } else { model.amx() };
-    if split && !runs {
+    if batches_only && !runs {
         return Err(Error::Invalid(format!("{}: {math:?} does not run here (no AMX or AVX512-BF16, or not a neural model)", model_path.display())));
     }
     // Every query of the evaluation, in the arithmetic under test.
     let eval = |p: &Prepared, wi: Vec3, wo: Vec3| {
-        if split {
+        if batches_only {
             let mut f = [[0.0; 3]];
             model.eval_many_in(math, p, &[wi], &[wo], &mut f);
             f[0]

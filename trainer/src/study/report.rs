@@ -110,7 +110,7 @@ struct Alternative<'a> {
     /// The table's "weights" column.
     weights: &'static str,
     summary: Option<&'a F16Summary>,
-    /// Whether its single-query cost is its own (the split-bf16 arithmetics run single queries in f32).
+    /// Whether its single-query cost is its own (the bf16 arithmetics run single queries in f32).
     single: bool,
 }
 
