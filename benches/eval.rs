@@ -185,6 +185,16 @@ fn bench_models(c: &mut Criterion<Clock>) {
                             b.iter(|| m.eval_many_in(math, &prepared, black_box(&wi), black_box(&wo), &mut out))
                         });
                     }
+                    if m.bf16() {
+                        g.throughput(Throughput::Elements(1));
+                        g.bench_function(BenchmarkId::new(format!("single-bf16/{lname}"), &name), |b| {
+                            let mut i = 0;
+                            b.iter(|| {
+                                i = (i + 1) & 1023;
+                                black_box(m.eval_in(Arithmetic::Bf16, &prepared, black_box(wi[i]), black_box(wo[i])))
+                            })
+                        });
+                    }
                 }
             }
             set_level(None);

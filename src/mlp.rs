@@ -91,17 +91,18 @@ pub enum Arithmetic {
     /// "bf16": each product of the hidden layers as one bf16 product (activations and weights rounded
     /// to bf16, 8 significant bits) with f32 sums, `vdpbf16ps` on AVX512-BF16 vectors: twice the
     /// multiply-adds of an f32 FMA per instruction, results ~1e-3 relative from [`F32`](Self::F32)
-    /// (`docs/speed.md`), for packets of a network with [`Tiled`] weights where
+    /// (`docs/speed.md`), for a network with [`Tiled`] weights where
     /// [`crate::kernels::bf16_available`] (the CPUs without AMX or AVX512-FP16 among them, such as
-    /// AMD Zen 4). The output layer, single queries, networks without tiles and other CPUs: as
-    /// [`F32`](Self::F32).
+    /// AMD Zen 4). Single queries get the same bits from f32 FMAs over rows of bf16 weights that
+    /// skip zero inputs ([`forward_with`]; `crate::kernels`, "bf16 arithmetic on vectors"). The output layer,
+    /// networks without tiles and other CPUs: as [`F32`](Self::F32).
     Bf16,
 }
 
 impl Arithmetic {
     /// Whether this arithmetic reads the bf16 copy of a network's weights ([`Tiled`]: the split-bf16
-    /// arithmetics on AMX tiles, bf16 on vectors): batches of a network with that copy only; single
-    /// queries stay in f32.
+    /// arithmetics on AMX tiles, for batches only (their single queries stay in f32), and bf16, for
+    /// batches and single queries).
     ///
     /// ```
     /// use nbrdf::mlp::Arithmetic;
@@ -115,8 +116,9 @@ impl Arithmetic {
 
 /// A network's hidden-layer weights re-laid for the AMX tiles of [`Arithmetic::SplitBf16`] and
 /// [`Arithmetic::SplitBf16x6`]: three bf16 parts of each weight in the order the tiles read them (whose
-/// first part [`Arithmetic::Bf16`] reads on vectors), for a network whose last `n_tail` inputs are the
-/// per-query tail (the encoded angles).
+/// first part [`Arithmetic::Bf16`] reads on vectors), then that first part again in rows of one input
+/// each (the single queries of [`Arithmetic::Bf16`]), for a network whose last `n_tail` inputs are
+/// the per-query tail (the encoded angles).
 /// [`crate::model::ModelBuf::enable_bf16`] makes and keeps them.
 #[derive(Clone, Copy, Debug)]
 // Read only where the AMX kernels are built (x86-64 Linux with `std`).
@@ -405,13 +407,22 @@ fn output_layer<W: Weight, const Q: usize>(net: &Net<'_, W>, h: &[f32], out: &mu
 /// `desc.output_len()` values to the front of `out` (which must hold them; `MAX_WIDTH` always does).
 #[inline]
 pub fn forward<W: Weight>(net: &Net<'_, W>, partial: &Partial, tail: &[f32], out: &mut [f32]) {
-    forward_with(Arithmetic::F32, net, partial, tail, out)
+    forward_with(Arithmetic::F32, None, net, partial, tail, out)
 }
 
-/// [`forward`] with the hidden layers in `math` ([`Arithmetic::HalfHidden`]: the one-query kernel
-/// [`crate::kernels::one_half_math`] where it applies).
+/// [`forward`] with the hidden layers in `math`: [`Arithmetic::HalfHidden`], the one-query kernel
+/// [`crate::kernels::one_half_math`] where it applies; [`Arithmetic::Bf16`], `tiled` (the network's
+/// [`Tiled`] weights) on AVX512-BF16 vectors where they apply (as in [`forward_packet`]); otherwise
+/// f32 (the split-bf16 arithmetics too: a tile multiplies 16 queries at once, so for one it costs
+/// more than the f32 vectors).
 #[inline]
-pub fn forward_with<W: Weight>(math: Arithmetic, net: &Net<'_, W>, partial: &Partial, tail: &[f32], out: &mut [f32]) {
+pub fn forward_with<W: Weight>(math: Arithmetic, tiled: Option<Tiled<'_>>, net: &Net<'_, W>, partial: &Partial, tail: &[f32], out: &mut [f32]) {
+    if let (Arithmetic::Bf16, Some(tiled)) = (math, tiled) {
+        let mut h = [0.0f32; MAX_WIDTH];
+        if hidden_one_tiled(tiled, net, partial, tail, &mut h) {
+            return output_layer::<W, 1>(net, &h, out, 0);
+        }
+    }
     let half = math == Arithmetic::HalfHidden && W::HALF && crate::kernels::half_math_available();
     let math = if half { math } else { Arithmetic::F32 };
     if forward_chain(math, net, partial, tail, out) {
@@ -543,13 +554,7 @@ fn hidden_tiled<'h, W: Weight>(
         let d = &net.desc;
         let vectors = math == Arithmetic::Bf16;
         let here = if vectors { crate::kernels::bf16_available() } else { crate::kernels::amx_available() };
-        let applies = here
-            && n_tail == tiled.n_tail
-            && partial.head_len + n_tail == d.n_in as usize
-            && !tiled.values.is_empty()
-            && amx::packed_len(d, n_tail) == tiled.values.len()
-            && net.weights.len() == d.n_weights();
-        if !applies {
+        if !(here && tiles_apply(tiled, net, partial, n_tail)) {
             return None;
         }
         assert!(tails.len() >= (PACKET - 1) * tail_stride + n_tail, "tails too short for a packet");
@@ -571,6 +576,44 @@ fn hidden_tiled<'h, W: Weight>(
     #[cfg(not(all(target_arch = "x86_64", target_os = "linux", feature = "std")))]
     {
         None
+    }
+}
+
+/// Whether `tiled` is the bf16 copy of `net` for `n_tail` tail inputs after the head folded into
+/// `partial` (the CPU aside): what the kernels of [`hidden_tiled`] and [`hidden_one_tiled`] assume.
+#[cfg(all(target_arch = "x86_64", target_os = "linux", feature = "std"))]
+#[inline]
+fn tiles_apply<W: Weight>(tiled: Tiled<'_>, net: &Net<'_, W>, partial: &Partial, n_tail: usize) -> bool {
+    let d = &net.desc;
+    n_tail == tiled.n_tail
+        && partial.head_len + n_tail == d.n_in as usize
+        && !tiled.values.is_empty()
+        && crate::kernels::amx::copy_len(d, n_tail) == tiled.values.len()
+        && net.weights.len() == d.n_weights()
+}
+
+/// The hidden layers of one query (the tail `tail`) in [`Arithmetic::Bf16`] on AVX512-BF16 vectors:
+/// the last activations to the front of `h` and `true`, or `false` (nothing written) where the
+/// vectors or `tiled` do not apply.
+#[allow(unused_variables)]
+#[inline]
+fn hidden_one_tiled<W: Weight>(tiled: Tiled<'_>, net: &Net<'_, W>, partial: &Partial, tail: &[f32], h: &mut [f32; MAX_WIDTH]) -> bool {
+    #[cfg(all(target_arch = "x86_64", target_os = "linux", feature = "std"))]
+    {
+        let n_tail = tail.len().min(net.desc.n_in as usize - partial.head_len);
+        if !(crate::kernels::bf16_available() && tiles_apply(tiled, net, partial, n_tail)) {
+            return false;
+        }
+        let rows = &tiled.values[crate::kernels::amx::packed_len(&net.desc, n_tail)..];
+        // SAFETY: the CPU has AVX512-BF16 and AVX-512; the rows are `pack_rows`'s for `net` and
+        // `n_tail` (the copy's length checked; `packed_len` is non-zero only where `fits`); the head
+        // is the rest of the input; `tail` holds `n_tail` values and `h` `MAX_WIDTH ≥ width` floats.
+        unsafe { crate::kernels::bf16_rows::hidden_one(net, rows, partial, tail, n_tail, h.as_mut_ptr()) };
+        true
+    }
+    #[cfg(not(all(target_arch = "x86_64", target_os = "linux", feature = "std")))]
+    {
+        false
     }
 }
 

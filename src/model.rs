@@ -313,7 +313,11 @@ impl<'a> Model<'a> {
     }
 
     /// [`Model::eval`] (`math` = [`Arithmetic::F32`]) or [`Model::eval_half`]
-    /// ([`Arithmetic::HalfHidden`]), for callers that choose the arithmetic at run time.
+    /// ([`Arithmetic::HalfHidden`]), for callers that choose the arithmetic at run time; with
+    /// [`Arithmetic::Bf16`], where [`Model::bf16`] says it applies, the hidden layers in bf16 products
+    /// with the bits of the same pair in [`Model::eval_many_in`] (a single query streams half the
+    /// bytes of f32 weights: `docs/speed.md`). The split-bf16 arithmetics are [`Model::eval`] for one
+    /// query (a tile multiplies 16 queries at once).
     #[inline(always)]
     pub fn eval_in(&self, math: Arithmetic, prepared: &Prepared, wi: Vec3, wo: Vec3) -> Rgb {
         // 0.83x the time of an FMBRDF query in a loop of independent ones (see `load_pair`).
@@ -419,7 +423,8 @@ impl<'a> Model<'a> {
     /// [`Model::eval`] nor exactly reciprocal; each pair's value still does not depend on the others
     /// of the batch. With [`Arithmetic::Bf16`], where [`Model::bf16`] says it applies (the same copy, a
     /// CPU with AVX512-BF16), each product is one bf16 product with f32 sums: ~1e-3 relative, twice
-    /// the multiply-adds per instruction of f32. Elsewhere exactly [`Model::eval_many`].
+    /// the multiply-adds per instruction of f32, and each pair's value that of [`Model::eval_in`] on
+    /// it alone. Elsewhere exactly [`Model::eval_many`].
     ///
     /// ```
     /// use nbrdf::file::{encode, ModelBuf, ModelHeader, ModelKind, PositionEncoding, Reciprocity};
@@ -629,13 +634,14 @@ impl<'a> Model<'a> {
     #[inline]
     fn eval_with<W: Weight>(&self, math: Arithmetic, nets: &[Net<'a, W>; MAX_NETS], p: &Prepared, angles: &[f32]) -> Rgb {
         let enhanced = self.header.enhanced;
+        let tiled = self.tiles.map(|values| Tiled { values, n_tail: self.header.angle_input_len() });
         match self.header.kind {
             ModelKind::Parametric(_) => BLACK,
-            ModelKind::SingleMlp => single_mlp::eval(math, &nets[self.header.n_nets as usize - 1], &p.partial, angles),
+            ModelKind::SingleMlp => single_mlp::eval(math, tiled, &nets[self.header.n_nets as usize - 1], &p.partial, angles),
             ModelKind::AdditiveSeparate => {
-                additive_separate::eval(math, &nets[1], p.diffuse, &p.partial, angles, enhanced)
+                additive_separate::eval(math, tiled, &nets[1], p.diffuse, &p.partial, angles, enhanced)
             }
-            ModelKind::AdditiveShared => additive_shared::eval(math, &nets[2], p.diffuse, &p.partial, angles, enhanced),
+            ModelKind::AdditiveShared => additive_shared::eval(math, tiled, &nets[2], p.diffuse, &p.partial, angles, enhanced),
         }
     }
 
@@ -788,7 +794,9 @@ impl ModelBuf {
     /// per-query network has a hidden width of a multiple of 32 (the paper's 128), on a CPU (and OS)
     /// with AMX-BF16 ([`crate::kernels::amx_available`]) or AVX512-BF16
     /// ([`crate::kernels::bf16_available`]; built with `std`, Linux). The copy holds three bf16 parts
-    /// of each hidden weight, in tile order: 1.5× the bytes of the f32 network (3× those of an f16 one).
+    /// of each hidden weight in tile order, then the first part again in rows of one input each for
+    /// single queries in [`Arithmetic::Bf16`] ([`Model::eval_in`]): 2× the bytes of the f32 network
+    /// (4× those of an f16 one).
     pub fn enable_bf16(&mut self) -> bool {
         #[cfg(all(target_arch = "x86_64", target_os = "linux", feature = "std"))]
         {
@@ -803,7 +811,7 @@ impl ModelBuf {
             let n_tail = self.header.angle_input_len();
             let model = self.model();
             let last = self.header.nets().len() - 1;
-            let len = amx::packed_len(&self.header.nets()[last], n_tail);
+            let len = amx::copy_len(&self.header.nets()[last], n_tail);
             if len == 0 {
                 return false;
             }
@@ -811,8 +819,8 @@ impl ModelBuf {
             // SAFETY: the lines are 64-byte aligned, `2 * len` bytes fit, and every bit pattern is a u16.
             let values = unsafe { core::slice::from_raw_parts_mut(lines.as_mut_ptr().cast::<u16>(), len) };
             match model.weights {
-                Weights::F32(w) => amx::pack(&model.nets_f32(w)[last], n_tail, values),
-                Weights::F16(w) => amx::pack(&model.nets_f16(w)[last], n_tail, values),
+                Weights::F32(w) => amx::make_copy(&model.nets_f32(w)[last], n_tail, values),
+                Weights::F16(w) => amx::make_copy(&model.nets_f16(w)[last], n_tail, values),
             }
             self.tiles = Some((lines, len));
             true

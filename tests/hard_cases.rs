@@ -479,8 +479,8 @@ fn neural_models_of_every_kind_and_precision_with_extreme_weights() {
 
 /// The opt-in arithmetics keep the contract with extreme weights: half precision (f16 sums that
 /// overflow to inf at 65504) and split bf16 on AMX tiles, bf16x3 and bf16x6 (inf activations split
-/// into inf and NaN parts) give finite, non-negative values, exactly 0 off the upper hemisphere, in batches of every
-/// pair of the edge grid. On a CPU without AVX512-FP16 or AMX these are the f32 paths, checked alike.
+/// into inf and NaN parts), and bf16 give finite, non-negative values, exactly 0 off the upper
+/// hemisphere, in batches and single queries of every pair of the edge grid. On a CPU without AVX512-FP16 or AMX these are the f32 paths, checked alike.
 #[test]
 fn half_and_split_bf16_arithmetic_with_extreme_weights() {
     use nbrdf::mlp::Arithmetic;
@@ -503,9 +503,13 @@ fn half_and_split_bf16_arithmetic_with_extreme_weights() {
                         let mut out = vec![[f32::NAN; 3]; pairs.len()];
                         model.eval_many_in(math, &prepared, &wi, &wo, &mut out);
                         for (&(a, b), f) in pairs.iter().zip(&out) {
-                            assert!(f.iter().all(|c| c.is_finite() && *c >= 0.0), "{name} {math:?}: f({a}, {b}) = {f:?}");
-                            if !(above(a) && above(b)) {
-                                assert_eq!(*f, BLACK, "{name} {math:?}: f({a}, {b}) must be 0");
+                            // Single queries too: bf16 has its own one-query kernel (`bf16_rows`).
+                            let one = model.eval_in(math, &prepared, a, b);
+                            for f in [f, &one] {
+                                assert!(f.iter().all(|c| c.is_finite() && *c >= 0.0), "{name} {math:?}: f({a}, {b}) = {f:?}");
+                                if !(above(a) && above(b)) {
+                                    assert_eq!(*f, BLACK, "{name} {math:?}: f({a}, {b}) must be 0");
+                                }
                             }
                         }
                         n += pairs.len();

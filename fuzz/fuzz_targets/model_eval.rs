@@ -7,7 +7,8 @@
 //! hemisphere; bitwise reciprocal for Θ networks and parametric models. The half-precision entry points
 //! (`eval_half`, `eval_many_half`: f16 sums that overflow to infinity) and the split-bf16 arithmetic on
 //! AMX tiles (`eval_many_in(SplitBf16 | SplitBf16x6, ..)` after `enable_bf16`, where the CPU has AMX: width-32
-//! networks) and bf16 on vectors (`Bf16`, where it has AVX512-BF16) keep the first two.
+//! networks) and bf16 (`Bf16`, where it has AVX512-BF16: batches on vectors, single queries on rows)
+//! keep the first two.
 #![no_main]
 
 mod common;
@@ -54,10 +55,13 @@ fuzz_target!(|input: (u8, u8, u64, u8, [f32; 3], [f32; 6], Vec<(u16, f32)>)| {
     common::assert_valid_brdf(split[0], "model eval_many_in(SplitBf16)");
     common::assert_valid_brdf(split[1], "model eval_many_in(SplitBf16x6)");
     common::assert_valid_brdf(split[2], "model eval_many_in(Bf16)");
+    let bf16_one = model.eval_in(Arithmetic::Bf16, &prepared, wi, wo);
+    common::assert_valid_brdf(bf16_one, "model eval_in(Bf16)");
     if !(common::above(wi) && common::above(wo)) {
         assert_eq!(f, [0.0; 3], "nonzero off the upper hemisphere");
         assert_eq!((half, batch[0]), ([0.0; 3], [0.0; 3]), "half arithmetic nonzero off the upper hemisphere");
         assert_eq!(split, [[0.0; 3]; 3], "bf16 arithmetics nonzero off the upper hemisphere");
+        assert_eq!(bf16_one, [0.0; 3], "bf16 single query nonzero off the upper hemisphere");
     }
     if h.reciprocity == Reciprocity::Exact || matches!(h.kind, ModelKind::Parametric(_)) {
         assert!(common::same_bits(f, model.eval(&prepared, wo, wi)), "not reciprocal: {wi} {wo}");

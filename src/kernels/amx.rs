@@ -53,7 +53,7 @@ const TILE_VALUES: usize = 16 * K_TILE;
 /// Parts each weight is split into in the tiled layout (bf16x3 reads two of them).
 const PARTS: usize = 3;
 /// Largest padded tail (encoded angles) the activation buffers hold.
-const TAIL_MAX: usize = round_up(crate::model::MAX_ANGLE_INPUT, K_TILE);
+pub(super) const TAIL_MAX: usize = round_up(crate::model::MAX_ANGLE_INPUT, K_TILE);
 /// Largest activation row: a hidden layer's outputs and the padded tail.
 const ROW_MAX: usize = MAX_WIDTH + TAIL_MAX;
 
@@ -101,14 +101,14 @@ fn detect() -> bool {
 
 /// Padded tail length (inputs after the head of layer 0 and the skip layer).
 #[inline]
-const fn tail_pad(n_tail: usize) -> usize {
+pub(super) const fn tail_pad(n_tail: usize) -> usize {
     round_up(n_tail, K_TILE)
 }
 
 /// Number of tiled inputs of hidden layer `l`: the tail (layer 0), the hidden width and the tail (the
 /// skip layer), the hidden width (the others).
 #[inline]
-fn layer_k(d: &NetDesc, n_tail: usize, l: usize) -> usize {
+pub(super) fn layer_k(d: &NetDesc, n_tail: usize, l: usize) -> usize {
     let width = d.width as usize;
     if l == 0 {
         tail_pad(n_tail)
@@ -135,11 +135,29 @@ pub(crate) fn packed_len(d: &NetDesc, n_tail: usize) -> usize {
     (0..d.hidden as usize).map(|l| PARTS * layer_k(d, n_tail, l) * d.width as usize).sum()
 }
 
+/// Number of bf16 values of a network's whole bf16 copy ([`crate::mlp::Tiled`]): the tiles of
+/// [`pack`], then the rows of [`super::bf16_rows::pack_rows`] for single queries; 0 where it does
+/// not [`fits`].
+pub(crate) fn copy_len(d: &NetDesc, n_tail: usize) -> usize {
+    match packed_len(d, n_tail) {
+        0 => 0,
+        tiles => tiles + super::bf16_rows::rows_len(d, n_tail),
+    }
+}
+
+/// Writes the bf16 copy of `net` (see [`copy_len`], the length of `out`; non-zero).
+pub(crate) fn make_copy<W: Weight>(net: &Net<'_, W>, n_tail: usize, out: &mut [u16]) {
+    // The tiles' length is a multiple of 32 values: the rows start on a cache line when `out` does.
+    let (tiles, rows) = out.split_at_mut(packed_len(&net.desc, n_tail));
+    pack(net, n_tail, tiles);
+    super::bf16_rows::pack_rows(net, n_tail, rows);
+}
+
 /// `x` as `x_0 + x_1 + x_2`, each the bf16 rounding (to nearest, ties to even) of what the parts
 /// before it leave, as their bits. The remainders are exact (Sterbenz: a rounding is within a factor
 /// 2 of what it rounds).
 #[inline]
-fn split(x: f32) -> [u16; PARTS] {
+pub(super) fn split(x: f32) -> [u16; PARTS] {
     let p0 = half::bf16::from_f32(x);
     let r = x - p0.to_f32();
     let p1 = half::bf16::from_f32(r);
@@ -380,7 +398,7 @@ unsafe fn relu_split(y: *mut f32, n: usize, x: Option<[*mut u16; PARTS]>, x_row:
 /// What hidden layer `l`'s sums start from: the folded head of layer 0 and of the skip layer
 /// (`partial`), the bias (widened into `bias`) of the others.
 #[inline]
-fn layer_init<'a, W: Weight>(net: &Net<'_, W>, partial: &'a Partial, l: usize, bias: &'a mut [f32; MAX_WIDTH]) -> &'a [f32] {
+pub(super) fn layer_init<'a, W: Weight>(net: &Net<'_, W>, partial: &'a Partial, l: usize, bias: &'a mut [f32; MAX_WIDTH]) -> &'a [f32] {
     let d = &net.desc;
     let width = d.width as usize;
     if l == 0 {
@@ -618,7 +636,7 @@ pub(super) fn vectors_available() -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mlp::{forward_packet, partial, Arithmetic, Tiled};
+    use crate::mlp::{forward_packet, forward_with, partial, Arithmetic, Tiled};
 
     fn random(n: usize, seed: u32, scale: f32) -> alloc::vec::Vec<f32> {
         let mut s = seed;
@@ -714,11 +732,19 @@ mod tests {
             let net = Net { desc: d, weights: &w[..] };
             let head = random(head_len, 7, 1.0);
             let p = partial(&net, &head);
-            let mut tiles = alloc::vec![0u16; packed_len(&d, n_tail)];
-            pack(&net, n_tail, &mut tiles);
-            let tiled = Tiled { values: &tiles, n_tail };
+            let mut copy = alloc::vec![0u16; copy_len(&d, n_tail)];
+            make_copy(&net, n_tail, &mut copy);
+            let tiled = Tiled { values: &copy, n_tail };
             let mut out = alloc::vec![f32::NAN; PACKET * width];
             forward_packet(math, Some(tiled), &net, &p, &tails, n_tail, n_tail, &mut out, width);
+            if math == Arithmetic::Bf16 {
+                // One query in bf16 (`bf16_rows`: FMAs over rows) has the packet's bits (`vdpbf16ps`).
+                for q in 0..PACKET {
+                    let mut one = [f32::NAN; MAX_WIDTH];
+                    forward_with(math, Some(tiled), &net, &p, &tails[q * n_tail..(q + 1) * n_tail], &mut one);
+                    assert_eq!(one[..width], out[q * width..(q + 1) * width], "hidden {hidden} skip {skip} query {q} alone");
+                }
+            }
             for q in 0..PACKET {
                 let x: alloc::vec::Vec<f64> = head.iter().chain(&tails[q * n_tail..(q + 1) * n_tail]).map(|&v| v as f64).collect();
                 // Exact activations of the layers before the last, then the last layer's sums.
@@ -780,11 +806,11 @@ mod tests {
                 let net = Net { desc: d, weights: &w[..] };
                 let tails = random(PACKET * n_tail, 23, 1.0);
                 let p = partial(&net, &[0.0; 3]);
-                let mut tiles = alloc::vec![0u16; packed_len(&d, n_tail)];
-                pack(&net, n_tail, &mut tiles);
+                let mut copy = alloc::vec![0u16; copy_len(&d, n_tail)];
+                make_copy(&net, n_tail, &mut copy);
                 let mut out = alloc::vec![f32::NAN; PACKET * width];
                 let math = if six { Arithmetic::SplitBf16x6 } else { Arithmetic::SplitBf16 };
-                forward_packet(math, Some(Tiled { values: &tiles, n_tail }), &net, &p, &tails, n_tail, n_tail, &mut out, width);
+                forward_packet(math, Some(Tiled { values: &copy, n_tail }), &net, &p, &tails, n_tail, n_tail, &mut out, width);
                 for q in 0..PACKET {
                     let tail = &tails[q * n_tail..(q + 1) * n_tail];
                     // The input the last layer's output `o` reads, exactly.

@@ -40,9 +40,15 @@
 //! AVX512-BF16: AMD Zen 4 and later, Intel Cooper Lake, Sapphire Rapids and later), reading the first
 //! bf16 part of the same copy, where [`bf16_available`]: twice the multiply-adds per instruction of
 //! an f32 FMA, ~1e-3 relative ([`crate::mlp::Arithmetic::Bf16`]). Outside the promise as above.
+//! One query in that arithmetic runs in `bf16_rows.rs` instead: f32 FMAs over rows of the same bf16
+//! weights, one input a row, skipping the zero inputs (what bounds a single query is the bytes it
+//! streams from L2, and a `vdpbf16ps` vector interleaves two input rows). A product of bf16 values
+//! is exact in f32, so both paths round the same sums in the same order and give the same bits.
 
 #[cfg(all(target_arch = "x86_64", target_os = "linux", feature = "std"))]
 pub(crate) mod amx;
+#[cfg(all(target_arch = "x86_64", target_os = "linux", feature = "std"))]
+pub(crate) mod bf16_rows;
 #[cfg(target_arch = "x86_64")]
 mod half_math;
 mod output_map;

@@ -196,7 +196,7 @@ fn row_offsets(row_bytes: u32) -> (__m512i, __m512i) {
 /// `xs` and `offs` have room for 16 entries from `len` (whole vectors are stored).
 #[inline]
 #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
-unsafe fn append(v: __m512, valid: __mmask16, off: __m512i, xs: *mut f32, offs: *mut u32, len: usize) -> usize {
+pub(super) unsafe fn append(v: __m512, valid: __mmask16, off: __m512i, xs: *mut f32, offs: *mut u32, len: usize) -> usize {
     let nz = _mm512_mask_cmp_ps_mask::<_CMP_NEQ_UQ>(valid, v, _mm512_setzero_ps());
     // SAFETY: 16 entries of room from `len` (contract).
     unsafe {

@@ -21,11 +21,12 @@ pub fn prepare<W: Weight>(nets: &[Net<'_, W>], pos: &[f32]) -> Partial {
     }
 }
 
-/// `softplus` of the network output for the encoded angles.
+/// `softplus` of the network output for the encoded angles, the hidden layers in `math` (`tiled`: the
+/// network's tiles, see [`forward_with`]).
 #[inline]
-pub fn eval<W: Weight>(math: Arithmetic, net: &Net<'_, W>, prepared: &Partial, angles: &[f32]) -> Rgb {
+pub fn eval<W: Weight>(math: Arithmetic, tiled: Option<Tiled<'_>>, net: &Net<'_, W>, prepared: &Partial, angles: &[f32]) -> Rgb {
     let mut out = [0.0f32; MAX_WIDTH];
-    forward_with(math, net, prepared, angles, &mut out);
+    forward_with(math, tiled, net, prepared, angles, &mut out);
     softplus_slice(&mut out[..3]);
     [out[0], out[1], out[2]]
 }

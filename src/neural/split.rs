@@ -67,10 +67,12 @@ fn mix(f_d: Rgb, m: &[f32], enhanced: bool) -> Rgb {
 }
 
 /// The specular network of an additive model on the encoded angles, combined with `f_d` by
-/// [`combine`]: `f_d + f_s`, or Eq. 8 when `enhanced`. Shared by both additive architectures.
+/// [`combine`]: `f_d + f_s`, or Eq. 8 when `enhanced`. Shared by both additive architectures. The
+/// hidden layers in `math` (`tiled`: the specular network's tiles, see [`forward_with`]).
 #[inline]
 pub fn eval<W: Weight>(
     math: Arithmetic,
+    tiled: Option<Tiled<'_>>,
     specular: &Net<'_, W>,
     f_d: Rgb,
     prepared: &Partial,
@@ -78,7 +80,7 @@ pub fn eval<W: Weight>(
     enhanced: bool,
 ) -> Rgb {
     let mut s = [0.0f32; MAX_WIDTH];
-    forward_with(math, specular, prepared, angles, &mut s);
+    forward_with(math, tiled, specular, prepared, angles, &mut s);
     map_split(&mut s[..8], enhanced);
     mix(f_d, &s, enhanced)
 }

@@ -101,12 +101,15 @@ fn tiny_study_writes_every_table_and_reuses_jobs() {
         for sb in [&r.eval_split_bf16, &r.eval_split_bf16x6].into_iter().flatten() {
             assert!((sb.image.psnr - r.eval.image.psnr).abs() < 0.01, "{}: split bf16 {} dB vs f32 {} dB", r.model, sb.image.psnr, r.eval.image.psnr);
             assert!(sb.eval_batch_ns_per_query.is_some());
+            assert!(!sb.single_in_arithmetic, "{}: split-bf16 single queries are f32", r.model);
         }
         assert_eq!(r.eval_bf16.is_some(), bf16 && r.model != "rp", "{}", r.model);
         if let Some(b) = &r.eval_bf16 {
             assert!((b.image.psnr - r.eval.image.psnr).abs() < 0.5, "{}: bf16 {} dB vs f32 {} dB", r.model, b.image.psnr, r.eval.image.psnr);
             assert!(b.eval_batch_ns_per_query.is_some());
+            assert!(b.single_in_arithmetic, "{}: bf16 single queries run in bf16", r.model);
         }
+        assert!(r.eval.single_in_arithmetic && r.eval_f16.as_ref().is_none_or(|e| e.single_in_arithmetic));
     }
     if !amx {
         eprintln!("study: no AMX-BF16 here, so no split-bf16 rows to check");
@@ -121,7 +124,9 @@ fn tiny_study_writes_every_table_and_reuses_jobs() {
         old.as_object_mut().unwrap().remove(field);
     }
     old["eval"].as_object_mut().unwrap().remove("eval_batch_ns_per_query");
+    old["eval"].as_object_mut().unwrap().remove("single_in_arithmetic");
     let loaded: study::JobResult = serde_json::from_value(old).unwrap();
+    assert!(!loaded.eval.single_in_arithmetic, "absent: not known to be the arithmetic's own");
     assert!(loaded.eval_f16_half.is_none() && loaded.eval_split_bf16.is_none() && loaded.eval_split_bf16x6.is_none() && loaded.eval_bf16.is_none());
     assert!(loaded.eval_f16.is_some());
     assert!(loaded.eval.eval_batch_ns_per_query.is_none());

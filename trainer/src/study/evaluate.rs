@@ -8,9 +8,10 @@
 //! - the evaluation cost is timed in-process on the reciprocity pairs: one query at a time (`eval_in`),
 //!   and in batches of many directions at one point (`eval_many_in`).
 //!
-//! With the bf16 arithmetics ([`Arithmetic::SplitBf16`], [`Arithmetic::SplitBf16x6`], [`Arithmetic::Bf16`];
-//! batches only: single queries keep f32) every value is taken from a batch: a pair's value does not depend on the batch it is in, so a
-//! batch of one gives the value any batch would.
+//! With the split-bf16 arithmetics ([`Arithmetic::SplitBf16`], [`Arithmetic::SplitBf16x6`]; batches
+//! only: their single queries keep f32) every value is taken from a batch: a pair's value does not
+//! depend on the batch it is in, so a batch of one gives the value any batch would. With
+//! [`Arithmetic::Bf16`] a single query has its batch value's bits, and is timed as itself.
 
 use std::time::Instant;
 
@@ -39,6 +40,11 @@ pub struct Evaluation {
     pub energy: EnergySummary,
     /// Mean nanoseconds per `eval` (one direction pair, point already prepared), single thread.
     pub eval_ns_per_query: f64,
+    /// Whether `eval_ns_per_query` timed single queries in the arithmetic under test: false for the
+    /// split-bf16 arithmetics (their single queries are f32) and in bf16 evaluations written before
+    /// bf16 single queries ran in bf16 (the field is absent there).
+    #[serde(default)]
+    pub single_in_arithmetic: bool,
     /// Mean nanoseconds per direction pair of `eval_many_in` (batches of [`BATCH`] pairs at one
     /// prepared point), single thread; absent in results written before it was measured.
     #[serde(default)]
@@ -79,13 +85,13 @@ pub fn evaluate(
     math: Arithmetic,
 ) -> Result<Evaluation> {
     let mut buf = ModelBuf::load(model_path).map_err(Error::Core)?;
-    let batches_only = math.on_tiles();
-    if batches_only {
+    if math.on_tiles() {
         buf.enable_bf16();
     }
+    let batches_only = math.on_tiles() && math != Arithmetic::Bf16;
     let model = buf.model();
     let runs = if math == Arithmetic::Bf16 { model.bf16() } else { model.amx() };
-    if batches_only && !runs {
+    if math.on_tiles() && !runs {
         return Err(Error::Invalid(format!("{}: {math:?} does not run here (no AMX or AVX512-BF16, or not a neural model)", model_path.display())));
     }
     // Every query of the evaluation, in the arithmetic under test.
@@ -162,6 +168,7 @@ pub fn evaluate(
         reciprocity_rmse: reciprocity,
         energy,
         eval_ns_per_query: time_eval(&|p: &Prepared, wi, wo| model.eval_in(math, p, wi, wo), &recip_prepared, &pairs),
+        single_in_arithmetic: !batches_only,
         eval_batch_ns_per_query: Some(time_batches(&model, math, &recip_prepared, &pairs)),
     })
 }

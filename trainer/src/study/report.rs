@@ -56,6 +56,8 @@ pub struct F16Summary {
     pub eval_ns_per_query: f64,
     pub eval_batch_ns_per_query: Option<f64>,
     pub size_bytes: u64,
+    /// Whether every object's single-query time is of this arithmetic (`Evaluation::single_in_arithmetic`).
+    pub single_in_arithmetic: bool,
 }
 
 fn mean(v: impl Iterator<Item = f64>) -> f64 {
@@ -110,7 +112,8 @@ struct Alternative<'a> {
     /// The table's "weights" column.
     weights: &'static str,
     summary: Option<&'a F16Summary>,
-    /// Whether its single-query cost is its own (the bf16 arithmetics run single queries in f32).
+    /// Whether its single-query cost is its own (the split-bf16 arithmetics run single queries in
+    /// f32; bf16 results written before its single queries ran in bf16 timed f32 ones).
     single: bool,
 }
 
@@ -128,7 +131,7 @@ fn alternatives(m: &ModelSummary) -> [Alternative<'_>; ALTERNATIVES] {
         a("f16 half", "f16, half arithmetic", m.f16_half.as_ref(), true),
         a("bf16x3", "f32, bf16x3 (AMX)", m.split_bf16.as_ref(), false),
         a("bf16x6", "f32, bf16x6 (AMX)", m.split_bf16x6.as_ref(), false),
-        a("bf16", "f32, bf16 (AVX512-BF16)", m.bf16.as_ref(), false),
+        a("bf16", "f32, bf16 (AVX512-BF16)", m.bf16.as_ref(), m.bf16.as_ref().is_some_and(|f| f.single_in_arithmetic)),
     ]
 }
 
@@ -138,6 +141,7 @@ fn f16_summary<'a>(v: impl Iterator<Item = Option<(&'a Evaluation, u64)>>) -> Op
         psnr: mean(v.iter().map(|(e, _)| e.image.psnr)),
         brdf_rmse_cbrt: mean(v.iter().map(|(e, _)| e.brdf_rmse_cbrt.value)),
         eval_ns_per_query: mean(v.iter().map(|(e, _)| e.eval_ns_per_query)),
+        single_in_arithmetic: v.iter().all(|(e, _)| e.single_in_arithmetic),
         eval_batch_ns_per_query: mean_all(v.iter().map(|(e, _)| e.eval_batch_ns_per_query)),
         size_bytes: v[0].1,
     })
@@ -483,8 +487,8 @@ pub fn markdown(
          evaluated the same way; `f16, half arithmetic` rows evaluate that copy with `Model::eval_half` (f16 multiply-adds, \
          on CPUs with AVX512-FP16 only); `f32, bf16x3 (AMX)` and `f32, bf16x6 (AMX)` rows evaluate the f32 model with \
          `Model::eval_many_in(Arithmetic::SplitBf16 | SplitBf16x6, ..)` (each product as three or six bf16 products on AMX tiles, on CPUs with \
-         AMX-BF16 only; batches only, single queries stay f32); `f32, bf16 (AVX512-BF16)` rows with \
-         `Arithmetic::Bf16` (each product one bf16 product with f32 sums, on CPUs with AVX512-BF16; batches only). \
+         AMX-BF16 only; batches only, single queries stay f32, marked `(f32)`); `f32, bf16 (AVX512-BF16)` rows with \
+         `Arithmetic::Bf16` (each product one bf16 product with f32 sums, on CPUs with AVX512-BF16; single queries too). \
          Batched: ns per pair of `eval_many_in` over batches of {} \
          directions at one point. Means over the objects column.\n",
         super::evaluate::BATCH
@@ -509,12 +513,13 @@ pub fn markdown(
             let Some(f) = a.summary else { continue };
             let _ = writeln!(
                 md,
-                "| {} | {} | {} | {:.1} | {:.0} | {} | {} | {:.1} | {:.2} | {:.2} |",
+                "| {} | {} | {} | {:.1} | {} | {} | {} | {:.1} | {:.2} | {:.2} |",
                 m.model,
                 a.weights,
                 m.objects,
                 m.train_wall_s,
-                f.eval_ns_per_query,
+                // A single query that ran in f32 is marked so: it is not this row's arithmetic.
+                if a.single { format!("{:.0}", f.eval_ns_per_query) } else { format!("{:.0} (f32)", f.eval_ns_per_query) },
                 opt(f.eval_batch_ns_per_query, 1.0, 0),
                 m.n_weights,
                 f.size_bytes as f64 / 1024.0,
