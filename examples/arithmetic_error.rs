@@ -11,7 +11,8 @@
 //! weights, f16 weights in f32 arithmetic (`eval_many`), f16 weights in f16 arithmetic
 //! (`eval_many_half`, `eval_half`), and f32 weights in split-bf16 arithmetic (`eval_many_in` with
 //! `Arithmetic::SplitBf16` and `SplitBf16x6` after `ModelBuf::enable_bf16`) and bf16
-//! (`Arithmetic::Bf16`, the same copy). It prints the relative
+//! (`Arithmetic::Bf16`, the same copy; single queries too, which should have their batch values'
+//! bits). It prints the relative
 //! differences of the colour values (RMS, 99th percentile, maximum; values below 1e-3 compared
 //! absolutely) and the time per pair, best of three. Where the CPU lacks AVX512-FP16, AMX-BF16 or AVX512-BF16 those entry points are the f32
 //! ones, and the program says so. As a yardstick for f32 rounding itself, the f32 model also runs on
@@ -79,7 +80,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let n = 1024;
     let (mut storage, mut math, mut total, mut single, mut split, mut split6, mut split1) = (vec![], vec![], vec![], vec![], vec![], vec![], vec![]);
     let mut rounding = vec![];
-    let mut times = [0.0f64; 9];
+    let mut times = [0.0f64; 10];
+    // bf16 single queries whose bits differ from their batch value (they should not: `bf16_rows`).
+    let mut bf16_single_differ = 0usize;
     for v in 0..64u32 {
         let mut point = vec![0.1f32; m32.position_len()];
         if n_vertices > 0 {
@@ -104,6 +107,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         times[6] += best_of_three(|| m32.eval_many_in(Arithmetic::SplitBf16, &p32, &wi, &wo, &mut tiled));
         times[7] += best_of_three(|| m32.eval_many_in(Arithmetic::SplitBf16x6, &p32, &wi, &wo, &mut tiled6));
         times[8] += best_of_three(|| m32.eval_many_in(Arithmetic::Bf16, &p32, &wi, &wo, &mut bf16));
+        let mut bf16_one = vec![[0.0; 3]; n];
+        times[9] += best_of_three(|| bf16_one.iter_mut().zip(wi.iter().zip(&wo)).for_each(|(o, (a, b))| *o = m32.eval_in(Arithmetic::Bf16, &p32, *a, *b)));
+        bf16_single_differ += bf16_one.iter().zip(&bf16).filter(|(a, b)| a.map(f32::to_bits) != b.map(f32::to_bits)).count();
         std::hint::black_box(sink);
         differences(&f32_w, &f16_w, &mut storage);
         differences(&f16_w, &half, &mut math);
@@ -139,5 +145,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         times[8] / times[0]
     );
     println!("µs per pair, single queries: f32 {:.3}, f16 {:.3}, f16 half arithmetic {:.3} ({:.2}x f32)", per(times[3]), per(times[4]), per(times[5]), times[5] / times[3]);
+    println!(
+        "µs per pair, single queries: bf16 {:.3} ({:.2}x f32); {bf16_single_differ} of {} pairs differ in bits from their bf16 batch value",
+        per(times[9]),
+        times[9] / times[3],
+        64 * n
+    );
     Ok(())
 }
