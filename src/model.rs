@@ -552,6 +552,10 @@ impl<'a> Model<'a> {
         let mut index = [0usize; PACKET];
         let mut filled = 0;
         let mut len = 0;
+        #[cfg(target_arch = "x86_64")]
+        if self.header.reciprocity == Reciprocity::Exact && crate::kernels::level() == crate::kernels::Level::Avx512 {
+            return self.eval_many_theta16(math, prepared, n, pair, put);
+        }
         for i in 0..n {
             let (a, b) = pair(i);
             let slot = &mut enc[filled * MAX_ANGLE_INPUT..(filled + 1) * MAX_ANGLE_INPUT];
@@ -572,6 +576,77 @@ impl<'a> Model<'a> {
                     put(i, sanitize(f));
                 }
                 filled = 0;
+            }
+        }
+    }
+
+    /// [`Model::eval_many_by`] for Θ networks on AVX-512: the pairs encoded 16 at a time
+    /// (`kernels::theta16`, the bits of [`Model::encode_pair`] in every lane; the pairs it leaves to
+    /// the scalar code encoded by that), the valid ones gathered into packets as there.
+    #[cfg(target_arch = "x86_64")]
+    fn eval_many_theta16(
+        &self,
+        math: Arithmetic,
+        prepared: &Prepared,
+        n: usize,
+        pair: impl Fn(usize) -> (Vec3, Vec3),
+        mut put: impl FnMut(usize, Rgb),
+    ) {
+        let frequencies = self.header.angle_frequencies as usize;
+        let len = self.header.angle_input_len();
+        let run = |enc: &[f32]| match self.weights {
+            Weights::F32(w) => self.eval_packet_with(math, &self.nets_f32(w), prepared, enc, len),
+            Weights::F16(w) => self.eval_packet_with(math, &self.nets_f16(w), prepared, enc, len),
+        };
+        // 16 encoded rows, and the packet the valid ones are gathered into where some are not.
+        let mut stage = [0.0f32; PACKET * MAX_ANGLE_INPUT];
+        let mut enc = [0.0f32; PACKET * MAX_ANGLE_INPUT];
+        let mut index = [0usize; PACKET];
+        let mut filled = 0;
+        let mut i = 0;
+        while i < n {
+            let m = (n - i).min(16);
+            let (mut wi, mut wo) = ([Vec3::Z; 16], [Vec3::Z; 16]);
+            for q in 0..m {
+                (wi[q], wo[q]) = pair(i + q);
+            }
+            // SAFETY: the level is AVX-512 (checked by the caller); `m ≤ 16`; at most `MAX_FREQUENCIES`
+            // octaves, so a row's `len` values fit the `MAX_ANGLE_INPUT` between rows.
+            let (valid, scalar) = unsafe { crate::kernels::theta16::encode16(&wi, &wo, m, frequencies, &mut stage, MAX_ANGLE_INPUT) };
+            if filled == 0 && valid == 0xffff {
+                // A whole packet of valid pairs: straight from the rows.
+                for (q, f) in run(&stage).into_iter().enumerate() {
+                    put(i + q, sanitize(f));
+                }
+                i += m;
+                continue;
+            }
+            for q in 0..m {
+                let slot = &mut enc[filled * MAX_ANGLE_INPUT..(filled + 1) * MAX_ANGLE_INPUT];
+                let ok = if valid & (1 << q) != 0 {
+                    slot[..len].copy_from_slice(&stage[q * MAX_ANGLE_INPUT..q * MAX_ANGLE_INPUT + len]);
+                    true
+                } else {
+                    scalar & (1 << q) != 0 && self.encode_pair(wi[q], wo[q], slot).is_some()
+                };
+                if !ok {
+                    put(i + q, BLACK);
+                    continue;
+                }
+                index[filled] = i + q;
+                filled += 1;
+                if filled == PACKET {
+                    for (&k, f) in index.iter().zip(run(&enc)) {
+                        put(k, sanitize(f));
+                    }
+                    filled = 0;
+                }
+            }
+            i += m;
+        }
+        if filled > 0 {
+            for (&k, f) in index[..filled].iter().zip(run(&enc)) {
+                put(k, sanitize(f));
             }
         }
     }

@@ -461,11 +461,19 @@ fn neural_models_of_every_kind_and_precision_with_extreme_weights() {
                 } else {
                     Reciprocal::No
                 };
+                let (wi, wo): (Vec<Vec3>, Vec<Vec3>) = pairs.iter().copied().unzip();
                 for p in points(h.position) {
                     let prepared = model.try_prepare(&p).unwrap();
                     let d = prepared.diffuse();
                     assert!(d.iter().all(|c| c.is_finite() && *c >= 0.0), "{name}: diffuse {d:?} at {p:?}");
                     n += sweep(&format!("{name} at {p:?}"), &pairs, reciprocal, |wi, wo| model.eval(&prepared, wi, wo));
+                    // Batches (Θ: encoded 16 pairs at a time on AVX-512) give every pair's own bits.
+                    let mut batch = vec![[f32::NAN; 3]; pairs.len()];
+                    model.eval_many(&prepared, &wi, &wo, &mut batch);
+                    for (k, f) in batch.iter().enumerate() {
+                        let one = model.eval(&prepared, wi[k], wo[k]);
+                        assert_eq!(f.map(f32::to_bits), one.map(f32::to_bits), "{name}: batch f({}, {}) at {p:?}", wi[k], wo[k]);
+                    }
                 }
                 // A point of the wrong length evaluates to 0 everywhere (documented), never garbage.
                 let wrong = vec![0.5; h.position.input_len() + 1];

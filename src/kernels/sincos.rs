@@ -146,8 +146,31 @@ unsafe fn avx512(x: &[f32; 16]) -> ([f32; 16], [f32; 16], u16) {
 #[cfg(target_arch = "x86_64")]
 #[inline]
 #[target_feature(enable = "avx512f,avx2,fma")]
-#[allow(clippy::excessive_precision)] // The constants as Cephes prints them, so they can be checked there.
 unsafe fn avx512_vector(v: core::arch::x86_64::__m512) -> ([f32; 16], [f32; 16], u16) {
+    use core::arch::x86_64::*;
+    // SAFETY: AVX-512F (contract).
+    let (s, co, ok) = unsafe { sincos_vector(v) };
+    let mut so = [0.0f32; 16];
+    let mut cout = [0.0f32; 16];
+    // SAFETY: the arrays hold 16 values.
+    unsafe {
+        _mm512_storeu_ps(so.as_mut_ptr(), s);
+        _mm512_storeu_ps(cout.as_mut_ptr(), co);
+    }
+    (so, cout, !ok)
+}
+
+/// `(sin, cos, lanes done)` of a vector: the lanes not done (`|x| > REDUCE_MAX` or not finite) hold
+/// nothing of use and are for `libm::sincosf`. The one body of every vector sine and cosine of the
+/// encodings, so that they give the same bits wherever they run.
+///
+/// # Safety
+/// The CPU has AVX-512F.
+#[cfg(target_arch = "x86_64")]
+#[inline]
+#[target_feature(enable = "avx512f,avx2,fma")]
+#[allow(clippy::excessive_precision)] // The constants as Cephes prints them, so they can be checked there.
+pub(super) unsafe fn sincos_vector(v: core::arch::x86_64::__m512) -> (core::arch::x86_64::__m512, core::arch::x86_64::__m512, u16) {
     use core::arch::x86_64::*;
     let c = |f: f32| _mm512_set1_ps(f);
     // Ordered comparison: false for NaN, so NaN lanes go to libm as well.
@@ -173,14 +196,7 @@ unsafe fn avx512_vector(v: core::arch::x86_64::__m512) -> ([f32; 16], [f32; 16],
     let neg_c = _mm512_test_epi32_mask(_mm512_add_epi32(q, _mm512_set1_epi32(1)), _mm512_set1_epi32(2));
     let s = _mm512_castsi512_ps(_mm512_xor_si512(_mm512_castps_si512(s), sign_bit(neg_s)));
     let co = _mm512_castsi512_ps(_mm512_xor_si512(_mm512_castps_si512(co), sign_bit(neg_c)));
-    let mut so = [0.0f32; 16];
-    let mut cout = [0.0f32; 16];
-    // SAFETY: the arrays hold 16 values.
-    unsafe {
-        _mm512_storeu_ps(so.as_mut_ptr(), s);
-        _mm512_storeu_ps(cout.as_mut_ptr(), co);
-    }
-    (so, cout, !ok)
+    (s, co, ok)
 }
 
 #[cfg(test)]
