@@ -553,7 +553,7 @@ impl<'a> Model<'a> {
         let mut filled = 0;
         let mut len = 0;
         #[cfg(target_arch = "x86_64")]
-        if self.header.reciprocity == Reciprocity::Exact && crate::kernels::level() == crate::kernels::Level::Avx512 {
+        if crate::kernels::level() == crate::kernels::Level::Avx512 {
             return self.eval_many_theta16(math, prepared, n, pair, put);
         }
         for i in 0..n {
@@ -580,9 +580,9 @@ impl<'a> Model<'a> {
         }
     }
 
-    /// [`Model::eval_many_by`] for Θ networks on AVX-512: the pairs encoded 16 at a time
-    /// (`kernels::theta16`, the bits of [`Model::encode_pair`] in every lane; the pairs it leaves to
-    /// the scalar code encoded by that), the valid ones gathered into packets as there.
+    /// [`Model::eval_many_by`] on AVX-512: the pairs mapped (Θ, or the Rusinkiewicz angles) and
+    /// encoded 16 at a time (`kernels::theta16`, the bits of [`Model::encode_pair`] in every lane; the
+    /// pairs it leaves to the scalar code encoded by that), the valid ones gathered into packets as there.
     #[cfg(target_arch = "x86_64")]
     fn eval_many_theta16(
         &self,
@@ -593,6 +593,7 @@ impl<'a> Model<'a> {
         mut put: impl FnMut(usize, Rgb),
     ) {
         let frequencies = self.header.angle_frequencies as usize;
+        let exact = self.header.reciprocity == Reciprocity::Exact;
         let len = self.header.angle_input_len();
         let run = |enc: &[f32]| match self.weights {
             Weights::F32(w) => self.eval_packet_with(math, &self.nets_f32(w), prepared, enc, len),
@@ -612,7 +613,7 @@ impl<'a> Model<'a> {
             }
             // SAFETY: the level is AVX-512 (checked by the caller); `m ≤ 16`; at most `MAX_FREQUENCIES`
             // octaves, so a row's `len` values fit the `MAX_ANGLE_INPUT` between rows.
-            let (valid, scalar) = unsafe { crate::kernels::theta16::encode16(&wi, &wo, m, frequencies, &mut stage, MAX_ANGLE_INPUT) };
+            let (valid, scalar) = unsafe { crate::kernels::theta16::encode16(&wi, &wo, m, exact, frequencies, &mut stage, MAX_ANGLE_INPUT) };
             if filled == 0 && valid == 0xffff {
                 // A whole packet of valid pairs: straight from the rows.
                 for (q, f) in run(&stage).into_iter().enumerate() {

@@ -45,10 +45,11 @@
 //! streams from L2, and a `vdpbf16ps` vector interleaves two input rows). A product of bf16 values
 //! is exact in f32, so both paths round the same sums in the same order and give the same bits.
 //!
-//! # Θ for 16 pairs
-//! `theta16.rs` maps 16 direction pairs through Θ and its positional encoding at once for the batches
-//! of Θ networks (AVX-512): libm's `atanf`/`atan2f` and the rest of the map with lanes for pairs, every
-//! lane the bits of the one-pair functions, so `Model::eval_many` keeps `Model::eval`'s bits.
+//! # Angles for 16 pairs
+//! `theta16.rs` maps 16 direction pairs through Θ (or the plain Rusinkiewicz angles) and the
+//! positional encoding at once for the batches (AVX-512): libm's `atanf`/`atan2f` and the rest of the
+//! map with lanes for pairs, every lane the bits of the one-pair functions, so `Model::eval_many`
+//! keeps `Model::eval`'s bits.
 
 #[cfg(all(target_arch = "x86_64", target_os = "linux", feature = "std"))]
 pub(crate) mod amx;

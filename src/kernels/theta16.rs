@@ -1,6 +1,6 @@
-//! The exact reciprocity map Θ (Sec. 4.3, [`crate::angles::theta_map`]) and its positional
-//! encoding ([`crate::encoding::positional_encoding`]) for 16 direction pairs at once (AVX-512), with
-//! the bits of the one-pair functions in every lane.
+//! The exact reciprocity map Θ (Sec. 4.3, [`crate::angles::theta_map`]), or the plain Rusinkiewicz
+//! angles, and their positional encoding ([`crate::encoding::positional_encoding`]) for 16 direction
+//! pairs at once (AVX-512), with the bits of the one-pair functions in every lane.
 //!
 //! Why: a batch's per-pair work before the network is Θ's three `atan2f` (libm, scalar) and the
 //! sines and cosines of its octaves, one vector of 16 per pair whose dependent chain the core cannot
@@ -179,19 +179,21 @@ fn atan2f(y: __m512, x: __m512) -> __m512 {
     _mm512_mask_mov_ps(r, _mm512_cmp_ps_mask::<_CMP_UNORD_Q>(x, y), _mm512_add_ps(x, y))
 }
 
-/// Encodes up to 16 pairs as `Model` does one (`upper_hemisphere_pair`, [`crate::angles::theta_map`],
+/// Encodes up to 16 pairs as `Model` does one (`upper_hemisphere_pair`, then
+/// [`crate::angles::theta_map`] where `exact`, else [`crate::angles::rusinkiewicz_angles`], then
 /// [`crate::encoding::positional_encoding`] with `frequencies` octaves): lane `q < n` to
-/// `out[q * stride..][..4 * (1 + 2 * frequencies)]`, the same bits. Returns `(valid, scalar)`: the
+/// `out[q * stride..][..len]` (`len` = 4 or 3 angles × `1 + 2 * frequencies`), the same bits. Returns `(valid, scalar)`: the
 /// lanes whose row was written (the rest are off the upper hemisphere or degenerate: 0 for the
 /// model, row untouched), and those left to the caller's scalar code (see the module docs), neither
 /// written nor valid.
 ///
 /// # Safety
 /// [`super::level`] is [`super::Level::Avx512`] (the condition of the sine-cosine body it shares with
-/// `sincos_octaves`); `n ≤ 16`; `frequencies ≤ 127`; `stride ≥ 4 * (1 + 2 * frequencies)` and
-/// `out` holds `(n - 1) * stride + 4 * (1 + 2 * frequencies)` values.
+/// `sincos_octaves`); `n ≤ 16`; `frequencies ≤ 127`; `stride ≥ len` and `out` holds
+/// `(n - 1) * stride + len` values.
 #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
-pub(crate) unsafe fn encode16(wi: &[Vec3; 16], wo: &[Vec3; 16], n: usize, frequencies: usize, out: &mut [f32], stride: usize) -> (u16, u16) {
+#[allow(clippy::too_many_arguments)]
+pub(crate) unsafe fn encode16(wi: &[Vec3; 16], wo: &[Vec3; 16], n: usize, exact: bool, frequencies: usize, out: &mut [f32], stride: usize) -> (u16, u16) {
     let lanes: __mmask16 = if n >= 16 { 0xffff } else { ((1u32 << n) - 1) as u16 };
     let load = |v: &[Vec3; 16]| V3 {
         x: _mm512_setr_ps(v[0].x, v[1].x, v[2].x, v[3].x, v[4].x, v[5].x, v[6].x, v[7].x, v[8].x, v[9].x, v[10].x, v[11].x, v[12].x, v[13].x, v[14].x, v[15].x),
@@ -229,12 +231,24 @@ pub(crate) unsafe fn encode16(wi: &[Vec3; 16], wo: &[Vec3; 16], n: usize, freque
     let a = _mm512_mask_mov_ps(a, _mm512_cmp_ps_mask::<_CMP_EQ_OQ>(a, zero), zero);
     let b = _mm512_mask_mov_ps(b, _mm512_cmp_ps_mask::<_CMP_EQ_OQ>(b, zero), zero);
     let phi = atan2f(b, a);
-    let phi = _mm512_mask_mov_ps(phi, _mm512_cmp_ps_mask::<_CMP_GE_OQ>(phi, splat(core::f32::consts::PI)), zero);
-    let angles = [theta_h, theta_d, phi, _mm512_add_ps(phi, splat(core::f32::consts::PI))];
+    use core::f32::consts::{PI, TAU};
+    // atan2 of (tiny b > 0, a < 0) can round up to π: 0 of the other half plane.
+    let folded = _mm512_cmp_ps_mask::<_CMP_GE_OQ>(phi, splat(PI));
+    let phi = _mm512_mask_mov_ps(phi, folded, zero);
+    let angles = if exact {
+        // theta_map: [θh, θd, φd mod π, φd mod π + π].
+        [theta_h, theta_d, phi, _mm512_add_ps(phi, splat(PI))]
+    } else {
+        // rusinkiewicz_angles: [θh, θd, φd] with φd in [0, 2π).
+        let phi_d = _mm512_mask_add_ps(phi, flipped ^ folded, phi, splat(PI));
+        let phi_d = _mm512_mask_mov_ps(phi_d, _mm512_cmp_ps_mask::<_CMP_GE_OQ>(phi_d, splat(TAU)), zero);
+        [theta_h, theta_d, phi_d, zero]
+    };
+    let n_angles = if exact { 4 } else { 3 };
 
     // The encoding, feature-major: per angle its value, then sin and cos of 2^k times it.
     let block = 1 + 2 * frequencies;
-    let len = 4 * block;
+    let len = n_angles * block;
     let mut cols = [zero; 16];
     let mut col = 0;
     let mut rows_done = 0;
@@ -255,8 +269,8 @@ pub(crate) unsafe fn encode16(wi: &[Vec3; 16], wo: &[Vec3; 16], n: usize, freque
             *col = 0;
         }
     };
-    for (j, &v) in angles.iter().enumerate() {
-        put(v, &mut cols, &mut col, j == 3 && frequencies == 0);
+    for (j, &v) in angles.iter().enumerate().take(n_angles) {
+        put(v, &mut cols, &mut col, j + 1 == n_angles && frequencies == 0);
         for k in 0..frequencies {
             // 2^k from its exponent bits, times the value: the product `octave_args` forms.
             let arg = _mm512_mul_ps(_mm512_castsi512_ps(_mm512_set1_epi32((k as i32 + 127) << 23)), v);
@@ -280,7 +294,7 @@ pub(crate) unsafe fn encode16(wi: &[Vec3; 16], wo: &[Vec3; 16], n: usize, freque
                     cos = _mm512_loadu_ps(cs.as_ptr());
                 }
             }
-            let last = j == 3 && k + 1 == frequencies;
+            let last = j + 1 == n_angles && k + 1 == frequencies;
             put(sin, &mut cols, &mut col, false);
             put(cos, &mut cols, &mut col, last);
         }
@@ -292,7 +306,7 @@ pub(crate) unsafe fn encode16(wi: &[Vec3; 16], wo: &[Vec3; 16], n: usize, freque
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::angles::{theta_map, upper_hemisphere_pair};
+    use crate::angles::{rusinkiewicz_angles, theta_map, upper_hemisphere_pair};
     use crate::encoding::positional_encoding;
 
     fn avx512() -> bool {
@@ -364,8 +378,8 @@ mod tests {
         }
     }
 
-    /// `encode16` against `upper_hemisphere_pair`, `theta_map` and `positional_encoding`, one pair at
-    /// a time: the same rows bit for bit, the same invalid pairs, and the pairs it leaves to the scalar
+    /// `encode16` against `upper_hemisphere_pair`, `theta_map` (or `rusinkiewicz_angles`) and
+    /// `positional_encoding`, one pair at a time: the same rows bit for bit, the same invalid pairs, and the pairs it leaves to the scalar
     /// code only where `unit` rescales. Directions on the sphere and near it, grazing, below the
     /// horizon, mirrored, equal and opposite, unnormalised by a little and by a lot, zero, huge, NaN;
     /// 0, 1, 4 and 16 octaves (16: the largest arguments, some redone by `libm::sincosf`); partial
@@ -398,8 +412,8 @@ mod tests {
             }
         }
         let (mut n_valid, mut n_scalar) = (0, 0);
-        for frequencies in [0usize, 1, 4, 16] {
-            let len = 4 * (1 + 2 * frequencies);
+        for (exact, frequencies) in [true, false].into_iter().flat_map(|e| [0usize, 1, 4, 16].map(|f| (e, f))) {
+            let len = if exact { 4 } else { 3 } * (1 + 2 * frequencies);
             // Rows back to back: a row must not spill into the next.
             let stride = len;
             for (c, chunk) in dirs.chunks(32).enumerate() {
@@ -408,11 +422,17 @@ mod tests {
                 let wo: [Vec3; 16] = core::array::from_fn(|q| chunk.get(2 * q + 1).copied().unwrap_or(Vec3::Z));
                 let mut out = std::vec![f32::NAN; 16 * stride.max(1)];
                 // SAFETY: AVX-512 (checked); `out` holds 16 rows of `len`.
-                let (valid, scalar) = unsafe { encode16(&wi, &wo, n, frequencies, &mut out, stride) };
+                let (valid, scalar) = unsafe { encode16(&wi, &wo, n, exact, frequencies, &mut out, stride) };
                 assert_eq!(valid & scalar, 0);
                 assert_eq!(u32::from(valid | scalar) >> n, 0, "lanes past n");
                 for q in 0..n {
-                    let want = upper_hemisphere_pair(wi[q], wo[q]).and_then(|(a, b)| theta_map(a, b));
+                    let want = upper_hemisphere_pair(wi[q], wo[q]).and_then(|(a, b)| {
+                        if exact {
+                            theta_map(a, b)
+                        } else {
+                            rusinkiewicz_angles(a, b).map(|r| [r[0], r[1], r[2], 0.0])
+                        }
+                    });
                     let rescaled = |v: Vec3| !(v.length_squared() - 1.0).abs().le(&UNIT_TAYLOR) && !(UNIT_FAST_MIN..=UNIT_FAST_MAX).contains(&v.length_squared());
                     if scalar & (1 << q) != 0 {
                         assert!(rescaled(wi[q]) || rescaled(wo[q]), "{:?} {:?} left to the scalar code", wi[q], wo[q]);
@@ -423,7 +443,7 @@ mod tests {
                     let Some(t) = want else { continue };
                     n_valid += 1;
                     let mut row = [0.0f32; 132];
-                    assert_eq!(positional_encoding(&t, frequencies, &mut row), len);
+                    assert_eq!(positional_encoding(&t[..len / (1 + 2 * frequencies)], frequencies, &mut row), len);
                     for i in 0..len {
                         assert!(same(out[q * stride + i], row[i]), "F {frequencies} {:?} {:?} value {i}: {} vs {}", wi[q], wo[q], out[q * stride + i], row[i]);
                     }
