@@ -4,7 +4,8 @@
 //! encoding) gets seeded weights at a fuzzer-chosen scale (up to the format's limit: ±65504 for f16,
 //! ±3.4e38 for f32, where activations overflow to inf) and fuzzer-chosen weight overrides. Invariants:
 //! the diffuse term and every evaluation are finite and non-negative; exactly 0 off the upper
-//! hemisphere; bitwise reciprocal for Θ networks and parametric models. The half-precision entry points
+//! hemisphere; bitwise reciprocal for Θ networks and parametric models; a batch gives each pair the
+//! bits of its single query. The half-precision entry points
 //! (`eval_half`, `eval_many_half`: f16 sums that overflow to infinity) and the split-bf16 arithmetic on
 //! AMX tiles (`eval_many_in(SplitBf16 | SplitBf16x6, ..)` after `enable_bf16`, where the CPU has AMX: width-32
 //! networks) and bf16 (`Bf16`, where it has AVX512-BF16: batches on vectors, single queries on rows)
@@ -43,6 +44,17 @@ fuzz_target!(|input: (u8, u8, u64, u8, [f32; 3], [f32; 6], Vec<(u16, f32)>)| {
     let (wi, wo) = common::pair(dirs);
     let f = model.eval(&prepared, wi, wo);
     common::assert_valid_brdf(f, "model eval");
+    // A batch (angles mapped 16 pairs at a time on AVX-512) gives each pair its own bits: the pair,
+    // its swap and their components exchanged, over more than one packet.
+    let swap_xy = |v: nbrdf::Vec3| nbrdf::Vec3::new(v.y, v.x, v.z);
+    let cases = [(wi, wo), (wo, wi), (swap_xy(wi), swap_xy(wo)), (wi, wi)];
+    let (bi, bo): (Vec<_>, Vec<_>) = (0..19).map(|k| cases[k % cases.len()]).unzip();
+    let mut many = vec![[f32::NAN; 3]; bi.len()];
+    model.eval_many(&prepared, &bi, &bo, &mut many);
+    for (k, m) in many.iter().enumerate() {
+        let one = model.eval(&prepared, bi[k], bo[k]);
+        assert!(common::same_bits(*m, one), "batch pair {k} ({}, {}): {m:?} vs {one:?}", bi[k], bo[k]);
+    }
     let half = model.eval_half(&prepared, wi, wo);
     common::assert_valid_brdf(half, "model eval_half");
     let mut batch = [[f32::NAN; 3]];
