@@ -525,6 +525,58 @@ macro_rules! avx512 {
                 }
             }
 
+            /// The whole layer for `N ≤ 8` outputs (an output head) over the inputs of one pass,
+            /// with lanes for the `PACKET` queries: per input row one FMA per output, on the row's
+            /// transposed inputs (one `xt` vector) and the broadcast weight, where a tile with lanes
+            /// for outputs costs 16 (one per query) and leaves 13 of 16 lanes idle for 3 outputs.
+            /// Each query's sum sees `packet_tile`'s operations in its order (the start, then one
+            /// fused multiply-add per row), so the bits are the same.
+            ///
+            /// # Safety
+            /// As `packet_tile`, with `l.n_out == N`.
+            #[inline]
+            #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
+            unsafe fn packet_narrow<const N: usize>(l: &Dense<'_, $w>, p: &Pass<'_, $w>, out: *mut f32, os: usize) {
+                // SAFETY (whole body): as in `packet_tile`: `init` and each query's outputs hold `N`
+                // values, every input read lies in `xt`'s listed pieces, each row holds `N` weights.
+                unsafe {
+                    let mut acc: [__m512; N] = core::array::from_fn(|o| {
+                        if p.first {
+                            _mm512_set1_ps(*l.init.as_ptr().add(o))
+                        } else {
+                            _mm512_setr_ps(
+                                *out.add(o), *out.add(os + o), *out.add(2 * os + o), *out.add(3 * os + o),
+                                *out.add(4 * os + o), *out.add(5 * os + o), *out.add(6 * os + o), *out.add(7 * os + o),
+                                *out.add(8 * os + o), *out.add(9 * os + o), *out.add(10 * os + o), *out.add(11 * os + o),
+                                *out.add(12 * os + o), *out.add(13 * os + o), *out.add(14 * os + o), *out.add(15 * os + o),
+                            )
+                        }
+                    });
+                    for piece in p.pieces {
+                        let mut x = p.xt.add(piece.start * PACKET);
+                        let mut r = piece.rows;
+                        for _ in 0..piece.n {
+                            let xv = _mm512_loadu_ps(x);
+                            for (o, a) in acc.iter_mut().enumerate() {
+                                *a = _mm512_fmadd_ps(xv, _mm512_set1_ps(crate::mlp::Weight::to_f32(*r.add(o))), *a);
+                            }
+                            x = x.add(PACKET);
+                            r = r.add(N);
+                        }
+                    }
+                    let mut lanes = [[0.0f32; PACKET]; N];
+                    for (o, a) in acc.iter().enumerate() {
+                        let v = if p.relu { _mm512_max_ps(*a, _mm512_setzero_ps()) } else { *a };
+                        _mm512_storeu_ps(lanes[o].as_mut_ptr(), v);
+                    }
+                    for q in 0..PACKET {
+                        for (o, l) in lanes.iter().enumerate() {
+                            *out.add(q * os + o) = l[q];
+                        }
+                    }
+                }
+            }
+
             /// `PACKET` queries through the layer, every input row: each query's inputs are first
             /// transposed to feature-major (`transpose_inputs`), so that a tile reads the 16 inputs
             /// of one row from one cache line at fixed offsets. Skipping each query's zero inputs
@@ -543,8 +595,20 @@ macro_rules! avx512 {
                     let p = Pass { xt, pieces, first, relu: last && l.relu };
                     let mut o = 0;
                     // SAFETY: each tile stays below `n_out` (full tiles by the loop bounds, the rest
-                    // masked); the pieces lie in `xt` and in their checked segments.
+                    // masked; a narrow layer is `n_out` wide); the pieces lie in `xt` and in their
+                    // checked segments.
                     unsafe {
+                        match n {
+                            1 => return packet_narrow::<1>(l, &p, out, os),
+                            2 => return packet_narrow::<2>(l, &p, out, os),
+                            3 => return packet_narrow::<3>(l, &p, out, os),
+                            4 => return packet_narrow::<4>(l, &p, out, os),
+                            5 => return packet_narrow::<5>(l, &p, out, os),
+                            6 => return packet_narrow::<6>(l, &p, out, os),
+                            7 => return packet_narrow::<7>(l, &p, out, os),
+                            8 => return packet_narrow::<8>(l, &p, out, os),
+                            _ => {}
+                        }
                         while o + 16 <= n {
                             packet_tile::<false>(l, &p, out, os, o, 0xffff);
                             o += 16;
