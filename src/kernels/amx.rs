@@ -174,22 +174,12 @@ pub(super) fn split(x: f32) -> [u16; PARTS] {
 /// padding) are 0.
 pub(crate) fn pack<W: Weight>(net: &Net<'_, W>, n_tail: usize, out: &mut [u16]) {
     let d = &net.desc;
-    let (width, n_in) = (d.width as usize, d.n_in as usize);
-    let head = n_in - n_tail;
+    let width = d.width as usize;
     let mut o = 0;
     for l in 0..d.hidden as usize {
         let off = d.layer_offset(l);
         let k = layer_k(d, n_tail, l);
-        // Tiled input `i` → the layer's weight row, where it has one.
-        let row = |i: usize| -> Option<usize> {
-            if l == 0 {
-                (i < n_tail).then_some(head + i)
-            } else if i < width {
-                Some(i)
-            } else {
-                (i - width < n_tail).then_some(width + head + i - width)
-            }
-        };
+        let row = |i: usize| tiled_row(d, n_tail, l, i);
         for n0 in (0..width).step_by(N_STEP) {
             for k0 in (0..k).step_by(K_TILE) {
                 for j in 0..2 {
@@ -210,6 +200,21 @@ pub(crate) fn pack<W: Weight>(net: &Net<'_, W>, n_tail: usize, out: &mut [u16]) 
         }
     }
     debug_assert_eq!(o, out.len());
+}
+
+/// Tiled input `i` of hidden layer `l` (see [`layer_k`]) → the layer's weight row, where it has one:
+/// the tail after the head (layer 0), the hidden inputs then the tail after the head (the skip layer),
+/// none for the padding.
+#[inline]
+pub(super) fn tiled_row(d: &NetDesc, n_tail: usize, l: usize, i: usize) -> Option<usize> {
+    let (width, head) = (d.width as usize, d.n_in as usize - n_tail);
+    if l == 0 {
+        (i < n_tail).then_some(head + i)
+    } else if i < width {
+        Some(i)
+    } else {
+        (i - width < n_tail).then_some(width + head + i - width)
+    }
 }
 
 /// Tile configuration (the 64-byte memory operand of `LDTILECFG`, Intel SDM Vol. 2: palette 1, then the
@@ -636,17 +641,8 @@ pub(super) fn vectors_available() -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::kernels::tests::random;
     use crate::mlp::{forward_packet, forward_with, partial, Arithmetic, Tiled};
-
-    fn random(n: usize, seed: u32, scale: f32) -> alloc::vec::Vec<f32> {
-        let mut s = seed;
-        (0..n)
-            .map(|_| {
-                s = s.wrapping_mul(1664525).wrapping_add(1013904223);
-                ((s >> 8) as f32 / (1u32 << 24) as f32 - 0.5) * 2.0 * scale
-            })
-            .collect()
-    }
 
     /// Reads `pack`'s output back with the B-tile layout of Intel's SDM (`TDPBF16PS`: element `(k, n)`
     /// of a 32×16 tile at row `k / 2`, column `2n + k % 2`): every weight of the tiled rows is its

@@ -26,8 +26,8 @@ use core::mem::MaybeUninit;
 
 use crate::mlp::{Net, NetDesc, Partial, Weight, MAX_WIDTH};
 
-use super::amx::{layer_init, layer_k, split, tail_pad, TAIL_MAX};
-use super::x86::{append, mask16};
+use super::amx::{layer_init, layer_k, split, tail_pad, tiled_row, TAIL_MAX};
+use super::x86::{append, mask16, row_offsets_of};
 
 /// Number of bf16 values [`pack_rows`] writes for a network: one row of `width` per tiled input of
 /// every hidden layer (the inputs of [`super::amx::pack`], tails padded with zero rows, which the
@@ -43,21 +43,13 @@ pub(crate) fn rows_len(d: &NetDesc, n_tail: usize) -> usize {
 /// first part of [`super::amx::pack`]'s split.
 pub(crate) fn pack_rows<W: Weight>(net: &Net<'_, W>, n_tail: usize, out: &mut [u16]) {
     let d = &net.desc;
-    let (width, n_in) = (d.width as usize, d.n_in as usize);
-    let head = n_in - n_tail;
+    let width = d.width as usize;
     let mut o = 0;
     for l in 0..d.hidden as usize {
         let off = d.layer_offset(l);
         let k = layer_k(d, n_tail, l);
         for i in 0..k {
-            // Tiled input `i` → the layer's weight row, where it has one (as in `amx::pack`).
-            let row = if l == 0 {
-                (i < n_tail).then_some(head + i)
-            } else if i < width {
-                Some(i)
-            } else {
-                (i - width < n_tail).then_some(width + head + i - width)
-            };
+            let row = tiled_row(d, n_tail, l, i);
             for o0 in (0..width).step_by(32) {
                 for t in 0..16 {
                     for half in 0..2 {
@@ -77,8 +69,7 @@ pub(crate) fn pack_rows<W: Weight>(net: &Net<'_, W>, n_tail: usize, out: &mut [u
 #[inline]
 #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
 fn pair_offsets(row_bytes: u32) -> (__m512i, __m512i) {
-    let swapped = _mm512_setr_epi32(1, 0, 3, 2, 5, 4, 7, 6, 9, 8, 11, 10, 13, 12, 15, 14);
-    (_mm512_mullo_epi32(swapped, _mm512_set1_epi32(row_bytes as i32)), _mm512_set1_epi32((16 * row_bytes) as i32))
+    row_offsets_of(_mm512_setr_epi32(1, 0, 3, 2, 5, 4, 7, 6, 9, 8, 11, 10, 13, 12, 15, 14), row_bytes)
 }
 
 /// Appends the nonzero values of 16 inputs `v` (NaN counts as nonzero), each pair odd first, with
@@ -227,17 +218,8 @@ unsafe fn hidden_one_g<W: Weight, const G: usize>(net: &Net<'_, W>, rows: &[u16]
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::kernels::tests::random;
     use crate::mlp::{forward_with, partial, Arithmetic, Tiled};
-
-    fn random(n: usize, seed: u32, scale: f32) -> alloc::vec::Vec<f32> {
-        let mut s = seed;
-        (0..n)
-            .map(|_| {
-                s = s.wrapping_mul(1664525).wrapping_add(1013904223);
-                ((s >> 8) as f32 / (1u32 << 24) as f32 - 0.5) * 2.0 * scale
-            })
-            .collect()
-    }
 
     fn bf16(x: f32) -> f32 {
         half::bf16::from_f32(x).to_f32()

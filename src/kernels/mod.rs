@@ -561,10 +561,22 @@ pub fn kernels<W: KernelWeight>() -> &'static Kernels<W> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     const N: usize = 16384;
+
+    /// `n` values uniform in `[-scale, scale)` from a linear congruential generator: the kernel tests'
+    /// made-up weights and inputs.
+    pub(crate) fn random(n: usize, seed: u32, scale: f32) -> alloc::vec::Vec<f32> {
+        let mut s = seed;
+        (0..n)
+            .map(|_| {
+                s = s.wrapping_mul(1664525).wrapping_add(1013904223);
+                ((s >> 8) as f32 / (1u32 << 24) as f32 - 0.5) * 2.0 * scale
+            })
+            .collect()
+    }
 
     fn values(n: usize, seed: u32, zero_every: usize) -> [f32; N] {
         let mut v = [0.0f32; N];

@@ -185,8 +185,14 @@ pub(super) unsafe fn compress8(h: &[__m512; 8], row_bytes: u32, xs: *mut f32, of
 #[inline]
 #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
 fn row_offsets(row_bytes: u32) -> (__m512i, __m512i) {
-    let iota = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
-    (_mm512_mullo_epi32(iota, _mm512_set1_epi32(row_bytes as i32)), _mm512_set1_epi32((16 * row_bytes) as i32))
+    row_offsets_of(_mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15), row_bytes)
+}
+
+/// [`row_offsets`] of the inputs `lanes` (their indices within each 16), for lists in another order.
+#[inline]
+#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
+pub(super) fn row_offsets_of(lanes: __m512i, row_bytes: u32) -> (__m512i, __m512i) {
+    (_mm512_mullo_epi32(lanes, _mm512_set1_epi32(row_bytes as i32)), _mm512_set1_epi32((16 * row_bytes) as i32))
 }
 
 /// Appends the lanes of `v` in `valid` that are nonzero (NaN counts: unordered not-equal) to `xs` at
