@@ -548,14 +548,14 @@ impl<'a> Model<'a> {
             }
             return;
         }
-        let mut enc = [0.0f32; PACKET * MAX_ANGLE_INPUT];
-        let mut index = [0usize; PACKET];
-        let mut filled = 0;
-        let mut len = 0;
         #[cfg(target_arch = "x86_64")]
         if crate::kernels::level() == crate::kernels::Level::Avx512 {
             return self.eval_many_theta16(math, prepared, n, pair, put);
         }
+        let mut enc = [0.0f32; PACKET * MAX_ANGLE_INPUT];
+        let mut index = [0usize; PACKET];
+        let mut filled = 0;
+        let mut len = 0;
         for i in 0..n {
             let (a, b) = pair(i);
             let slot = &mut enc[filled * MAX_ANGLE_INPUT..(filled + 1) * MAX_ANGLE_INPUT];
@@ -568,15 +568,21 @@ impl<'a> Model<'a> {
                 None => put(i, BLACK),
             }
             if filled == PACKET || (i + 1 == n && filled > 0) {
-                let f = match self.weights {
-                    Weights::F32(w) => self.eval_packet_with(math, &self.nets_f32(w), prepared, &enc, len),
-                    Weights::F16(w) => self.eval_packet_with(math, &self.nets_f16(w), prepared, &enc, len),
-                };
-                for (&i, f) in index[..filled].iter().zip(f) {
+                for (&i, f) in index[..filled].iter().zip(self.run_packet(math, prepared, &enc, len)) {
                     put(i, sanitize(f));
                 }
                 filled = 0;
             }
+        }
+    }
+
+    /// The [`PACKET`] pairs encoded in `enc` (`MAX_ANGLE_INPUT` apart, `len` values each) through the
+    /// model's networks in `math` ([`Model::eval_packet_with`] over its weights).
+    #[inline]
+    fn run_packet(&self, math: Arithmetic, prepared: &Prepared, enc: &[f32], len: usize) -> [Rgb; PACKET] {
+        match self.weights {
+            Weights::F32(w) => self.eval_packet_with(math, &self.nets_f32(w), prepared, enc, len),
+            Weights::F16(w) => self.eval_packet_with(math, &self.nets_f16(w), prepared, enc, len),
         }
     }
 
@@ -595,10 +601,7 @@ impl<'a> Model<'a> {
         let frequencies = self.header.angle_frequencies as usize;
         let exact = self.header.reciprocity == Reciprocity::Exact;
         let len = self.header.angle_input_len();
-        let run = |enc: &[f32]| match self.weights {
-            Weights::F32(w) => self.eval_packet_with(math, &self.nets_f32(w), prepared, enc, len),
-            Weights::F16(w) => self.eval_packet_with(math, &self.nets_f16(w), prepared, enc, len),
-        };
+        let run = |enc: &[f32]| self.run_packet(math, prepared, enc, len);
         // 16 encoded rows, and the packet the valid ones are gathered into where some are not.
         let mut stage = [0.0f32; PACKET * MAX_ANGLE_INPUT];
         let mut enc = [0.0f32; PACKET * MAX_ANGLE_INPUT];
