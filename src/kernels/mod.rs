@@ -17,8 +17,8 @@
 //! `acc = init`, then one fused multiply-add per input row in row order (`Portable`: multiply, then add).
 //! So at one level, the single and the packet path give the same bits for the same query, and a query's
 //! result does not depend on its neighbours in the packet — which keeps exact reciprocity bitwise in
-//! batches. The one-query kernels skip rows whose input is exactly zero (half the activations after a
-//! ReLU); `fma(0, w, acc) = acc` for finite weights, except that `-0 + 0 = +0`, and the sign of a zero
+//! batches. The one-query kernels, and the AVX-512 packet kernel on layers whose inputs are mostly
+//! zeros, skip rows whose input is exactly zero (half the activations after a ReLU); `fma(0, w, acc) = acc` for finite weights, except that `-0 + 0 = +0`, and the sign of a zero
 //! pre-activation is erased by the ReLU (`max(acc, 0)` returns `+0`) and by every output map.
 //! Levels differ from each other by rounding only (FMA versus multiply-then-add).
 //!
@@ -848,6 +848,62 @@ pub(crate) mod tests {
             }
             assert!(got[n].is_nan(), "nothing written past the outputs");
         }
+    }
+
+    /// The sparse packet kernel (each query's nonzero inputs, blocks of rows) against the dense one
+    /// and the f64 reference: the same bits for every query, over one, two and three blocks of rows,
+    /// a second segment, inputs with no zeros, all zeros, NaN and -0, f32 and f16 weights.
+    #[cfg(target_arch = "x86_64")]
+    fn check_sparse<W: crate::mlp::Weight>(w: &[W], sparse: unsafe fn(&Dense<'_, W>, *mut f32, usize), dense: unsafe fn(&Dense<'_, W>, *mut f32, usize)) {
+        for (case, &(n1, n2, zero_every)) in [(128, 0, 2), (128, 36, 2), (40, 0, 3), (150, 70, 2), (64, 1, 5), (0, 36, 2), (0, 0, 2), (100, 12, 1)].iter().enumerate() {
+            let (mut x1, mut x2, init) = layer_inputs(128, n1);
+            // Fewer zeros than `values` leaves where `zero_every` is 1 (then every input is zero).
+            for (i, v) in x1.iter_mut().take(PACKET * LAYER_STRIDE).enumerate() {
+                if i % zero_every == 0 {
+                    *v = 0.0;
+                }
+            }
+            if case == 3 {
+                (x1[5], x1[LAYER_STRIDE + 7], x2[2 * LAYER_STRIDE + 3]) = (f32::NAN, -0.0, -0.0);
+            }
+            let layer = test_layer(w, (128, n1, n2, true), &x1, &x2, &init);
+            let os = 133;
+            let (mut got, mut want) = ([f32::NAN; PACKET * 133], [f32::NAN; PACKET * 133]);
+            layer.check(PACKET, got.len(), os);
+            // SAFETY: the level is AVX-512 (checked by the caller); the layer passed `check`.
+            unsafe {
+                sparse(&layer, got.as_mut_ptr(), os);
+                dense(&layer, want.as_mut_ptr(), os);
+            }
+            for q in 0..PACKET {
+                let exact = reference(&layer, q);
+                for o in 0..133 {
+                    let (g, d) = (got[q * os + o], want[q * os + o]);
+                    assert_eq!(g.to_bits(), d.to_bits(), "case {case} q {q} o {o}: {g} vs {d}");
+                    if o < 128 && !g.is_nan() {
+                        assert!((g as f64 - exact[o]).abs() < 1e-5, "case {case}: {g} vs {}", exact[o]);
+                    }
+                }
+            }
+            // The NaN input makes every sum of its query NaN, which the ReLU maps to +0; no other
+            // query sees it.
+            if case == 3 {
+                assert!(got[..128].iter().all(|v| v.to_bits() == 0) && got[os..os + 128].iter().any(|v| *v > 0.0));
+            }
+        }
+    }
+
+    #[test]
+    #[cfg(target_arch = "x86_64")]
+    fn the_sparse_packet_kernel_gives_the_bits_of_the_dense_one() {
+        if detected() < Level::Avx512 {
+            std::eprintln!("skipped: this CPU has no AVX-512");
+            return;
+        }
+        let w = random(128 * 220, 29, 0.4);
+        check_sparse::<f32>(&w[..], x86::avx512_f32::packet_sparse, x86::avx512_f32::packet_dense);
+        let h: alloc::vec::Vec<half::f16> = w.iter().map(|&v| half::f16::from_f32(v)).collect();
+        check_sparse::<half::f16>(&h[..], x86::avx512_f16::packet_sparse, x86::avx512_f16::packet_dense);
     }
 
     #[test]
