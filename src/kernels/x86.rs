@@ -586,8 +586,8 @@ macro_rules! avx512 {
                 }
             }
 
-            /// `PACKET` queries through the layer: 128-wide ReLU layers whose inputs are at most
-            /// `SPARSE_AT_MOST` / 16 nonzero by `packet_sparse`, the rest by `packet_dense`. Both
+            /// `PACKET` queries through the layer: 128-wide ReLU layers whose inputs are mostly zeros
+            /// (`sparse_pays`) by `packet_sparse`, the rest by `packet_dense`. Both
             /// give each query the operations of the one-query kernels, so the choice never changes
             /// a bit.
             ///
@@ -736,7 +736,8 @@ macro_rules! avx512 {
 }
 
 /// Whether a packet layer's inputs are sparse enough for the sparse kernel: at most `SPARSE_AT_MOST`
-/// sixteenths of them nonzero (NaN counts), over all segments and queries.
+/// (f16 weights: `SPARSE_AT_MOST_F16`) sixteenths of them nonzero (NaN counts), over all segments
+/// and queries.
 ///
 /// # Safety
 /// The layer passed `check(PACKET, ..)`.
@@ -760,7 +761,8 @@ unsafe fn sparse_pays<W>(l: &Dense<'_, W>) -> bool {
         }
         total += PACKET * s.n;
     }
-    16 * _mm512_reduce_add_epi32(nonzero) as usize <= SPARSE_AT_MOST * total
+    let at_most = if core::mem::size_of::<W>() == 4 { SPARSE_AT_MOST } else { SPARSE_AT_MOST_F16 };
+    16 * _mm512_reduce_add_epi32(nonzero) as usize <= at_most * total
 }
 
 /// Inputs per pass of the AVX-512 packet kernel: `XT_CAP × PACKET` f32 (16 KB) on the stack, room
@@ -777,9 +779,15 @@ pub(super) const XT_CAP: usize = 256;
 const SPARSE_BLOCK: usize = 64;
 
 /// The share of nonzero inputs (numerator over 16) at or below which a 128-wide packet layer runs
-/// sparse: the sparse kernel spends ~1.5 cycles an FMA on Zen 4 (a 64-byte weight load each, and
-/// the branch that ends each query's list mispredicts), the dense one ~1.15, so it pays below ~75%.
+/// sparse. An FMA of the sparse kernel costs ~1.3× one of the dense kernel on Zen 4 (in the probe
+/// above, 0.99 µs for 47% of the FMAs against 1.62 µs: each needs its own 64-byte weight load, and
+/// the branch that ends each query's list mispredicts), so it pays below ~75% nonzero.
 const SPARSE_AT_MOST: usize = 11;
+
+/// [`SPARSE_AT_MOST`] for f16 weights, which the sparse kernel widens block by block for the packet
+/// (`vcvtph2ps`, two cycles a vector on Zen 4: ~12% of a batched query). On the study's fits (layers
+/// 37–69% nonzero) batches took 0.95–1.02× the dense time with 9, 0.98–1.10× with 11.
+const SPARSE_AT_MOST_F16: usize = 9;
 
 /// Consecutive inputs of one segment, transposed: rows `rows[i * n_out..]` for the inputs at
 /// `xt[(start + i) * PACKET..][..PACKET]`, `i < n`.
