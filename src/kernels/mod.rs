@@ -17,8 +17,8 @@
 //! `acc = init`, then one fused multiply-add per input row in row order (`Portable`: multiply, then add).
 //! So at one level, the single and the packet path give the same bits for the same query, and a query's
 //! result does not depend on its neighbours in the packet — which keeps exact reciprocity bitwise in
-//! batches. The one-query kernels, and the AVX-512 packet kernel on layers whose inputs are mostly
-//! zeros, skip rows whose input is exactly zero (half the activations after a ReLU); `fma(0, w, acc) = acc` for finite weights, except that `-0 + 0 = +0`, and the sign of a zero
+//! batches. The one-query kernels, and the packet kernels on layers whose inputs are mostly zeros,
+//! skip rows whose input is exactly zero (half the activations after a ReLU); `fma(0, w, acc) = acc` for finite weights, except that `-0 + 0 = +0`, and the sign of a zero
 //! pre-activation is erased by the ReLU (`max(acc, 0)` returns `+0`) and by every output map.
 //! Levels differ from each other by rounding only (FMA versus multiply-then-add).
 //!
@@ -850,8 +850,8 @@ pub(crate) mod tests {
         }
     }
 
-    /// The sparse packet kernel (each query's nonzero inputs, blocks of rows) against the dense one
-    /// and the f64 reference: the same bits for every query, over one, two and three blocks of rows,
+    /// A sparse packet kernel (each query's nonzero inputs, blocks of rows) against the dense one of
+    /// its level and the f64 reference: the same bits for every query, over one, two and three blocks of rows,
     /// a second segment, inputs with no zeros, all zeros, NaN and -0, f32 and f16 weights.
     #[cfg(target_arch = "x86_64")]
     fn check_sparse<W: crate::mlp::Weight>(w: &[W], sparse: unsafe fn(&Dense<'_, W>, *mut f32, usize), dense: unsafe fn(&Dense<'_, W>, *mut f32, usize)) {
@@ -904,6 +904,19 @@ pub(crate) mod tests {
         check_sparse::<f32>(&w[..], x86::avx512_f32::packet_sparse, x86::avx512_f32::packet_dense);
         let h: alloc::vec::Vec<half::f16> = w.iter().map(|&v| half::f16::from_f32(v)).collect();
         check_sparse::<half::f16>(&h[..], x86::avx512_f16::packet_sparse, x86::avx512_f16::packet_dense);
+    }
+
+    #[test]
+    #[cfg(target_arch = "x86_64")]
+    fn the_avx2_sparse_packet_kernel_gives_the_bits_of_the_dense_one() {
+        if detected() < Level::Avx2 {
+            std::eprintln!("skipped: this CPU has no AVX2");
+            return;
+        }
+        let w = random(128 * 220, 31, 0.4);
+        check_sparse::<f32>(&w[..], x86::avx2_f32::packet_sparse, x86::avx2_f32::packet_dense);
+        let h: alloc::vec::Vec<half::f16> = w.iter().map(|&v| half::f16::from_f32(v)).collect();
+        check_sparse::<half::f16>(&h[..], x86::avx2_f16::packet_sparse, x86::avx2_f16::packet_dense);
     }
 
     #[test]

@@ -11,8 +11,8 @@
 //!   vectors = 8 of 16 registers, the packet run as four quarters;
 //! - a chain (AVX-512 only): one query through every layer of a 128-wide network, its 128
 //!   activations held in 8 registers from one layer to the next and compressed from there;
-//! - a sparse packet (AVX-512 only, 128-wide layers whose inputs are mostly zeros after a ReLU): each
-//!   query alone, 8 vectors of outputs, over its nonzero inputs only, in blocks of `SPARSE_BLOCK`
+//! - a sparse packet (128-wide layers whose inputs are mostly zeros after a ReLU): each query alone,
+//!   8 vectors of outputs (AVX2: twice), over its nonzero inputs only, in blocks of `SPARSE_BLOCK`
 //!   weight rows that stay in L1 while the 16 queries use them.
 //!
 //! Partial vectors at the end of a row (odd widths, the 3 or 6 outputs of the last layer) use masked
@@ -765,6 +765,36 @@ unsafe fn sparse_pays<W>(l: &Dense<'_, W>) -> bool {
     16 * _mm512_reduce_add_epi32(nonzero) as usize <= at_most * total
 }
 
+/// [`sparse_pays`] with 8-lane vectors (AVX2), the same thresholds.
+///
+/// # Safety
+/// The layer passed `check(PACKET, ..)`.
+#[inline]
+#[target_feature(enable = "avx2,fma,f16c")]
+unsafe fn sparse_pays_avx2<W>(l: &Dense<'_, W>) -> bool {
+    // A lane's compare is all ones (-1) where nonzero: subtracting it counts.
+    let (mut nonzero, mut total) = (_mm256_setzero_si256(), 0usize);
+    for s in &l.segs[..l.n_segs] {
+        for q in 0..PACKET {
+            let mut i = 0;
+            while i < s.n {
+                // SAFETY: inputs `i .. s.n` of query `q` lie in the checked segment; the lanes past it
+                // are not read (and load as 0).
+                let v = unsafe { _mm256_maskload_ps(s.x.as_ptr().add(q * s.stride + i), lane_mask(s.n - i)) };
+                let c = _mm256_cmp_ps::<_CMP_NEQ_UQ>(v, _mm256_setzero_ps());
+                nonzero = _mm256_sub_epi32(nonzero, _mm256_castps_si256(c));
+                i += 8;
+            }
+        }
+        total += PACKET * s.n;
+    }
+    let mut lanes = [0i32; 8];
+    // SAFETY: 8 lanes to 8 values.
+    unsafe { _mm256_storeu_si256(lanes.as_mut_ptr().cast(), nonzero) };
+    let at_most = if core::mem::size_of::<W>() == 4 { SPARSE_AT_MOST } else { SPARSE_AT_MOST_F16 };
+    16 * lanes.iter().sum::<i32>() as usize <= at_most * total
+}
+
 /// Inputs per pass of the AVX-512 packet kernel: `XT_CAP × PACKET` f32 (16 KB) on the stack, room
 /// for every layer of the paper-size networks (at most 128 + 36 inputs) in one pass; a layer with
 /// more inputs (a longer angle encoding) takes one pass per `XT_CAP`.
@@ -1112,12 +1142,105 @@ macro_rules! avx2 {
                 }
             }
 
-            /// `PACKET` queries through the layer.
+            /// `PACKET` queries through the layer: 128-wide ReLU layers whose inputs are mostly zeros
+            /// (`sparse_pays_avx2`) by `packet_sparse`, the rest by `packet_dense`, each query's
+            /// bits the same either way.
             ///
             /// # Safety
             /// See the module docs (`check(PACKET, ..)`).
             #[target_feature(enable = "avx2,fma,f16c")]
             pub(in crate::kernels) unsafe fn packet(l: &Dense<'_, $w>, out: *mut f32, os: usize) {
+                // SAFETY: the contract, passed on.
+                unsafe {
+                    if l.n_out == 128 && l.relu && sparse_pays_avx2(l) {
+                        packet_sparse(l, out, os)
+                    } else {
+                        packet_dense(l, out, os)
+                    }
+                }
+            }
+
+            /// The AVX-512 `packet_sparse` with 8-lane vectors: one query at a time over its
+            /// nonzero inputs, in blocks of `SPARSE_BLOCK` weight rows shared by the packet, each
+            /// query's walk run twice, for outputs 0–63 and 64–127 (8 accumulators, a broadcast and
+            /// a weight vector fill the 16 registers). The operations of `one` per query.
+            ///
+            /// # Safety
+            /// See the module docs (`check(PACKET, ..)`), with `l.n_out == 128`.
+            #[target_feature(enable = "avx2,fma,f16c")]
+            pub(in crate::kernels) unsafe fn packet_sparse(l: &Dense<'_, $w>, out: *mut f32, os: usize) {
+                const W: usize = 128;
+                let mut wide = [core::mem::MaybeUninit::<__m256>::uninit(); SPARSE_BLOCK * W / 8];
+                let wide = wide.as_mut_ptr().cast::<f32>();
+                let zero = _mm256_setzero_ps();
+                let mut first = true;
+                // SAFETY (whole body): as in the AVX-512 `packet_sparse` (inputs read by `maskload`
+                // under `lane_mask`, which zeroes the lanes past the block).
+                unsafe {
+                    for (si, s) in l.segs[..l.n_segs].iter().enumerate() {
+                        let mut i0 = 0;
+                        while i0 < s.n {
+                            let nb = (s.n - i0).min(SPARSE_BLOCK);
+                            let last = si + 1 == l.n_segs && i0 + nb == s.n;
+                            let rows = s.rows.as_ptr().add(i0 * W);
+                            let block: *const f32 = if core::mem::size_of::<$w>() == 4 {
+                                rows.cast()
+                            } else {
+                                for v in 0..nb * W / 8 {
+                                    _mm256_storeu_ps(wide.add(8 * v), load8!($tag, rows.add(8 * v), 8, false));
+                                }
+                                wide
+                            };
+                            for q in 0..PACKET {
+                                let o = out.add(q * os);
+                                let x = s.x.as_ptr().add(q * s.stride + i0);
+                                let mut nz = 0u64;
+                                for v in 0..nb.div_ceil(8) {
+                                    let xv = _mm256_maskload_ps(x.add(8 * v), lane_mask(nb - 8 * v));
+                                    let c = _mm256_cmp_ps::<_CMP_NEQ_UQ>(xv, zero);
+                                    nz |= (_mm256_movemask_ps(c) as u32 as u64) << (8 * v);
+                                }
+                                for h in [0, 64] {
+                                    let from = if first { l.init.as_ptr() } else { o.cast_const() }.add(h);
+                                    let mut acc: [__m256; 8] = core::array::from_fn(|k| _mm256_loadu_ps(from.add(8 * k)));
+                                    let mut m = nz;
+                                    while m != 0 {
+                                        let j = m.trailing_zeros() as usize;
+                                        m &= m - 1;
+                                        let xb = _mm256_set1_ps(*x.add(j));
+                                        let r = block.add(j * W + h);
+                                        for (k, a) in acc.iter_mut().enumerate() {
+                                            *a = _mm256_fmadd_ps(xb, _mm256_loadu_ps(r.add(8 * k)), *a);
+                                        }
+                                    }
+                                    for (k, a) in acc.iter().enumerate() {
+                                        let v = if last { _mm256_max_ps(*a, zero) } else { *a };
+                                        _mm256_storeu_ps(o.add(h + 8 * k), v);
+                                    }
+                                }
+                            }
+                            first = false;
+                            i0 += nb;
+                        }
+                    }
+                    if first {
+                        // No inputs at all: the ReLU of `init`.
+                        for q in 0..PACKET {
+                            for k in 0..W / 8 {
+                                let v = _mm256_loadu_ps(l.init.as_ptr().add(8 * k));
+                                _mm256_storeu_ps(out.add(q * os + 8 * k), _mm256_max_ps(v, zero));
+                            }
+                        }
+                    }
+                }
+            }
+
+            /// `PACKET` queries through the layer, every input row.
+            ///
+            /// # Safety
+            /// See the module docs (`check(PACKET, ..)`).
+            #[target_feature(enable = "avx2,fma,f16c")]
+            pub(in crate::kernels) unsafe fn packet_dense(l: &Dense<'_, $w>, out: *mut f32, os: usize) {
                 let n = l.n_out;
                 // SAFETY: each tile stays below `n_out` and `PACKET` queries.
                 unsafe {
