@@ -44,9 +44,16 @@ pub fn small_header(i: usize, variant: u8) -> ModelHeader {
     if i % N_SHAPES == 6 {
         h = h.with_direction_layers(2); // trunk + head
     }
-    // Shrink every network to width 4 or 32 (shapes stay consistent: inputs that were 128 trunk
-    // features become the width), and the skip to within the hidden layers.
-    let width: u16 = if variant & 0x80 != 0 { 32 } else { 4 };
+    // Shrink every network to width 4 or 32, or keep 128 (the width of the sparse packet kernels) for
+    // a quarter of the shape indices past the first N_SHAPES (shapes stay consistent: inputs that
+    // were 128 trunk features become the width), and the skip to within the hidden layers.
+    let width: u16 = if (i / N_SHAPES) % 4 == 3 {
+        128
+    } else if variant & 0x80 != 0 {
+        32
+    } else {
+        4
+    };
     let n = h.n_nets as usize;
     for j in 0..n {
         let d = h.nets[j];
