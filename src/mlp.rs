@@ -529,9 +529,23 @@ pub fn forward_packet<W: Weight>(
             return output_layer::<W, PACKET>(net, h, out, out_stride);
         }
     }
-    let mut h = [0.0f32; PACKET * MAX_WIDTH];
-    let mut t = [0.0f32; PACKET * MAX_WIDTH];
-    run::<W, PACKET>(math, net, partial, tails, tail_stride, n_tail, out, out_stride, &mut h, &mut t);
+    // Only the `PACKET × width` values a packet's activations use are zeroed (not the 32 KB of both
+    // buffers, the size of an L1 whose blocks of weights they would evict).
+    let n = PACKET * (net.desc.width as usize).min(MAX_WIDTH);
+    let (mut h, mut t) = (core::mem::MaybeUninit::<[f32; PACKET * MAX_WIDTH]>::uninit(), core::mem::MaybeUninit::<[f32; PACKET * MAX_WIDTH]>::uninit());
+    run::<W, PACKET>(math, net, partial, tails, tail_stride, n_tail, out, out_stride, zeroed_prefix(&mut h, n), zeroed_prefix(&mut t, n));
+}
+
+/// The first `n` values of `buf` (at most its length), zeroed; the rest stays uninitialised.
+#[inline(always)]
+fn zeroed_prefix<const N: usize>(buf: &mut core::mem::MaybeUninit<[f32; N]>, n: usize) -> &mut [f32] {
+    let n = n.min(N);
+    let p = buf.as_mut_ptr().cast::<f32>();
+    // SAFETY: `n ≤ N` floats of `buf`, written (all-zero bits are 0.0) before the slice is made.
+    unsafe {
+        core::ptr::write_bytes(p, 0, n);
+        core::slice::from_raw_parts_mut(p, n)
+    }
 }
 
 /// The hidden layers of a packet in a bf16 arithmetic (`math`: bf16x3 or bf16x6 on AMX tiles,
