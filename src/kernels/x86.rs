@@ -620,65 +620,50 @@ macro_rules! avx512 {
                 let mut wide = [core::mem::MaybeUninit::<__m512>::uninit(); SPARSE_BLOCK * W / 16];
                 let wide = wide.as_mut_ptr().cast::<f32>();
                 let zero = _mm512_setzero_ps();
-                let mut first = true;
-                // SAFETY (whole body): each block's rows lie in its checked segment (`nb` rows of 128
-                // from `i0`), each query's inputs `i0 .. i0 + nb` in its segment (read under `mask16`
-                // masks), its outputs at `out + q os ..+ 128` (`check`); `wide` holds a block.
+                // f32 rows are used where they lie; f16 ones once widened (exact).
+                let widen = |rows: *const $w, nb: usize| -> *const f32 {
+                    if core::mem::size_of::<$w>() == 4 {
+                        return rows.cast();
+                    }
+                    // SAFETY: `nb` rows of 128 from `rows` (`sparse_blocks`); `wide` holds a block.
+                    unsafe {
+                        for v in 0..nb * W / 16 {
+                            _mm512_storeu_ps(wide.add(16 * v), load16!($tag, rows.add(16 * v), 0xffff, false));
+                        }
+                    }
+                    wide
+                };
+                // SAFETY (whole body): `sparse_blocks`'s contract; each query's inputs are read under
+                // `mask16` masks, its outputs lie at `out + q os ..+ 128` (`check`).
                 unsafe {
-                    for (si, s) in l.segs[..l.n_segs].iter().enumerate() {
-                        let mut i0 = 0;
-                        while i0 < s.n {
-                            let nb = (s.n - i0).min(SPARSE_BLOCK);
-                            let last = si + 1 == l.n_segs && i0 + nb == s.n;
-                            let rows = s.rows.as_ptr().add(i0 * W);
-                            // f32 rows are used where they lie; f16 ones once widened (exact).
-                            let block: *const f32 = if core::mem::size_of::<$w>() == 4 {
-                                rows.cast()
-                            } else {
-                                for v in 0..nb * W / 16 {
-                                    _mm512_storeu_ps(wide.add(16 * v), load16!($tag, rows.add(16 * v), 0xffff, false));
-                                }
-                                wide
-                            };
-                            for q in 0..PACKET {
-                                let o = out.add(q * os);
-                                let from = if first { l.init.as_ptr() } else { o.cast_const() };
-                                let mut acc: [__m512; 8] = core::array::from_fn(|k| _mm512_loadu_ps(from.add(16 * k)));
-                                let x = s.x.as_ptr().add(q * s.stride + i0);
-                                // The nonzero inputs (NaN counts, as in `compress`) of the block.
-                                let mut nz = 0u64;
-                                for v in 0..nb.div_ceil(16) {
-                                    let m = mask16(nb - 16 * v);
-                                    let xv = _mm512_maskz_loadu_ps(m, x.add(16 * v));
-                                    nz |= (_mm512_mask_cmp_ps_mask::<_CMP_NEQ_UQ>(m, xv, zero) as u64) << (16 * v);
-                                }
-                                while nz != 0 {
-                                    let j = nz.trailing_zeros() as usize;
-                                    nz &= nz - 1;
-                                    let xb = _mm512_set1_ps(*x.add(j));
-                                    let r = block.add(j * W);
-                                    for (k, a) in acc.iter_mut().enumerate() {
-                                        *a = _mm512_fmadd_ps(xb, _mm512_loadu_ps(r.add(16 * k)), *a);
-                                    }
-                                }
-                                for (k, a) in acc.iter().enumerate() {
-                                    let v = if last { _mm512_max_ps(*a, zero) } else { *a };
-                                    _mm512_storeu_ps(o.add(16 * k), v);
-                                }
-                            }
-                            first = false;
-                            i0 += nb;
-                        }
-                    }
-                    if first {
-                        // No inputs at all: the ReLU of `init`.
+                    sparse_blocks(l, out, os, widen, |b| {
                         for q in 0..PACKET {
-                            for k in 0..8 {
-                                let v = _mm512_loadu_ps(l.init.as_ptr().add(16 * k));
-                                _mm512_storeu_ps(out.add(q * os + 16 * k), _mm512_max_ps(v, zero));
+                            let o = out.add(q * os);
+                            let from = if b.first { l.init.as_ptr() } else { o.cast_const() };
+                            let mut acc: [__m512; 8] = core::array::from_fn(|k| _mm512_loadu_ps(from.add(16 * k)));
+                            let x = b.x.add(q * b.stride);
+                            // The nonzero inputs (NaN counts, as in `compress`) of the block.
+                            let mut nz = 0u64;
+                            for v in 0..b.n.div_ceil(16) {
+                                let m = mask16(b.n - 16 * v);
+                                let xv = _mm512_maskz_loadu_ps(m, x.add(16 * v));
+                                nz |= (_mm512_mask_cmp_ps_mask::<_CMP_NEQ_UQ>(m, xv, zero) as u64) << (16 * v);
+                            }
+                            while nz != 0 {
+                                let j = nz.trailing_zeros() as usize;
+                                nz &= nz - 1;
+                                let xb = _mm512_set1_ps(*x.add(j));
+                                let r = b.rows.add(j * W);
+                                for (k, a) in acc.iter_mut().enumerate() {
+                                    *a = _mm512_fmadd_ps(xb, _mm512_loadu_ps(r.add(16 * k)), *a);
+                                }
+                            }
+                            for (k, a) in acc.iter().enumerate() {
+                                let v = if b.last { _mm512_max_ps(*a, zero) } else { *a };
+                                _mm512_storeu_ps(o.add(16 * k), v);
                             }
                         }
-                    }
+                    });
                 }
             }
 
@@ -763,6 +748,58 @@ unsafe fn sparse_pays<W>(l: &Dense<'_, W>) -> bool {
     }
     let at_most = if core::mem::size_of::<W>() == 4 { SPARSE_AT_MOST } else { SPARSE_AT_MOST_F16 };
     16 * _mm512_reduce_add_epi32(nonzero) as usize <= at_most * total
+}
+
+/// One block of a sparse packet kernel's walk: `n` (at most `SPARSE_BLOCK`) consecutive inputs of a
+/// segment, query `q`'s at `x + q * stride`, against their weight rows `rows` (`n × 128` f32).
+pub(super) struct SparseBlock {
+    pub(super) x: *const f32,
+    pub(super) stride: usize,
+    pub(super) rows: *const f32,
+    pub(super) n: usize,
+    /// The layer's first block: the queries start from `init`, later ones from their partial sums.
+    pub(super) first: bool,
+    /// The layer's last block: the ReLU follows.
+    pub(super) last: bool,
+}
+
+/// The walk of the sparse packet kernels (both levels): each segment's rows in blocks of
+/// `SPARSE_BLOCK`, in order, as f32 rows from `widen(rows, n)` (in place, or widened into the kernel's
+/// copy), handed to `block`, which runs the packet's queries over them. A layer without inputs gets
+/// the ReLU of `init` here (as `max(v, 0)`: +0 for either zero and for NaN).
+///
+/// # Safety
+/// The layer passed `check(PACKET, .., os)` for `out` with `l.n_out == 128`; `widen` returns
+/// `n` readable rows of 128 f32.
+#[inline(always)]
+pub(super) unsafe fn sparse_blocks<W>(
+    l: &Dense<'_, W>,
+    out: *mut f32,
+    os: usize,
+    mut widen: impl FnMut(*const W, usize) -> *const f32,
+    mut block: impl FnMut(&SparseBlock),
+) {
+    let mut first = true;
+    for (si, s) in l.segs[..l.n_segs].iter().enumerate() {
+        let mut i0 = 0;
+        while i0 < s.n {
+            let n = (s.n - i0).min(SPARSE_BLOCK);
+            // SAFETY: inputs and rows `i0 .. i0 + n` lie in the checked segment.
+            let (x, rows) = unsafe { (s.x.as_ptr().add(i0), s.rows.as_ptr().add(i0 * l.n_out)) };
+            let last = si + 1 == l.n_segs && i0 + n == s.n;
+            block(&SparseBlock { x, stride: s.stride, rows: widen(rows, n), n, first, last });
+            first = false;
+            i0 += n;
+        }
+    }
+    if first {
+        for q in 0..PACKET {
+            for (o, &v) in l.init[..l.n_out].iter().enumerate() {
+                // SAFETY: query `q`'s outputs lie at `out + q os ..+ n_out` (`check`).
+                unsafe { *out.add(q * os + o) = if v > 0.0 { v } else { 0.0 } };
+            }
+        }
+    }
 }
 
 /// [`sparse_pays`] with 8-lane vectors (AVX2), the same thresholds.
@@ -1173,65 +1210,51 @@ macro_rules! avx2 {
                 let mut wide = [core::mem::MaybeUninit::<__m256>::uninit(); SPARSE_BLOCK * W / 8];
                 let wide = wide.as_mut_ptr().cast::<f32>();
                 let zero = _mm256_setzero_ps();
-                let mut first = true;
+                let widen = |rows: *const $w, nb: usize| -> *const f32 {
+                    if core::mem::size_of::<$w>() == 4 {
+                        return rows.cast();
+                    }
+                    // SAFETY: `nb` rows of 128 from `rows` (`sparse_blocks`); `wide` holds a block.
+                    unsafe {
+                        for v in 0..nb * W / 8 {
+                            _mm256_storeu_ps(wide.add(8 * v), load8!($tag, rows.add(8 * v), 8, false));
+                        }
+                    }
+                    wide
+                };
                 // SAFETY (whole body): as in the AVX-512 `packet_sparse` (inputs read by `maskload`
                 // under `lane_mask`, which zeroes the lanes past the block).
                 unsafe {
-                    for (si, s) in l.segs[..l.n_segs].iter().enumerate() {
-                        let mut i0 = 0;
-                        while i0 < s.n {
-                            let nb = (s.n - i0).min(SPARSE_BLOCK);
-                            let last = si + 1 == l.n_segs && i0 + nb == s.n;
-                            let rows = s.rows.as_ptr().add(i0 * W);
-                            let block: *const f32 = if core::mem::size_of::<$w>() == 4 {
-                                rows.cast()
-                            } else {
-                                for v in 0..nb * W / 8 {
-                                    _mm256_storeu_ps(wide.add(8 * v), load8!($tag, rows.add(8 * v), 8, false));
-                                }
-                                wide
-                            };
-                            for q in 0..PACKET {
-                                let o = out.add(q * os);
-                                let x = s.x.as_ptr().add(q * s.stride + i0);
-                                let mut nz = 0u64;
-                                for v in 0..nb.div_ceil(8) {
-                                    let xv = _mm256_maskload_ps(x.add(8 * v), lane_mask(nb - 8 * v));
-                                    let c = _mm256_cmp_ps::<_CMP_NEQ_UQ>(xv, zero);
-                                    nz |= (_mm256_movemask_ps(c) as u32 as u64) << (8 * v);
-                                }
-                                for h in [0, 64] {
-                                    let from = if first { l.init.as_ptr() } else { o.cast_const() }.add(h);
-                                    let mut acc: [__m256; 8] = core::array::from_fn(|k| _mm256_loadu_ps(from.add(8 * k)));
-                                    let mut m = nz;
-                                    while m != 0 {
-                                        let j = m.trailing_zeros() as usize;
-                                        m &= m - 1;
-                                        let xb = _mm256_set1_ps(*x.add(j));
-                                        let r = block.add(j * W + h);
-                                        for (k, a) in acc.iter_mut().enumerate() {
-                                            *a = _mm256_fmadd_ps(xb, _mm256_loadu_ps(r.add(8 * k)), *a);
-                                        }
-                                    }
-                                    for (k, a) in acc.iter().enumerate() {
-                                        let v = if last { _mm256_max_ps(*a, zero) } else { *a };
-                                        _mm256_storeu_ps(o.add(h + 8 * k), v);
-                                    }
-                                }
-                            }
-                            first = false;
-                            i0 += nb;
-                        }
-                    }
-                    if first {
-                        // No inputs at all: the ReLU of `init`.
+                    sparse_blocks(l, out, os, widen, |b| {
                         for q in 0..PACKET {
-                            for k in 0..W / 8 {
-                                let v = _mm256_loadu_ps(l.init.as_ptr().add(8 * k));
-                                _mm256_storeu_ps(out.add(q * os + 8 * k), _mm256_max_ps(v, zero));
+                            let o = out.add(q * os);
+                            let x = b.x.add(q * b.stride);
+                            let mut nz = 0u64;
+                            for v in 0..b.n.div_ceil(8) {
+                                let xv = _mm256_maskload_ps(x.add(8 * v), lane_mask(b.n - 8 * v));
+                                let c = _mm256_cmp_ps::<_CMP_NEQ_UQ>(xv, zero);
+                                nz |= (_mm256_movemask_ps(c) as u32 as u64) << (8 * v);
+                            }
+                            for h in [0, 64] {
+                                let from = if b.first { l.init.as_ptr() } else { o.cast_const() }.add(h);
+                                let mut acc: [__m256; 8] = core::array::from_fn(|k| _mm256_loadu_ps(from.add(8 * k)));
+                                let mut m = nz;
+                                while m != 0 {
+                                    let j = m.trailing_zeros() as usize;
+                                    m &= m - 1;
+                                    let xb = _mm256_set1_ps(*x.add(j));
+                                    let r = b.rows.add(j * W + h);
+                                    for (k, a) in acc.iter_mut().enumerate() {
+                                        *a = _mm256_fmadd_ps(xb, _mm256_loadu_ps(r.add(8 * k)), *a);
+                                    }
+                                }
+                                for (k, a) in acc.iter().enumerate() {
+                                    let v = if b.last { _mm256_max_ps(*a, zero) } else { *a };
+                                    _mm256_storeu_ps(o.add(h + 8 * k), v);
+                                }
                             }
                         }
-                    }
+                    });
                 }
             }
 
