@@ -780,13 +780,15 @@ pub(super) unsafe fn sparse_blocks<W>(
     mut block: impl FnMut(&SparseBlock),
 ) {
     let mut first = true;
+    // The ReLU follows the last block of the last segment that has inputs (a skip layer's tail may be empty).
+    let last_seg = l.segs[..l.n_segs].iter().rposition(|s| s.n > 0);
     for (si, s) in l.segs[..l.n_segs].iter().enumerate() {
         let mut i0 = 0;
         while i0 < s.n {
             let n = (s.n - i0).min(SPARSE_BLOCK);
             // SAFETY: inputs and rows `i0 .. i0 + n` lie in the checked segment.
             let (x, rows) = unsafe { (s.x.as_ptr().add(i0), s.rows.as_ptr().add(i0 * l.n_out)) };
-            let last = si + 1 == l.n_segs && i0 + n == s.n;
+            let last = Some(si) == last_seg && i0 + n == s.n;
             block(&SparseBlock { x, stride: s.stride, rows: widen(rows, n), n, first, last });
             first = false;
             i0 += n;
