@@ -18,8 +18,9 @@
 //! So at one level, the single and the packet path give the same bits for the same query, and a query's
 //! result does not depend on its neighbours in the packet — which keeps exact reciprocity bitwise in
 //! batches. The one-query kernels, and the packet kernels on layers whose inputs are mostly zeros,
-//! skip rows whose input is exactly zero (half the activations after a ReLU); `fma(0, w, acc) = acc` for finite weights, except that `-0 + 0 = +0`, and the sign of a zero
-//! pre-activation is erased by the ReLU (`max(acc, 0)` returns `+0`) and by every output map.
+//! skip rows whose input is exactly zero (half the activations after a ReLU); `fma(0, w, acc) = acc`
+//! for finite weights, except that `-0 + 0 = +0`, and the sign of a zero pre-activation is erased by
+//! the ReLU (`max(acc, 0)` returns `+0`) and by every output map.
 //! Levels differ from each other by rounding only (FMA versus multiply-then-add).
 //!
 //! # Half-precision arithmetic
@@ -875,7 +876,7 @@ pub(crate) mod tests {
             let os = 133;
             let (mut got, mut want) = ([f32::NAN; PACKET * 133], [f32::NAN; PACKET * 133]);
             layer.check(PACKET, got.len(), os);
-            // SAFETY: the level is AVX-512 (checked by the caller); the layer passed `check`.
+            // SAFETY: the CPU has the kernels' level (checked by the caller); the layer passed `check`.
             unsafe {
                 sparse(&layer, got.as_mut_ptr(), os);
                 dense(&layer, want.as_mut_ptr(), os);

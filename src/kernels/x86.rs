@@ -746,21 +746,28 @@ unsafe fn sparse_pays<W>(l: &Dense<'_, W>) -> bool {
         }
         total += PACKET * s.n;
     }
+    sparse_enough::<W>(_mm512_reduce_add_epi32(nonzero) as usize, total)
+}
+
+/// The decision of [`sparse_pays`] and [`sparse_pays_avx2`] from the count of nonzero inputs among
+/// `total`: at most `SPARSE_AT_MOST` sixteenths (f16 weights: `SPARSE_AT_MOST_F16`).
+#[inline]
+fn sparse_enough<W>(nonzero: usize, total: usize) -> bool {
     let at_most = if core::mem::size_of::<W>() == 4 { SPARSE_AT_MOST } else { SPARSE_AT_MOST_F16 };
-    16 * _mm512_reduce_add_epi32(nonzero) as usize <= at_most * total
+    16 * nonzero <= at_most * total
 }
 
 /// One block of a sparse packet kernel's walk: `n` (at most `SPARSE_BLOCK`) consecutive inputs of a
 /// segment, query `q`'s at `x + q * stride`, against their weight rows `rows` (`n × 128` f32).
-pub(super) struct SparseBlock {
-    pub(super) x: *const f32,
-    pub(super) stride: usize,
-    pub(super) rows: *const f32,
-    pub(super) n: usize,
+struct SparseBlock {
+    x: *const f32,
+    stride: usize,
+    rows: *const f32,
+    n: usize,
     /// The layer's first block: the queries start from `init`, later ones from their partial sums.
-    pub(super) first: bool,
+    first: bool,
     /// The layer's last block: the ReLU follows.
-    pub(super) last: bool,
+    last: bool,
 }
 
 /// The walk of the sparse packet kernels (both levels): each segment's rows in blocks of
@@ -772,7 +779,7 @@ pub(super) struct SparseBlock {
 /// The layer passed `check(PACKET, .., os)` for `out` with `l.n_out == 128`; `widen` returns
 /// `n` readable rows of 128 f32.
 #[inline(always)]
-pub(super) unsafe fn sparse_blocks<W>(
+unsafe fn sparse_blocks<W>(
     l: &Dense<'_, W>,
     out: *mut f32,
     os: usize,
@@ -804,7 +811,7 @@ pub(super) unsafe fn sparse_blocks<W>(
     }
 }
 
-/// [`sparse_pays`] with 8-lane vectors (AVX2), the same thresholds.
+/// [`sparse_pays`] with 8-lane vectors (AVX2).
 ///
 /// # Safety
 /// The layer passed `check(PACKET, ..)`.
@@ -830,8 +837,7 @@ unsafe fn sparse_pays_avx2<W>(l: &Dense<'_, W>) -> bool {
     let mut lanes = [0i32; 8];
     // SAFETY: 8 lanes to 8 values.
     unsafe { _mm256_storeu_si256(lanes.as_mut_ptr().cast(), nonzero) };
-    let at_most = if core::mem::size_of::<W>() == 4 { SPARSE_AT_MOST } else { SPARSE_AT_MOST_F16 };
-    16 * lanes.iter().sum::<i32>() as usize <= at_most * total
+    sparse_enough::<W>(lanes.iter().sum::<i32>() as usize, total)
 }
 
 /// Inputs per pass of the AVX-512 packet kernel: `XT_CAP × PACKET` f32 (16 KB) on the stack, room
