@@ -853,10 +853,11 @@ pub(crate) mod tests {
 
     /// A sparse packet kernel (each query's nonzero inputs, blocks of rows) against the dense one of
     /// its level and the f64 reference: the same bits for every query, over one, two and three blocks of rows,
-    /// a second segment (empty or not), inputs with no zeros, all zeros, NaN and -0, f32 and f16 weights.
+    /// a second segment (empty or not), inputs with no zeros, all zeros, NaN and -0, rows that one
+    /// query alone uses, f32 and f16 weights.
     #[cfg(target_arch = "x86_64")]
     fn check_sparse<W: crate::mlp::Weight>(w: &[W], sparse: unsafe fn(&Dense<'_, W>, *mut f32, usize), dense: unsafe fn(&Dense<'_, W>, *mut f32, usize)) {
-        for (case, &(n1, n2, zero_every)) in [(128, 0, 2), (128, 36, 2), (40, 0, 3), (150, 70, 2), (64, 1, 5), (0, 36, 2), (0, 0, 2), (100, 12, 1)].iter().enumerate() {
+        for (case, &(n1, n2, zero_every)) in [(128, 0, 2), (128, 36, 2), (40, 0, 3), (150, 70, 2), (64, 1, 5), (0, 36, 2), (0, 0, 2), (100, 12, 1), (128, 0, 1)].iter().enumerate() {
             let (mut x1, mut x2, init) = layer_inputs(128, n1);
             // Fewer zeros than `values` leaves where `zero_every` is 1 (then every input is zero).
             for (i, v) in x1.iter_mut().take(PACKET * LAYER_STRIDE).enumerate() {
@@ -866,6 +867,11 @@ pub(crate) mod tests {
             }
             if case == 3 {
                 (x1[5], x1[LAYER_STRIDE + 7], x2[2 * LAYER_STRIDE + 3]) = (f32::NAN, -0.0, -0.0);
+            }
+            if case == 8 {
+                // Rows that one query alone uses, in either block (f16 weights widen only the rows
+                // some query uses).
+                (x1[5 * LAYER_STRIDE + 3], x1[9 * LAYER_STRIDE + 100], x1[9 * LAYER_STRIDE + 127]) = (1.5, -2.0, 0.25);
             }
             let mut layer = test_layer(w, (128, n1, n2, true), &x1, &x2, &init);
             if case == 0 {

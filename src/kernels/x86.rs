@@ -609,8 +609,9 @@ macro_rules! avx512 {
             /// accumulators), one FMA per nonzero input in row order: the operations of the one-query
             /// kernels, here with the inputs' zeros skipped for every query (about half of them after
             /// a ReLU), so half the FMAs of `packet_dense`. The weights go in blocks of
-            /// `SPARSE_BLOCK` rows (f16 ones widened into an f32 block first), each used by all the
-            /// queries while it is in L1; a query's partial sums wait in its outputs between blocks.
+            /// `SPARSE_BLOCK` rows (of f16 ones, the rows some query uses widened into an f32 block
+            /// first), each used by all the queries while it is in L1; a query's partial sums wait
+            /// in its outputs between blocks.
             ///
             /// # Safety
             /// See the module docs (`check(PACKET, ..)`), with `l.n_out == 128`.
@@ -621,34 +622,46 @@ macro_rules! avx512 {
                 let wide = wide.as_mut_ptr().cast::<f32>();
                 let zero = _mm512_setzero_ps();
                 // f32 rows are used where they lie; f16 ones once widened (exact).
-                let widen = |rows: *const $w, nb: usize| -> *const f32 {
+                let widen = |rows: *const $w, used: u64| -> *const f32 {
                     if core::mem::size_of::<$w>() == 4 {
                         return rows.cast();
                     }
-                    // SAFETY: `nb` rows of 128 from `rows` (`sparse_blocks`); `wide` holds a block.
+                    // SAFETY: the rows `used` lie among the block's rows of 128 from `rows`
+                    // (`sparse_blocks`); `wide` holds a block.
                     unsafe {
-                        for v in 0..nb * W / 16 {
-                            _mm512_storeu_ps(wide.add(16 * v), load16!($tag, rows.add(16 * v), 0xffff, false));
+                        let mut m = used;
+                        while m != 0 {
+                            let j = m.trailing_zeros() as usize;
+                            m &= m - 1;
+                            for k in 0..W / 16 {
+                                _mm512_storeu_ps(wide.add(j * W + 16 * k), load16!($tag, rows.add(j * W + 16 * k), 0xffff, false));
+                            }
                         }
                     }
                     wide
                 };
+                let mask = |x: *const f32, n: usize| -> u64 {
+                    let mut nz = 0u64;
+                    // SAFETY: `n` inputs from `x` (`sparse_blocks`), the lanes past them masked.
+                    unsafe {
+                        for v in 0..n.div_ceil(16) {
+                            let m = mask16(n - 16 * v);
+                            let xv = _mm512_maskz_loadu_ps(m, x.add(16 * v));
+                            nz |= (_mm512_mask_cmp_ps_mask::<_CMP_NEQ_UQ>(m, xv, zero) as u64) << (16 * v);
+                        }
+                    }
+                    nz
+                };
                 // SAFETY (whole body): `sparse_blocks`'s contract; each query's inputs are read under
                 // `mask16` masks, its outputs lie at `out + q os ..+ 128` (`check`).
                 unsafe {
-                    sparse_blocks(l, out, os, widen, |b| {
+                    sparse_blocks(l, out, os, mask, widen, |b| {
                         for q in 0..PACKET {
                             let o = out.add(q * os);
                             let from = if b.first { l.init.as_ptr() } else { o.cast_const() };
                             let mut acc: [__m512; 8] = core::array::from_fn(|k| _mm512_loadu_ps(from.add(16 * k)));
                             let x = b.x.add(q * b.stride);
-                            // The nonzero inputs (NaN counts, as in `compress`) of the block.
-                            let mut nz = 0u64;
-                            for v in 0..b.n.div_ceil(16) {
-                                let m = mask16(b.n - 16 * v);
-                                let xv = _mm512_maskz_loadu_ps(m, x.add(16 * v));
-                                nz |= (_mm512_mask_cmp_ps_mask::<_CMP_NEQ_UQ>(m, xv, zero) as u64) << (16 * v);
-                            }
+                            let mut nz = b.nz[q];
                             while nz != 0 {
                                 let j = nz.trailing_zeros() as usize;
                                 nz &= nz - 1;
@@ -721,8 +734,7 @@ macro_rules! avx512 {
 }
 
 /// Whether a packet layer's inputs are sparse enough for the sparse kernel: at most `SPARSE_AT_MOST`
-/// (f16 weights: `SPARSE_AT_MOST_F16`) sixteenths of them nonzero (NaN counts), over all segments
-/// and queries.
+/// sixteenths of them nonzero (NaN counts), over all segments and queries.
 ///
 /// # Safety
 /// The layer passed `check(PACKET, ..)`.
@@ -746,44 +758,51 @@ unsafe fn sparse_pays<W>(l: &Dense<'_, W>) -> bool {
         }
         total += PACKET * s.n;
     }
-    sparse_enough::<W>(_mm512_reduce_add_epi32(nonzero) as usize, total)
+    sparse_enough(_mm512_reduce_add_epi32(nonzero) as usize, total)
 }
 
 /// The decision of [`sparse_pays`] and [`sparse_pays_avx2`] from the count of nonzero inputs among
-/// `total`: at most `SPARSE_AT_MOST` sixteenths (f16 weights: `SPARSE_AT_MOST_F16`).
+/// `total`: at most `SPARSE_AT_MOST` sixteenths.
 #[inline]
-fn sparse_enough<W>(nonzero: usize, total: usize) -> bool {
-    let at_most = if core::mem::size_of::<W>() == 4 { SPARSE_AT_MOST } else { SPARSE_AT_MOST_F16 };
-    16 * nonzero <= at_most * total
+fn sparse_enough(nonzero: usize, total: usize) -> bool {
+    16 * nonzero <= SPARSE_AT_MOST * total
 }
 
-/// One block of a sparse packet kernel's walk: `n` (at most `SPARSE_BLOCK`) consecutive inputs of a
-/// segment, query `q`'s at `x + q * stride`, against their weight rows `rows` (`n × 128` f32).
+/// One block of a sparse packet kernel's walk: up to `SPARSE_BLOCK` consecutive inputs of a segment,
+/// query `q`'s at `x + q * stride`, against their weight rows `rows` (128 f32 each; of f16 weights
+/// only the rows some query's `nz` lists are widened).
 struct SparseBlock {
     x: *const f32,
     stride: usize,
     rows: *const f32,
-    n: usize,
     /// The layer's first block: the queries start from `init`, later ones from their partial sums.
     first: bool,
     /// The layer's last block: the ReLU follows.
     last: bool,
+    /// Each query's nonzero inputs of the block (bit `j` for input `j`; NaN counts, as in `compress`).
+    nz: [u64; PACKET],
 }
 
 /// The walk of the sparse packet kernels (both levels): each segment's rows in blocks of
-/// `SPARSE_BLOCK`, in order, as f32 rows from `widen(rows, n)` (in place, or widened into the kernel's
-/// copy), handed to `block`, which runs the packet's queries over them. A layer without inputs gets
-/// the ReLU of `init` here (as `max(v, 0)`: +0 for either zero and for NaN).
+/// `SPARSE_BLOCK`, in order; per block each query's nonzero inputs (`mask(x, n)`, bit `j` for input
+/// `j` of the `n` from `x`), then the f32 rows from `widen(rows, used)` (in place, or the rows `used`
+/// by some query widened into the kernel's copy), handed to `block`, which runs the packet's queries
+/// over them. A layer without inputs gets the ReLU of `init` here (as `max(v, 0)`: +0 for either zero
+/// and for NaN).
+///
+/// Widening only the rows some query uses saved 3–7% of an f16 batch (bench models and study fits:
+/// the 16 queries of a packet share a point, and some units are off for all of them).
 ///
 /// # Safety
-/// The layer passed `check(PACKET, .., os)` for `out` with `l.n_out == 128`; `widen` returns
-/// `n` readable rows of 128 f32.
+/// The layer passed `check(PACKET, .., os)` for `out` with `l.n_out == 128`; `mask` reads `n` inputs;
+/// `widen` returns rows of 128 f32, readable at least at the rows `used` lists.
 #[inline(always)]
 unsafe fn sparse_blocks<W>(
     l: &Dense<'_, W>,
     out: *mut f32,
     os: usize,
-    mut widen: impl FnMut(*const W, usize) -> *const f32,
+    mask: impl Fn(*const f32, usize) -> u64,
+    mut widen: impl FnMut(*const W, u64) -> *const f32,
     mut block: impl FnMut(&SparseBlock),
 ) {
     let mut first = true;
@@ -796,7 +815,10 @@ unsafe fn sparse_blocks<W>(
             // SAFETY: inputs and rows `i0 .. i0 + n` lie in the checked segment.
             let (x, rows) = unsafe { (s.x.as_ptr().add(i0), s.rows.as_ptr().add(i0 * l.n_out)) };
             let last = Some(si) == last_seg && i0 + n == s.n;
-            block(&SparseBlock { x, stride: s.stride, rows: widen(rows, n), n, first, last });
+            // SAFETY: query `q`'s `n` inputs from `x + q stride` lie in the checked segment.
+            let nz: [u64; PACKET] = core::array::from_fn(|q| mask(unsafe { x.add(q * s.stride) }, n));
+            let rows = widen(rows, nz.iter().fold(0, |u, m| u | m));
+            block(&SparseBlock { x, stride: s.stride, rows, first, last, nz });
             first = false;
             i0 += n;
         }
@@ -837,7 +859,7 @@ unsafe fn sparse_pays_avx2<W>(l: &Dense<'_, W>) -> bool {
     let mut lanes = [0i32; 8];
     // SAFETY: 8 lanes to 8 values.
     unsafe { _mm256_storeu_si256(lanes.as_mut_ptr().cast(), nonzero) };
-    sparse_enough::<W>(lanes.iter().sum::<i32>() as usize, total)
+    sparse_enough(lanes.iter().sum::<i32>() as usize, total)
 }
 
 /// Inputs per pass of the AVX-512 packet kernel: `XT_CAP × PACKET` f32 (16 KB) on the stack, room
@@ -857,12 +879,11 @@ const SPARSE_BLOCK: usize = 64;
 /// sparse. An FMA of the sparse kernel costs ~1.3× one of the dense kernel on Zen 4 (in the probe
 /// above, 0.99 µs for 47% of the FMAs against 1.62 µs: each needs its own 64-byte weight load, and
 /// the branch that ends each query's list mispredicts), so it pays below ~75% nonzero.
+///
+/// The same for f16 weights, whose used rows the sparse kernel widens block by block for the packet
+/// (`vcvtph2ps`, two cycles a vector on Zen 4: ~12% of a batched query): with only the used rows
+/// widened, 11 took 0.94–1.00× the time of 9 on the study's fits and bench models, 12 the same as 11.
 const SPARSE_AT_MOST: usize = 11;
-
-/// [`SPARSE_AT_MOST`] for f16 weights, which the sparse kernel widens block by block for the packet
-/// (`vcvtph2ps`, two cycles a vector on Zen 4: ~12% of a batched query). On the study's fits (layers
-/// 37–69% nonzero) batches took 0.95–1.02× the dense time with 9, 0.98–1.10× with 11.
-const SPARSE_AT_MOST_F16: usize = 9;
 
 /// Consecutive inputs of one segment, transposed: rows `rows[i * n_out..]` for the inputs at
 /// `xt[(start + i) * PACKET..][..PACKET]`, `i < n`.
@@ -1218,31 +1239,45 @@ macro_rules! avx2 {
                 let mut wide = [core::mem::MaybeUninit::<__m256>::uninit(); SPARSE_BLOCK * W / 8];
                 let wide = wide.as_mut_ptr().cast::<f32>();
                 let zero = _mm256_setzero_ps();
-                let widen = |rows: *const $w, nb: usize| -> *const f32 {
+                let widen = |rows: *const $w, used: u64| -> *const f32 {
                     if core::mem::size_of::<$w>() == 4 {
                         return rows.cast();
                     }
-                    // SAFETY: `nb` rows of 128 from `rows` (`sparse_blocks`); `wide` holds a block.
+                    // SAFETY: the rows `used` lie among the block's rows of 128 from `rows`
+                    // (`sparse_blocks`); `wide` holds a block.
                     unsafe {
-                        for v in 0..nb * W / 8 {
-                            _mm256_storeu_ps(wide.add(8 * v), load8!($tag, rows.add(8 * v), 8, false));
+                        let mut m = used;
+                        while m != 0 {
+                            let j = m.trailing_zeros() as usize;
+                            m &= m - 1;
+                            for k in 0..W / 8 {
+                                _mm256_storeu_ps(wide.add(j * W + 8 * k), load8!($tag, rows.add(j * W + 8 * k), 8, false));
+                            }
                         }
                     }
                     wide
                 };
+                let mask = |x: *const f32, n: usize| -> u64 {
+                    let mut nz = 0u64;
+                    // SAFETY: `n` inputs from `x` (`sparse_blocks`), read by `maskload` under
+                    // `lane_mask`, which zeroes the lanes past them.
+                    unsafe {
+                        for v in 0..n.div_ceil(8) {
+                            let xv = _mm256_maskload_ps(x.add(8 * v), lane_mask(n - 8 * v));
+                            let c = _mm256_cmp_ps::<_CMP_NEQ_UQ>(xv, zero);
+                            nz |= (_mm256_movemask_ps(c) as u32 as u64) << (8 * v);
+                        }
+                    }
+                    nz
+                };
                 // SAFETY (whole body): as in the AVX-512 `packet_sparse` (inputs read by `maskload`
                 // under `lane_mask`, which zeroes the lanes past the block).
                 unsafe {
-                    sparse_blocks(l, out, os, widen, |b| {
+                    sparse_blocks(l, out, os, mask, widen, |b| {
                         for q in 0..PACKET {
                             let o = out.add(q * os);
                             let x = b.x.add(q * b.stride);
-                            let mut nz = 0u64;
-                            for v in 0..b.n.div_ceil(8) {
-                                let xv = _mm256_maskload_ps(x.add(8 * v), lane_mask(b.n - 8 * v));
-                                let c = _mm256_cmp_ps::<_CMP_NEQ_UQ>(xv, zero);
-                                nz |= (_mm256_movemask_ps(c) as u32 as u64) << (8 * v);
-                            }
+                            let nz = b.nz[q];
                             for h in [0, 64] {
                                 let from = if b.first { l.init.as_ptr() } else { o.cast_const() }.add(h);
                                 let mut acc: [__m256; 8] = core::array::from_fn(|k| _mm256_loadu_ps(from.add(8 * k)));
