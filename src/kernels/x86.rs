@@ -618,27 +618,14 @@ macro_rules! avx512 {
             #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
             pub(in crate::kernels) unsafe fn packet_sparse(l: &Dense<'_, $w>, out: *mut f32, os: usize) {
                 const W: usize = 128;
-                let mut wide = [core::mem::MaybeUninit::<__m512>::uninit(); SPARSE_BLOCK * W / 16];
-                let wide = wide.as_mut_ptr().cast::<f32>();
                 let zero = _mm512_setzero_ps();
-                // f32 rows are used where they lie; f16 ones once widened (exact).
-                let widen = |rows: *const $w, used: u64| -> *const f32 {
-                    if core::mem::size_of::<$w>() == 4 {
-                        return rows.cast();
-                    }
-                    // SAFETY: the rows `used` lie among the block's rows of 128 from `rows`
-                    // (`sparse_blocks`); `wide` holds a block.
+                let widen = |row: *const $w, to: *mut f32| {
+                    // SAFETY: a row of 128 from `row` to `to` (`sparse_blocks`).
                     unsafe {
-                        let mut m = used;
-                        while m != 0 {
-                            let j = m.trailing_zeros() as usize;
-                            m &= m - 1;
-                            for k in 0..W / 16 {
-                                _mm512_storeu_ps(wide.add(j * W + 16 * k), load16!($tag, rows.add(j * W + 16 * k), 0xffff, false));
-                            }
+                        for k in 0..W / 16 {
+                            _mm512_storeu_ps(to.add(16 * k), load16!($tag, row.add(16 * k), 0xffff, false));
                         }
                     }
-                    wide
                 };
                 let mask = |x: *const f32, n: usize| -> u64 {
                     let mut nz = 0u64;
@@ -785,26 +772,30 @@ struct SparseBlock {
 
 /// The walk of the sparse packet kernels (both levels): each segment's rows in blocks of
 /// `SPARSE_BLOCK`, in order; per block each query's nonzero inputs (`mask(x, n)`, bit `j` for input
-/// `j` of the `n` from `x`), then the f32 rows from `widen(rows, used)` (in place, or the rows `used`
-/// by some query widened into the kernel's copy), handed to `block`, which runs the packet's queries
-/// over them. A layer without inputs gets the ReLU of `init` here (as `max(v, 0)`: +0 for either zero
-/// and for NaN).
+/// `j` of the `n` from `x`), then the block's rows as f32 (f32 weights where they lie; of f16 ones the
+/// rows some query uses, each widened by `widen(row, to)` into a copy), handed to `block`, which runs
+/// the packet's queries over them. A layer without inputs gets the ReLU of `init` here (as
+/// `max(v, 0)`: +0 for either zero and for NaN).
 ///
 /// Widening only the rows some query uses saved 3–7% of an f16 batch (bench models and study fits:
 /// the 16 queries of a packet share a point, and some units are off for all of them).
 ///
 /// # Safety
 /// The layer passed `check(PACKET, .., os)` for `out` with `l.n_out == 128`; `mask` reads `n` inputs;
-/// `widen` returns rows of 128 f32, readable at least at the rows `used` lists.
+/// `widen` converts 128 weights (exactly).
 #[inline(always)]
 unsafe fn sparse_blocks<W>(
     l: &Dense<'_, W>,
     out: *mut f32,
     os: usize,
     mask: impl Fn(*const f32, usize) -> u64,
-    mut widen: impl FnMut(*const W, u64) -> *const f32,
+    widen: impl Fn(*const W, *mut f32),
     mut block: impl FnMut(&SparseBlock),
 ) {
+    #[repr(align(64))]
+    struct Wide([core::mem::MaybeUninit<f32>; SPARSE_BLOCK * 128]);
+    let mut wide = Wide([core::mem::MaybeUninit::uninit(); SPARSE_BLOCK * 128]);
+    let wide = wide.0.as_mut_ptr().cast::<f32>();
     let mut first = true;
     // The ReLU follows the last block of the last segment that has inputs (a skip layer's tail may be empty).
     let last_seg = l.segs[..l.n_segs].iter().rposition(|s| s.n > 0);
@@ -817,7 +808,18 @@ unsafe fn sparse_blocks<W>(
             let last = Some(si) == last_seg && i0 + n == s.n;
             // SAFETY: query `q`'s `n` inputs from `x + q stride` lie in the checked segment.
             let nz: [u64; PACKET] = core::array::from_fn(|q| mask(unsafe { x.add(q * s.stride) }, n));
-            let rows = widen(rows, nz.iter().fold(0, |u, m| u | m));
+            let rows = if core::mem::size_of::<W>() == 4 {
+                rows.cast::<f32>()
+            } else {
+                let mut used = nz.iter().fold(0, |u, m| u | m);
+                while used != 0 {
+                    let j = used.trailing_zeros() as usize;
+                    used &= used - 1;
+                    // SAFETY: row `j < n` of the block, and of the copy (`SPARSE_BLOCK` rows).
+                    unsafe { widen(rows.add(j * 128), wide.add(j * 128)) };
+                }
+                wide.cast_const()
+            };
             block(&SparseBlock { x, stride: s.stride, rows, first, last, nz });
             first = false;
             i0 += n;
@@ -1236,26 +1238,14 @@ macro_rules! avx2 {
             #[target_feature(enable = "avx2,fma,f16c")]
             pub(in crate::kernels) unsafe fn packet_sparse(l: &Dense<'_, $w>, out: *mut f32, os: usize) {
                 const W: usize = 128;
-                let mut wide = [core::mem::MaybeUninit::<__m256>::uninit(); SPARSE_BLOCK * W / 8];
-                let wide = wide.as_mut_ptr().cast::<f32>();
                 let zero = _mm256_setzero_ps();
-                let widen = |rows: *const $w, used: u64| -> *const f32 {
-                    if core::mem::size_of::<$w>() == 4 {
-                        return rows.cast();
-                    }
-                    // SAFETY: the rows `used` lie among the block's rows of 128 from `rows`
-                    // (`sparse_blocks`); `wide` holds a block.
+                let widen = |row: *const $w, to: *mut f32| {
+                    // SAFETY: a row of 128 from `row` to `to` (`sparse_blocks`).
                     unsafe {
-                        let mut m = used;
-                        while m != 0 {
-                            let j = m.trailing_zeros() as usize;
-                            m &= m - 1;
-                            for k in 0..W / 8 {
-                                _mm256_storeu_ps(wide.add(j * W + 8 * k), load8!($tag, rows.add(j * W + 8 * k), 8, false));
-                            }
+                        for k in 0..W / 8 {
+                            _mm256_storeu_ps(to.add(8 * k), load8!($tag, row.add(8 * k), 8, false));
                         }
                     }
-                    wide
                 };
                 let mask = |x: *const f32, n: usize| -> u64 {
                     let mut nz = 0u64;
