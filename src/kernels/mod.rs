@@ -84,7 +84,7 @@ pub enum Level {
     Portable,
     /// x86-64 AVX2 + FMA + F16C, 8 lanes.
     Avx2,
-    /// x86-64 AVX-512 (F, BW, VL) + FMA + F16C, 16 lanes.
+    /// x86-64 AVX-512 (F, BW, VL) + FMA + F16C + POPCNT, 16 lanes.
     Avx512,
 }
 
@@ -155,6 +155,7 @@ fn detect() -> Level {
         && std::is_x86_feature_detected!("avx512f")
         && std::is_x86_feature_detected!("avx512bw")
         && std::is_x86_feature_detected!("avx512vl")
+        && std::is_x86_feature_detected!("popcnt")
     {
         Level::Avx512
     } else if base {
@@ -172,7 +173,8 @@ fn detect() -> Level {
         target_feature = "avx512vl",
         target_feature = "avx2",
         target_feature = "fma",
-        target_feature = "f16c"
+        target_feature = "f16c",
+        target_feature = "popcnt"
     )) {
         Level::Avx512
     } else if cfg!(all(target_feature = "avx2", target_feature = "fma", target_feature = "f16c")) {
@@ -854,10 +856,11 @@ pub(crate) mod tests {
     /// A sparse packet kernel (each query's nonzero inputs, blocks of rows) against the dense one of
     /// its level and the f64 reference: the same bits for every query, over one, two and three blocks of rows,
     /// a second segment (empty or not), inputs with no zeros, all zeros, NaN and -0, rows that one
-    /// query alone uses, f32 and f16 weights.
+    /// query alone uses, pairs of queries walked together with rows only one of them uses, f32 and
+    /// f16 weights.
     #[cfg(target_arch = "x86_64")]
     fn check_sparse<W: crate::mlp::Weight>(w: &[W], sparse: unsafe fn(&Dense<'_, W>, *mut f32, usize), dense: unsafe fn(&Dense<'_, W>, *mut f32, usize)) {
-        for (case, &(n1, n2, zero_every)) in [(128, 0, 2), (128, 36, 2), (40, 0, 3), (150, 70, 2), (64, 1, 5), (0, 36, 2), (0, 0, 2), (100, 12, 1), (128, 0, 1)].iter().enumerate() {
+        for (case, &(n1, n2, zero_every)) in [(128, 0, 2), (128, 36, 2), (40, 0, 3), (150, 70, 2), (64, 1, 5), (0, 36, 2), (0, 0, 2), (100, 12, 1), (128, 0, 1), (128, 0, 2)].iter().enumerate() {
             let (mut x1, mut x2, init) = layer_inputs(128, n1);
             // Fewer zeros than `values` leaves where `zero_every` is 1 (then every input is zero).
             for (i, v) in x1.iter_mut().take(PACKET * LAYER_STRIDE).enumerate() {
@@ -867,6 +870,15 @@ pub(crate) mod tests {
             }
             if case == 3 {
                 (x1[5], x1[LAYER_STRIDE + 7], x2[2 * LAYER_STRIDE + 3]) = (f32::NAN, -0.0, -0.0);
+            }
+            if case == 9 {
+                // Neighbours that share 7/8 of their rows (walked as a pair, `sparse_pair`), each
+                // with rows the other does not use: odd queries lose every sixteenth nonzero input.
+                for q in (1..PACKET).step_by(2) {
+                    for j in (1..128).step_by(16) {
+                        x1[q * LAYER_STRIDE + j] = 0.0;
+                    }
+                }
             }
             if case == 8 {
                 // Rows that one query alone uses, in either block (f16 weights widen only the rows
