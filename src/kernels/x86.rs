@@ -965,7 +965,12 @@ const SPARSE_BLOCK: usize = 64;
 /// The same for f16 weights, whose used rows the sparse kernel widens block by block for the packet
 /// (`vcvtph2ps`, two cycles a vector on Zen 4: ~12% of a batched query): with only the used rows
 /// widened, 11 took 0.94–1.00× the time of 9 on the study's fits and bench models, 12 the same as 11.
-const SPARSE_AT_MOST: usize = 11;
+///
+/// With pairs of queries walking together (`SPARSE_PAIR_AT_MOST`) a sparse FMA costs about what a
+/// dense one does where the pairs form, and 12 took 0.94–0.95× the time of 11 on the study's torus
+/// Single MLP (a layer ~70% nonzero went sparse), the same on the other models and in f16; 13 and 14
+/// the same as 12.
+const SPARSE_AT_MOST: usize = 12;
 
 /// The share (numerator over 16) of two queries' rows, summed, at or below which the rows either uses
 /// are walked once for both (`pair_pays`). A query's walk alone costs ~9 cycles a row on Zen 4 (8
