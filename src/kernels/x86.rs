@@ -587,20 +587,40 @@ macro_rules! avx512 {
             }
 
             /// `PACKET` queries through the layer: 128-wide ReLU layers whose inputs are mostly zeros
-            /// (`sparse_pays`) by `packet_sparse`, the rest by `packet_dense`. Both
+            /// (`layer_masks`, `sparse_enough`) by `packet_sparse`, the rest by `packet_dense`. Both
             /// give each query the operations of the one-query kernels, so the choice never changes
             /// a bit.
             ///
             /// # Safety
             /// See the module docs (`check(PACKET, ..)`).
-            #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
+            #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c,popcnt")]
             pub(in crate::kernels) unsafe fn packet(l: &Dense<'_, $w>, out: *mut f32, os: usize) {
-                // SAFETY: the contract, passed on.
+                // SAFETY: the contract, passed on; the masks are the layer's.
                 unsafe {
-                    if l.n_out == 128 && l.relu && sparse_pays(l) {
-                        packet_sparse(l, out, os)
-                    } else {
-                        packet_dense(l, out, os)
+                    if l.n_out == 128 && l.relu {
+                        if let Some(m) = layer_masks(l, |x, n| nonzero_mask(x, n)) {
+                            if sparse_enough(m.nonzero, m.total) {
+                                return packet_sparse_with(l, out, os, &m);
+                            }
+                        }
+                    }
+                    packet_dense(l, out, os)
+                }
+            }
+
+            /// `packet_sparse_with` on the layer's masks, `packet_dense` where it has too many
+            /// inputs for them: the sparse kernel on its own, for the tests.
+            ///
+            /// # Safety
+            /// See the module docs (`check(PACKET, ..)`), with `l.n_out == 128`.
+            #[cfg(test)]
+            #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c,popcnt")]
+            pub(in crate::kernels) unsafe fn packet_sparse(l: &Dense<'_, $w>, out: *mut f32, os: usize) {
+                // SAFETY: the contract, passed on; the masks are the layer's.
+                unsafe {
+                    match layer_masks(l, |x, n| nonzero_mask(x, n)) {
+                        Some(m) => packet_sparse_with(l, out, os, &m),
+                        None => packet_dense(l, out, os),
                     }
                 }
             }
@@ -609,17 +629,18 @@ macro_rules! avx512 {
             /// accumulators), one FMA per nonzero input in row order: the operations of the one-query
             /// kernels, here with the inputs' zeros skipped for every query (about half of them after
             /// a ReLU), so half the FMAs of `packet_dense`. Two neighbouring queries that use nearly
-            /// the same rows walk them together (`pair_pays`, `sparse_pair`). The weights go in blocks of
-            /// `SPARSE_BLOCK` rows (of f16 ones, the rows some query uses widened into an f32 block
+            /// the same rows walk them together (`pair_pays`, `sparse_pair`). The weights go in blocks
+            /// of `SPARSE_BLOCK` rows (of f16 ones, the rows some query uses widened into an f32 block
             /// first), each used by all the queries while it is in L1; a query's partial sums wait
             /// in its outputs between blocks.
             ///
             /// # Safety
-            /// See the module docs (`check(PACKET, ..)`), with `l.n_out == 128`.
+            /// See the module docs (`check(PACKET, ..)`), with `l.n_out == 128`; `m` holds the
+            /// masks of `l`'s inputs (`layer_masks`).
+            #[inline]
             #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c,popcnt")]
-            pub(in crate::kernels) unsafe fn packet_sparse(l: &Dense<'_, $w>, out: *mut f32, os: usize) {
+            unsafe fn packet_sparse_with(l: &Dense<'_, $w>, out: *mut f32, os: usize, m: &LayerMasks) {
                 const W: usize = 128;
-                let zero = _mm512_setzero_ps();
                 let widen = |row: *const $w, to: *mut f32| {
                     // SAFETY: a row of 128 from `row` to `to` (`sparse_blocks`).
                     unsafe {
@@ -628,22 +649,10 @@ macro_rules! avx512 {
                         }
                     }
                 };
-                let mask = |x: *const f32, n: usize| -> u64 {
-                    let mut nz = 0u64;
-                    // SAFETY: `n` inputs from `x` (`sparse_blocks`), the lanes past them masked.
-                    unsafe {
-                        for v in 0..n.div_ceil(16) {
-                            let m = mask16(n - 16 * v);
-                            let xv = _mm512_maskz_loadu_ps(m, x.add(16 * v));
-                            nz |= (_mm512_mask_cmp_ps_mask::<_CMP_NEQ_UQ>(m, xv, zero) as u64) << (16 * v);
-                        }
-                    }
-                    nz
-                };
                 // SAFETY (whole body): `sparse_blocks`'s contract; each query's inputs are read under
                 // `mask16` masks, its outputs lie at `out + q os ..+ 128` (`check`).
                 unsafe {
-                    sparse_blocks(l, out, os, mask, widen, |b| {
+                    sparse_blocks(l, out, os, m, widen, |b| {
                         const { assert!(PACKET % 2 == 0) };
                         for q in (0..PACKET).step_by(2) {
                             if pair_pays(b.nz[q], b.nz[q + 1]) {
@@ -791,32 +800,85 @@ macro_rules! avx512 {
     };
 }
 
-/// Whether a packet layer's inputs are sparse enough for the sparse kernel: at most `SPARSE_AT_MOST`
-/// sixteenths of them nonzero (NaN counts), over all segments and queries.
+/// The nonzero inputs among the `n ≤ 64` from `x` (bit `j` for input `j`; NaN counts, as in
+/// `compress`).
 ///
 /// # Safety
-/// The layer passed `check(PACKET, ..)`.
+/// `n` inputs are readable from `x` (the lanes past them are masked).
 #[inline]
 #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
-unsafe fn sparse_pays<W>(l: &Dense<'_, W>) -> bool {
-    // Counted per lane (a mask's bit count would be a dozen instructions: `popcnt` is not among
-    // this level's features).
-    let (mut nonzero, mut total) = (_mm512_setzero_si512(), 0usize);
-    for s in &l.segs[..l.n_segs] {
-        for q in 0..PACKET {
-            let mut i = 0;
-            while i < s.n {
-                let m = mask16(s.n - i);
-                // SAFETY: inputs `i .. s.n` of query `q` lie in the checked segment; lanes past it are masked.
-                let v = unsafe { _mm512_maskz_loadu_ps(m, s.x.as_ptr().add(q * s.stride + i)) };
-                let nz = _mm512_mask_cmp_ps_mask::<_CMP_NEQ_UQ>(m, v, _mm512_setzero_ps());
-                nonzero = _mm512_mask_sub_epi32(nonzero, nz, nonzero, _mm512_set1_epi32(-1));
-                i += 16;
-            }
-        }
-        total += PACKET * s.n;
+unsafe fn nonzero_mask(x: *const f32, n: usize) -> u64 {
+    let mut nz = 0u64;
+    for v in 0..n.div_ceil(16) {
+        let m = mask16(n - 16 * v);
+        // SAFETY: see the contract.
+        let xv = unsafe { _mm512_maskz_loadu_ps(m, x.add(16 * v)) };
+        nz |= (_mm512_mask_cmp_ps_mask::<_CMP_NEQ_UQ>(m, xv, _mm512_setzero_ps()) as u64) << (16 * v);
     }
-    sparse_enough(_mm512_reduce_add_epi32(nonzero) as usize, total)
+    nz
+}
+
+/// [`nonzero_mask`] with 8-lane vectors (AVX2).
+///
+/// # Safety
+/// `n ≤ 64` inputs are readable from `x` (read by `maskload` under `lane_mask`, which leaves the
+/// lanes past them unread).
+#[inline]
+#[target_feature(enable = "avx2,fma,f16c")]
+unsafe fn nonzero_mask_avx2(x: *const f32, n: usize) -> u64 {
+    let mut nz = 0u64;
+    for v in 0..n.div_ceil(8) {
+        // SAFETY: see the contract.
+        let xv = unsafe { _mm256_maskload_ps(x.add(8 * v), lane_mask(n - 8 * v)) };
+        let c = _mm256_cmp_ps::<_CMP_NEQ_UQ>(xv, _mm256_setzero_ps());
+        nz |= (_mm256_movemask_ps(c) as u32 as u64) << (8 * v);
+    }
+    nz
+}
+
+/// Blocks of inputs a sparse packet layer may have: `SPARSE_MAX_BLOCKS × SPARSE_BLOCK` (512) inputs
+/// over its segments, far more than the paper-size networks' 128 + 36; a layer with more runs dense.
+const SPARSE_MAX_BLOCKS: usize = 8;
+
+/// Each query's nonzero inputs of a packet layer, block by block in the order of `sparse_blocks`,
+/// and their count: made once per layer, for the choice of kernel and for the sparse walk.
+struct LayerMasks {
+    nz: [[u64; PACKET]; SPARSE_MAX_BLOCKS],
+    /// Nonzero inputs over all blocks and queries, and inputs.
+    nonzero: usize,
+    total: usize,
+}
+
+/// The masks of `l`'s inputs (`mask(x, n)` for the `n` inputs of a block from `x`), or `None` where
+/// the layer has more than `SPARSE_MAX_BLOCKS` blocks. Taking the masks once both chooses the kernel
+/// and feeds the walk: a second pass over the inputs took 1.03–1.07× the time of an f32 batch (in one
+/// process, alternating).
+///
+/// # Safety
+/// The layer passed `check(PACKET, ..)`; `mask` reads `n ≤ SPARSE_BLOCK` inputs from `x`.
+#[inline(always)]
+unsafe fn layer_masks<W>(l: &Dense<'_, W>, mask: impl Fn(*const f32, usize) -> u64) -> Option<LayerMasks> {
+    let mut m = LayerMasks { nz: [[0; PACKET]; SPARSE_MAX_BLOCKS], nonzero: 0, total: 0 };
+    let mut b = 0;
+    for s in &l.segs[..l.n_segs] {
+        let mut i0 = 0;
+        while i0 < s.n {
+            if b == SPARSE_MAX_BLOCKS {
+                return None;
+            }
+            let n = (s.n - i0).min(SPARSE_BLOCK);
+            for q in 0..PACKET {
+                // SAFETY: inputs `i0 .. i0 + n` of query `q` lie in the checked segment.
+                let v = mask(unsafe { s.x.as_ptr().add(q * s.stride + i0) }, n);
+                m.nz[b][q] = v;
+                m.nonzero += v.count_ones() as usize;
+            }
+            m.total += PACKET * n;
+            b += 1;
+            i0 += n;
+        }
+    }
+    Some(m)
 }
 
 /// Whether two queries of a sparse packet block walk together (`sparse_pair`) rather than one after
@@ -828,8 +890,8 @@ fn pair_pays(na: u64, nb: u64) -> bool {
     16 * (na | nb).count_ones() <= SPARSE_PAIR_AT_MOST * (na.count_ones() + nb.count_ones())
 }
 
-/// The decision of [`sparse_pays`] and [`sparse_pays_avx2`] from the count of nonzero inputs among
-/// `total`: at most `SPARSE_AT_MOST` sixteenths.
+/// Whether a packet layer is sparse enough for the sparse kernel: at most `SPARSE_AT_MOST` sixteenths
+/// of its `total` inputs (over all segments and queries) `nonzero` (NaN counts).
 #[inline]
 fn sparse_enough(nonzero: usize, total: usize) -> bool {
     16 * nonzero <= SPARSE_AT_MOST * total
@@ -851,8 +913,8 @@ struct SparseBlock {
 }
 
 /// The walk of the sparse packet kernels (both levels): each segment's rows in blocks of
-/// `SPARSE_BLOCK`, in order; per block each query's nonzero inputs (`mask(x, n)`, bit `j` for input
-/// `j` of the `n` from `x`), then the block's rows as f32 (f32 weights where they lie; of f16 ones the
+/// `SPARSE_BLOCK`, in order, with each query's nonzero inputs in the block (from `masks`, the
+/// layer's, see `layer_masks`), then the block's rows as f32 (f32 weights where they lie; of f16 ones the
 /// rows some query uses, each widened by `widen(row, to)` into a copy), handed to `block`, which runs
 /// the packet's queries over them. A layer without inputs gets the ReLU of `init` here (as
 /// `max(v, 0)`: +0 for either zero and for NaN).
@@ -861,14 +923,14 @@ struct SparseBlock {
 /// the 16 queries of a packet share a point, and some units are off for all of them).
 ///
 /// # Safety
-/// The layer passed `check(PACKET, .., os)` for `out` with `l.n_out == 128`; `mask` reads `n` inputs;
-/// `widen` converts 128 weights (exactly).
+/// The layer passed `check(PACKET, .., os)` for `out` with `l.n_out == 128`; `masks` are its inputs'
+/// (`layer_masks`); `widen` converts 128 weights (exactly).
 #[inline(always)]
 unsafe fn sparse_blocks<W>(
     l: &Dense<'_, W>,
     out: *mut f32,
     os: usize,
-    mask: impl Fn(*const f32, usize) -> u64,
+    masks: &LayerMasks,
     widen: impl Fn(*const W, *mut f32),
     mut block: impl FnMut(&SparseBlock),
 ) {
@@ -876,7 +938,7 @@ unsafe fn sparse_blocks<W>(
     struct Wide([core::mem::MaybeUninit<f32>; SPARSE_BLOCK * 128]);
     let mut wide = Wide([core::mem::MaybeUninit::uninit(); SPARSE_BLOCK * 128]);
     let wide = wide.0.as_mut_ptr().cast::<f32>();
-    let mut first = true;
+    let (mut first, mut b) = (true, 0);
     // The ReLU follows the last block of the last segment that has inputs (a skip layer's tail may be empty).
     let last_seg = l.segs[..l.n_segs].iter().rposition(|s| s.n > 0);
     for (si, s) in l.segs[..l.n_segs].iter().enumerate() {
@@ -886,8 +948,7 @@ unsafe fn sparse_blocks<W>(
             // SAFETY: inputs and rows `i0 .. i0 + n` lie in the checked segment.
             let (x, rows) = unsafe { (s.x.as_ptr().add(i0), s.rows.as_ptr().add(i0 * l.n_out)) };
             let last = Some(si) == last_seg && i0 + n == s.n;
-            // SAFETY: query `q`'s `n` inputs from `x + q stride` lie in the checked segment.
-            let nz: [u64; PACKET] = core::array::from_fn(|q| mask(unsafe { x.add(q * s.stride) }, n));
+            let nz = masks.nz[b];
             let rows = if core::mem::size_of::<W>() == 4 {
                 rows.cast::<f32>()
             } else {
@@ -902,6 +963,7 @@ unsafe fn sparse_blocks<W>(
             };
             block(&SparseBlock { x, stride: s.stride, rows, first, last, nz });
             first = false;
+            b += 1;
             i0 += n;
         }
     }
@@ -913,35 +975,6 @@ unsafe fn sparse_blocks<W>(
             }
         }
     }
-}
-
-/// [`sparse_pays`] with 8-lane vectors (AVX2).
-///
-/// # Safety
-/// The layer passed `check(PACKET, ..)`.
-#[inline]
-#[target_feature(enable = "avx2,fma,f16c")]
-unsafe fn sparse_pays_avx2<W>(l: &Dense<'_, W>) -> bool {
-    // A lane's compare is all ones (-1) where nonzero: subtracting it counts.
-    let (mut nonzero, mut total) = (_mm256_setzero_si256(), 0usize);
-    for s in &l.segs[..l.n_segs] {
-        for q in 0..PACKET {
-            let mut i = 0;
-            while i < s.n {
-                // SAFETY: inputs `i .. s.n` of query `q` lie in the checked segment; the lanes past it
-                // are not read (and load as 0).
-                let v = unsafe { _mm256_maskload_ps(s.x.as_ptr().add(q * s.stride + i), lane_mask(s.n - i)) };
-                let c = _mm256_cmp_ps::<_CMP_NEQ_UQ>(v, _mm256_setzero_ps());
-                nonzero = _mm256_sub_epi32(nonzero, _mm256_castps_si256(c));
-                i += 8;
-            }
-        }
-        total += PACKET * s.n;
-    }
-    let mut lanes = [0i32; 8];
-    // SAFETY: 8 lanes to 8 values.
-    unsafe { _mm256_storeu_si256(lanes.as_mut_ptr().cast(), nonzero) };
-    sparse_enough(lanes.iter().sum::<i32>() as usize, total)
 }
 
 /// Inputs per pass of the AVX-512 packet kernel: `XT_CAP × PACKET` f32 (16 KB) on the stack, room
@@ -1309,32 +1342,54 @@ macro_rules! avx2 {
             }
 
             /// `PACKET` queries through the layer: 128-wide ReLU layers whose inputs are mostly zeros
-            /// (`sparse_pays_avx2`) by `packet_sparse`, the rest by `packet_dense`, each query's
+            /// (`layer_masks`, `sparse_enough`) by `packet_sparse`, the rest by `packet_dense`, each query's
             /// bits the same either way.
             ///
             /// # Safety
             /// See the module docs (`check(PACKET, ..)`).
             #[target_feature(enable = "avx2,fma,f16c")]
             pub(in crate::kernels) unsafe fn packet(l: &Dense<'_, $w>, out: *mut f32, os: usize) {
-                // SAFETY: the contract, passed on.
+                // SAFETY: the contract, passed on; the masks are the layer's.
                 unsafe {
-                    if l.n_out == 128 && l.relu && sparse_pays_avx2(l) {
-                        packet_sparse(l, out, os)
-                    } else {
-                        packet_dense(l, out, os)
+                    if l.n_out == 128 && l.relu {
+                        if let Some(m) = layer_masks(l, |x, n| nonzero_mask_avx2(x, n)) {
+                            if sparse_enough(m.nonzero, m.total) {
+                                return packet_sparse_with(l, out, os, &m);
+                            }
+                        }
+                    }
+                    packet_dense(l, out, os)
+                }
+            }
+
+            /// `packet_sparse_with` on the layer's masks, `packet_dense` where it has too many
+            /// inputs for them: the sparse kernel on its own, for the tests.
+            ///
+            /// # Safety
+            /// See the module docs (`check(PACKET, ..)`), with `l.n_out == 128`.
+            #[cfg(test)]
+            #[target_feature(enable = "avx2,fma,f16c")]
+            pub(in crate::kernels) unsafe fn packet_sparse(l: &Dense<'_, $w>, out: *mut f32, os: usize) {
+                // SAFETY: the contract, passed on; the masks are the layer's.
+                unsafe {
+                    match layer_masks(l, |x, n| nonzero_mask_avx2(x, n)) {
+                        Some(m) => packet_sparse_with(l, out, os, &m),
+                        None => packet_dense(l, out, os),
                     }
                 }
             }
 
-            /// The AVX-512 `packet_sparse` with 8-lane vectors: one query at a time over its
+            /// The AVX-512 `packet_sparse_with` with 8-lane vectors: one query at a time over its
             /// nonzero inputs, in blocks of `SPARSE_BLOCK` weight rows shared by the packet, each
             /// query's walk run twice, for outputs 0–63 and 64–127 (8 accumulators, a broadcast and
             /// a weight vector fill the 16 registers). The operations of `one` per query.
             ///
             /// # Safety
-            /// See the module docs (`check(PACKET, ..)`), with `l.n_out == 128`.
+            /// See the module docs (`check(PACKET, ..)`), with `l.n_out == 128`; `m` holds the
+            /// masks of `l`'s inputs (`layer_masks`).
+            #[inline]
             #[target_feature(enable = "avx2,fma,f16c")]
-            pub(in crate::kernels) unsafe fn packet_sparse(l: &Dense<'_, $w>, out: *mut f32, os: usize) {
+            unsafe fn packet_sparse_with(l: &Dense<'_, $w>, out: *mut f32, os: usize, m: &LayerMasks) {
                 const W: usize = 128;
                 let zero = _mm256_setzero_ps();
                 let widen = |row: *const $w, to: *mut f32| {
@@ -1345,23 +1400,10 @@ macro_rules! avx2 {
                         }
                     }
                 };
-                let mask = |x: *const f32, n: usize| -> u64 {
-                    let mut nz = 0u64;
-                    // SAFETY: `n` inputs from `x` (`sparse_blocks`), read by `maskload` under
-                    // `lane_mask`, which zeroes the lanes past them.
-                    unsafe {
-                        for v in 0..n.div_ceil(8) {
-                            let xv = _mm256_maskload_ps(x.add(8 * v), lane_mask(n - 8 * v));
-                            let c = _mm256_cmp_ps::<_CMP_NEQ_UQ>(xv, zero);
-                            nz |= (_mm256_movemask_ps(c) as u32 as u64) << (8 * v);
-                        }
-                    }
-                    nz
-                };
                 // SAFETY (whole body): as in the AVX-512 `packet_sparse` (inputs read by `maskload`
                 // under `lane_mask`, which zeroes the lanes past the block).
                 unsafe {
-                    sparse_blocks(l, out, os, mask, widen, |b| {
+                    sparse_blocks(l, out, os, m, widen, |b| {
                         for q in 0..PACKET {
                             let o = out.add(q * os);
                             let x = b.x.add(q * b.stride);
