@@ -598,10 +598,9 @@ macro_rules! avx512 {
                 // SAFETY: the contract, passed on; the masks are the layer's.
                 unsafe {
                     if l.n_out == 128 && l.relu {
-                        if let Some(m) = layer_masks(l, |x, n| nonzero_mask(x, n)) {
-                            if sparse_enough(m.nonzero, m.total) {
-                                return packet_sparse_with(l, out, os, &m);
-                            }
+                        let mut m = LayerMasks::new();
+                        if layer_masks(l, |x, n| nonzero_mask(x, n), &mut m) && sparse_enough(m.nonzero, m.total) {
+                            return packet_sparse_with(l, out, os, &m);
                         }
                     }
                     packet_dense(l, out, os)
@@ -618,9 +617,11 @@ macro_rules! avx512 {
             pub(in crate::kernels) unsafe fn packet_sparse(l: &Dense<'_, $w>, out: *mut f32, os: usize) {
                 // SAFETY: the contract, passed on; the masks are the layer's.
                 unsafe {
-                    match layer_masks(l, |x, n| nonzero_mask(x, n)) {
-                        Some(m) => packet_sparse_with(l, out, os, &m),
-                        None => packet_dense(l, out, os),
+                    let mut m = LayerMasks::new();
+                    if layer_masks(l, |x, n| nonzero_mask(x, n), &mut m) {
+                        packet_sparse_with(l, out, os, &m)
+                    } else {
+                        packet_dense(l, out, os)
                     }
                 }
             }
@@ -849,22 +850,30 @@ struct LayerMasks {
     total: usize,
 }
 
-/// The masks of `l`'s inputs (`mask(x, n)` for the `n` inputs of a block from `x`), or `None` where
-/// the layer has more than `SPARSE_MAX_BLOCKS` blocks. Taking the masks once both chooses the kernel
+impl LayerMasks {
+    #[inline(always)]
+    fn new() -> LayerMasks {
+        LayerMasks { nz: [[0; PACKET]; SPARSE_MAX_BLOCKS], nonzero: 0, total: 0 }
+    }
+}
+
+/// Fills `m` with the masks of `l`'s inputs (`mask(x, n)` for the `n` inputs of a block from `x`);
+/// `false` where the layer has more than `SPARSE_MAX_BLOCKS` blocks (`m` then partly filled). In
+/// place, not returned: a returned kilobyte of masks was copied (`memmove`, ~1% of a batch). Taking the masks once both chooses the kernel
 /// and feeds the walk: a second pass over the inputs took 1.03–1.07× the time of an f32 batch (in one
 /// process, alternating).
 ///
 /// # Safety
 /// The layer passed `check(PACKET, ..)`; `mask` reads `n ≤ SPARSE_BLOCK` inputs from `x`.
 #[inline(always)]
-unsafe fn layer_masks<W>(l: &Dense<'_, W>, mask: impl Fn(*const f32, usize) -> u64) -> Option<LayerMasks> {
-    let mut m = LayerMasks { nz: [[0; PACKET]; SPARSE_MAX_BLOCKS], nonzero: 0, total: 0 };
+unsafe fn layer_masks<W>(l: &Dense<'_, W>, mask: impl Fn(*const f32, usize) -> u64, m: &mut LayerMasks) -> bool {
+    (m.nonzero, m.total) = (0, 0);
     let mut b = 0;
     for s in &l.segs[..l.n_segs] {
         let mut i0 = 0;
         while i0 < s.n {
             if b == SPARSE_MAX_BLOCKS {
-                return None;
+                return false;
             }
             let n = (s.n - i0).min(SPARSE_BLOCK);
             for q in 0..PACKET {
@@ -878,7 +887,7 @@ unsafe fn layer_masks<W>(l: &Dense<'_, W>, mask: impl Fn(*const f32, usize) -> u
             i0 += n;
         }
     }
-    Some(m)
+    true
 }
 
 /// Whether two queries of a sparse packet block walk together (`sparse_pair`) rather than one after
@@ -1352,10 +1361,9 @@ macro_rules! avx2 {
                 // SAFETY: the contract, passed on; the masks are the layer's.
                 unsafe {
                     if l.n_out == 128 && l.relu {
-                        if let Some(m) = layer_masks(l, |x, n| nonzero_mask_avx2(x, n)) {
-                            if sparse_enough(m.nonzero, m.total) {
-                                return packet_sparse_with(l, out, os, &m);
-                            }
+                        let mut m = LayerMasks::new();
+                        if layer_masks(l, |x, n| nonzero_mask_avx2(x, n), &mut m) && sparse_enough(m.nonzero, m.total) {
+                            return packet_sparse_with(l, out, os, &m);
                         }
                     }
                     packet_dense(l, out, os)
@@ -1372,9 +1380,11 @@ macro_rules! avx2 {
             pub(in crate::kernels) unsafe fn packet_sparse(l: &Dense<'_, $w>, out: *mut f32, os: usize) {
                 // SAFETY: the contract, passed on; the masks are the layer's.
                 unsafe {
-                    match layer_masks(l, |x, n| nonzero_mask_avx2(x, n)) {
-                        Some(m) => packet_sparse_with(l, out, os, &m),
-                        None => packet_dense(l, out, os),
+                    let mut m = LayerMasks::new();
+                    if layer_masks(l, |x, n| nonzero_mask_avx2(x, n), &mut m) {
+                        packet_sparse_with(l, out, os, &m)
+                    } else {
+                        packet_dense(l, out, os)
                     }
                 }
             }
