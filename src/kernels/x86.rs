@@ -1011,7 +1011,7 @@ const SPARSE_BLOCK: usize = 64;
 /// With pairs of queries walking together (`SPARSE_PAIR_AT_MOST`) a sparse FMA costs about what a
 /// dense one does where the pairs form, and 12 took 0.94–0.95× the time of 11 on the study's torus
 /// Single MLP (a layer ~70% nonzero went sparse), the same on the other models and in f16; 13 and 14
-/// the same as 12.
+/// the same as 12. At the AVX2 level (no pairs) 11 took 1.00–1.03× the time of 12.
 const SPARSE_AT_MOST: usize = 12;
 
 /// The share (numerator over 16) of two queries' rows, summed, at or below which the rows either uses
