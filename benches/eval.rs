@@ -1,9 +1,10 @@
 //! Evaluation cost of every model: ns per `eval` (one direction pair at a prepared point) and per
 //! `prepare` (one shading point), f32 and f16 weights, single queries and batches of many directions
 //! at one point, at every kernel level this CPU has (`portable` is the pre-SIMD scalar path, the
-//! "before" of issue 8), plus the NBRDF-json networks, plus the neural models' batched throughput with
-//! one thread per core (`eval-f32-N-threads`, wall time), and the floor that L2 bandwidth puts under a
-//! single Single MLP query (`eval-floor`). Run: `cargo bench --bench eval`, or e.g.
+//! "before" of issue 8; the neural models' batches also with independent random directions,
+//! `batch-1024-random`, at the best level), plus the NBRDF-json networks, plus the neural models'
+//! batched throughput with one thread per core (`eval-f32-N-threads`, wall time), and the floor that
+//! L2 bandwidth puts under a single Single MLP query (`eval-floor`). Run: `cargo bench --bench eval`, or e.g.
 //! `cargo bench --bench eval -- 'eval-f32/.*single-mlp'` for one model.
 //!
 //! On Linux the clock is the thread's CPU time (`CLOCK_THREAD_CPUTIME_ID`), not wall time: the
@@ -41,6 +42,24 @@ fn directions(n: usize) -> (Vec<Vec3>, Vec<Vec3>) {
         wo.push(Vec3::new((t * 1.7).cos() * 0.5, (t * 0.3).sin() * 0.7, 0.5).normalize());
     }
     (wi, wo)
+}
+
+/// `n` pairs drawn uniformly over the hemisphere (by area), independently: a batch whose neighbouring
+/// queries have nothing in common but their point, the hard case for the sparse packets' pairs.
+fn random_directions(n: usize) -> (Vec<Vec3>, Vec<Vec3>) {
+    let mut s = 0x2545f4914f6cdd1du64;
+    let mut uniform = move || {
+        s ^= s << 13;
+        s ^= s >> 7;
+        s ^= s << 17;
+        (s >> 40) as f32 / (1u64 << 24) as f32
+    };
+    let mut dir = || {
+        let (z, phi) = (uniform(), std::f32::consts::TAU * uniform());
+        let r = (1.0 - z * z).max(0.0).sqrt();
+        Vec3::new(r * phi.cos(), r * phi.sin(), z.max(1e-4))
+    };
+    (0..n).map(|_| (dir(), dir())).unzip()
 }
 
 /// The variants of the paper's Tab. 1 with the intrinsic encoding of 64 eigenfunctions.
@@ -135,6 +154,7 @@ impl Measurement for Clock {
 fn bench_models(c: &mut Criterion<Clock>) {
     let p: Vec<f32> = (0..64).map(|i| (i as f32 * 0.1).sin()).collect();
     let (wi, wo) = directions(1024);
+    let (rwi, rwo) = random_directions(1024);
     for precision in [Precision::F32, Precision::F16] {
         let mut g = c.benchmark_group(format!("eval-{precision:?}").to_lowercase());
         for (name, mut h) in variants() {
@@ -162,6 +182,11 @@ fn bench_models(c: &mut Criterion<Clock>) {
                 g.bench_function(BenchmarkId::new(format!("batch-1024/{lname}"), &name), |b| {
                     b.iter(|| m.eval_many(&prepared, black_box(&wi), black_box(&wo), &mut out))
                 });
+                if level == detected() && !matches!(h.kind, ModelKind::Parametric(_)) {
+                    g.bench_function(BenchmarkId::new(format!("batch-1024-random/{lname}"), &name), |b| {
+                        b.iter(|| m.eval_many(&prepared, black_box(&rwi), black_box(&rwo), &mut out))
+                    });
+                }
                 if level == Level::Avx512 && m.half_math() {
                     g.throughput(Throughput::Elements(1));
                     g.bench_function(BenchmarkId::new(format!("single-half-math/{lname}"), &name), |b| {
