@@ -650,8 +650,8 @@ macro_rules! avx512 {
                         }
                     }
                 };
-                // SAFETY (whole body): `sparse_blocks`'s contract; each query's inputs are read under
-                // `mask16` masks, its outputs lie at `out + q os ..+ 128` (`check`).
+                // SAFETY (whole body): `sparse_blocks`'s contract; each query's inputs are read at the
+                // rows its mask lists, its outputs lie at `out + q os ..+ 128` (`check`).
                 unsafe {
                     sparse_blocks(l, out, os, m, widen, |b| {
                         const { assert!(PACKET % 2 == 0) };
@@ -667,11 +667,13 @@ macro_rules! avx512 {
                 }
             }
 
-            /// Query `q` of a block of `packet_sparse`: one FMA per nonzero input and output vector,
-            /// in row order, from `init` (the first block) or the partial sums at `o`, back to `o`.
+            /// Query `q` of a block of `packet_sparse_with`: one FMA per nonzero input and output
+            /// vector, in row order, from `init` (the first block) or the partial sums at `o`, back to
+            /// `o`.
             ///
             /// # Safety
-            /// As `packet_sparse`: `b` is a block of `sparse_blocks`, `init` and `o` hold 128 values.
+            /// As `packet_sparse_with`: `b` is a block of `sparse_blocks`, `init` and `o` hold 128
+            /// values.
             #[inline]
             #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
             unsafe fn sparse_one(init: *const f32, b: &SparseBlock, o: *mut f32, q: usize) {
@@ -695,9 +697,9 @@ macro_rules! avx512 {
                 }
             }
 
-            /// Queries `q` and `q + 1` of a block of `packet_sparse` together (`pair_pays`): one walk
-            /// over the rows either uses, each weight vector loaded once for both, each query's FMA
-            /// masked off (all lanes or none) where its input is zero. Each query's sum sees
+            /// Queries `q` and `q + 1` of a block of `packet_sparse_with` together (`pair_pays`): one
+            /// walk over the rows either uses, each weight vector loaded once for both, each query's
+            /// FMA masked off (all lanes or none) where its input is zero. Each query's sum sees
             /// `sparse_one`'s operations in its order (a masked-off FMA leaves it as it was), so the
             /// same bits.
             ///
@@ -858,15 +860,17 @@ impl LayerMasks {
 }
 
 /// Fills `m` with the masks of `l`'s inputs (`mask(x, n)` for the `n` inputs of a block from `x`);
-/// `false` where the layer has more than `SPARSE_MAX_BLOCKS` blocks (`m` then partly filled). In
-/// place, not returned: a returned kilobyte of masks was copied (`memmove`, ~1% of a batch). Taking the masks once both chooses the kernel
-/// and feeds the walk: a second pass over the inputs took 1.03–1.07× the time of an f32 batch (in one
-/// process, alternating).
+/// `false` where the layer has more than `SPARSE_MAX_BLOCKS` blocks (`m` then partly filled).
+///
+/// Taking the masks once both chooses the kernel and feeds the walk: a second pass over the inputs
+/// took 1.03–1.07× the time of an f32 batch (in one process, alternating). They are filled in place,
+/// not returned: a returned kilobyte of masks was copied (`memmove`, ~0.7% of a batch).
 ///
 /// # Safety
 /// The layer passed `check(PACKET, ..)`; `mask` reads `n ≤ SPARSE_BLOCK` inputs from `x`.
 #[inline(always)]
 unsafe fn layer_masks<W>(l: &Dense<'_, W>, mask: impl Fn(*const f32, usize) -> u64, m: &mut LayerMasks) -> bool {
+    const { assert!(SPARSE_BLOCK <= 64) };
     (m.nonzero, m.total) = (0, 0);
     let mut b = 0;
     for s in &l.segs[..l.n_segs] {
@@ -923,9 +927,9 @@ struct SparseBlock {
 
 /// The walk of the sparse packet kernels (both levels): each segment's rows in blocks of
 /// `SPARSE_BLOCK`, in order, with each query's nonzero inputs in the block (from `masks`, the
-/// layer's, see `layer_masks`), then the block's rows as f32 (f32 weights where they lie; of f16 ones the
-/// rows some query uses, each widened by `widen(row, to)` into a copy), handed to `block`, which runs
-/// the packet's queries over them. A layer without inputs gets the ReLU of `init` here (as
+/// layer's, see `layer_masks`), then the block's rows as f32 (f32 weights where they lie; of f16
+/// ones the rows some query uses, each widened by `widen(row, to)` into a copy), handed to `block`,
+/// which runs the packet's queries over them. A layer without inputs gets the ReLU of `init` here (as
 /// `max(v, 0)`: +0 for either zero and for NaN).
 ///
 /// Widening only the rows some query uses saved 3–7% of an f16 batch (bench models and study fits:
