@@ -21,16 +21,19 @@ use nbrdf::file::{encode, ModelBuf, ModelHeader, ModelKind, PositionEncoding, Pr
 use nbrdf::parametric::ParametricKind;
 use nbrdf::{Rgb, Vec3};
 
+/// Uniform values in [0, 1) from a xorshift64 sequence started at `seed`.
+fn uniform(mut s: u64) -> impl FnMut() -> f32 {
+    move || {
+        s ^= s << 13;
+        s ^= s >> 7;
+        s ^= s << 17;
+        (s >> 40) as f32 / (1u64 << 24) as f32
+    }
+}
+
 fn weights(n: usize) -> Vec<f32> {
-    let mut s = 0x9e3779b97f4a7c15u64;
-    (0..n)
-        .map(|_| {
-            s ^= s << 13;
-            s ^= s >> 7;
-            s ^= s << 17;
-            ((s >> 40) as f32 / (1u64 << 24) as f32 - 0.5) * 0.2
-        })
-        .collect()
+    let mut u = uniform(0x9e3779b97f4a7c15);
+    (0..n).map(|_| (u() - 0.5) * 0.2).collect()
 }
 
 fn directions(n: usize) -> (Vec<Vec3>, Vec<Vec3>) {
@@ -47,15 +50,9 @@ fn directions(n: usize) -> (Vec<Vec3>, Vec<Vec3>) {
 /// `n` pairs drawn uniformly over the hemisphere (by area), independently: a batch whose neighbouring
 /// queries have nothing in common but their point, the hard case for the sparse packets' pairs.
 fn random_directions(n: usize) -> (Vec<Vec3>, Vec<Vec3>) {
-    let mut s = 0x2545f4914f6cdd1du64;
-    let mut uniform = move || {
-        s ^= s << 13;
-        s ^= s >> 7;
-        s ^= s << 17;
-        (s >> 40) as f32 / (1u64 << 24) as f32
-    };
+    let mut u = uniform(0x2545f4914f6cdd1d);
     let mut dir = || {
-        let (z, phi) = (uniform(), std::f32::consts::TAU * uniform());
+        let (z, phi) = (u(), std::f32::consts::TAU * u());
         let r = (1.0 - z * z).max(0.0).sqrt();
         Vec3::new(r * phi.cos(), r * phi.sin(), z.max(1e-4))
     };
