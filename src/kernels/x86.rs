@@ -13,7 +13,9 @@
 //!   activations held in 8 registers from one layer to the next and compressed from there;
 //! - a sparse packet (128-wide layers whose inputs are mostly zeros after a ReLU): each query alone,
 //!   8 vectors of outputs (AVX2: twice), over its nonzero inputs only, in blocks of `SPARSE_BLOCK`
-//!   weight rows that stay in L1 while the 16 queries use them.
+//!   weight rows that stay in L1 while the 16 queries use them; with AVX-512, two neighbouring
+//!   queries that share most of their nonzero inputs together, 2 × 8 vectors, each weight vector
+//!   loaded once for both and each FMA masked to the query whose input is nonzero.
 //!
 //! Partial vectors at the end of a row (odd widths, the 3 or 6 outputs of the last layer) use masked
 //! loads and stores, which never touch memory outside the mask.
