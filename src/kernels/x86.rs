@@ -1026,7 +1026,7 @@ const SPARSE_AT_MOST: usize = 12;
 /// weight vector once for 16 FMAs (two of them masked off where an input is zero), ~16 cycles a row
 /// it walks, so it pays where the rows either uses are at most 9/16 of their sum: where the two share
 /// at least 7/8 of their rows. Queries at one point often do: two neighbouring queries of the
-/// study's fits share 92–93% of their nonzero inputs under random directions, 96–98% under
+/// study's fits share 88–93% of their nonzero inputs under random directions, 97–98% under
 /// neighbouring ones (the bench's random-weight models 85% and 94%). In one process against
 /// walking every query alone: batches 0.93–0.97× (fits, random directions) and 0.91–0.95×
 /// (neighbouring), the bench's models 0.97–1.00× and 0.93–0.96×; thresholds of 8, 10 and 11
