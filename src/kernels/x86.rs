@@ -1398,7 +1398,10 @@ macro_rules! avx2 {
             /// The AVX-512 `packet_sparse_with` with 8-lane vectors: one query at a time over its
             /// nonzero inputs, in blocks of `SPARSE_BLOCK` weight rows shared by the packet, each
             /// query's walk run twice, for outputs 0–63 and 64–127 (8 accumulators, a broadcast and
-            /// a weight vector fill the 16 registers). The operations of `one` per query.
+            /// a weight vector fill the 16 registers). The operations of `one` per query. No pairs
+            /// (`sparse_pair`): with two 256-bit loads and two 256-bit FMAs a cycle (Zen 4, recent
+            /// Intel cores) a query's walk here is not bound by its loads, and two queries'
+            /// accumulators would not fit the registers.
             ///
             /// # Safety
             /// See the module docs (`check(PACKET, ..)`), with `l.n_out == 128`; `m` holds the
@@ -1416,8 +1419,8 @@ macro_rules! avx2 {
                         }
                     }
                 };
-                // SAFETY (whole body): as in the AVX-512 `packet_sparse` (inputs read by `maskload`
-                // under `lane_mask`, which zeroes the lanes past the block).
+                // SAFETY (whole body): as in the AVX-512 `packet_sparse_with`: each query's inputs are
+                // read at the rows its mask lists, its outputs lie at `out + q os ..+ 128` (`check`).
                 unsafe {
                     sparse_blocks(l, out, os, m, widen, |b| {
                         for q in 0..PACKET {
