@@ -1399,9 +1399,8 @@ macro_rules! avx2 {
             /// nonzero inputs, in blocks of `SPARSE_BLOCK` weight rows shared by the packet, each
             /// query's walk run twice, for outputs 0–63 and 64–127 (8 accumulators, a broadcast and
             /// a weight vector fill the 16 registers). The operations of `one` per query. No pairs
-            /// (`sparse_pair`): with two 256-bit loads and two 256-bit FMAs a cycle (Zen 4, recent
-            /// Intel cores) a query's walk here is not bound by its loads, and two queries'
-            /// accumulators would not fit the registers.
+            /// (`sparse_pair`, not built): two queries' 16 accumulators would fill the 16 registers,
+            /// and without mask registers a masked-off FMA is an FMA and a blend.
             ///
             /// # Safety
             /// See the module docs (`check(PACKET, ..)`), with `l.n_out == 128`; `m` holds the
