@@ -4,8 +4,8 @@
 //! "before" of issue 8; the neural models' batches also with independent random directions,
 //! `batch-1024-random`, at the best level), plus the NBRDF-json networks, plus the neural models'
 //! batched throughput with one thread per core (`eval-f32-N-threads`, wall time), and the floor that
-//! L2 bandwidth puts under a single Single MLP query (`eval-floor`). Run: `cargo bench --bench eval`, or e.g.
-//! `cargo bench --bench eval -- 'eval-f32/.*single-mlp'` for one model.
+//! L2 bandwidth puts under a single Single MLP query (`eval-floor`). Run: `cargo bench --bench eval`,
+//! or e.g. `cargo bench --bench eval -- 'eval-f32/.*single-mlp'` for one model.
 //!
 //! On Linux the clock is the thread's CPU time (`CLOCK_THREAD_CPUTIME_ID`), not wall time: the
 //! development machine is shared by several compiling users, and CPU time stays meaningful while the

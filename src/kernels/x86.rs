@@ -589,28 +589,19 @@ macro_rules! avx512 {
             }
 
             /// `PACKET` queries through the layer: 128-wide ReLU layers whose inputs are mostly zeros
-            /// (`layer_masks`, `sparse_enough`) by `packet_sparse`, the rest by `packet_dense`. Both
-            /// give each query the operations of the one-query kernels, so the choice never changes
-            /// a bit.
+            /// by `packet_sparse_with`, the rest by `packet_dense` (`sparse_or_dense`). Both give each
+            /// query the operations of the one-query kernels, so the choice never changes a bit.
             ///
             /// # Safety
             /// See the module docs (`check(PACKET, ..)`).
             #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c,popcnt")]
             pub(in crate::kernels) unsafe fn packet(l: &Dense<'_, $w>, out: *mut f32, os: usize) {
                 // SAFETY: the contract, passed on; the masks are the layer's.
-                unsafe {
-                    if l.n_out == 128 && l.relu {
-                        let mut m = LayerMasks::new();
-                        if layer_masks(l, |x, n| nonzero_mask(x, n), &mut m) && sparse_enough(m.nonzero, m.total) {
-                            return packet_sparse_with(l, out, os, &m);
-                        }
-                    }
-                    packet_dense(l, out, os)
-                }
+                unsafe { sparse_or_dense(l, |x, n| nonzero_mask(x, n), false, |m| packet_sparse_with(l, out, os, m), || packet_dense(l, out, os)) }
             }
 
-            /// `packet_sparse_with` on the layer's masks, `packet_dense` where it has too many
-            /// inputs for them: the sparse kernel on its own, for the tests.
+            /// `packet_sparse_with` on every 128-wide ReLU layer whose masks fit, however dense (the
+            /// rest by `packet_dense`): the sparse kernel on its own, for the tests.
             ///
             /// # Safety
             /// See the module docs (`check(PACKET, ..)`), with `l.n_out == 128`.
@@ -618,14 +609,7 @@ macro_rules! avx512 {
             #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c,popcnt")]
             pub(in crate::kernels) unsafe fn packet_sparse(l: &Dense<'_, $w>, out: *mut f32, os: usize) {
                 // SAFETY: the contract, passed on; the masks are the layer's.
-                unsafe {
-                    let mut m = LayerMasks::new();
-                    if layer_masks(l, |x, n| nonzero_mask(x, n), &mut m) {
-                        packet_sparse_with(l, out, os, &m)
-                    } else {
-                        packet_dense(l, out, os)
-                    }
-                }
+                unsafe { sparse_or_dense(l, |x, n| nonzero_mask(x, n), true, |m| packet_sparse_with(l, out, os, m), || packet_dense(l, out, os)) }
             }
 
             /// `PACKET` queries through a 128-wide layer one query at a time, lanes for outputs (8
@@ -910,6 +894,30 @@ fn pair_pays(na: u64, nb: u64) -> bool {
 #[inline]
 fn sparse_enough(nonzero: usize, total: usize) -> bool {
     16 * nonzero <= SPARSE_AT_MOST * total
+}
+
+/// The choice of the packet kernel (both levels): `sparse` on the masks of a 128-wide ReLU layer
+/// (`layer_masks`, by `mask`) where they fit and its inputs are sparse enough (`sparse_enough`; every
+/// such layer where `always`, for the tests), `dense` otherwise.
+///
+/// # Safety
+/// As `layer_masks`.
+#[inline(always)]
+unsafe fn sparse_or_dense<W>(
+    l: &Dense<'_, W>,
+    mask: impl Fn(*const f32, usize) -> u64,
+    always: bool,
+    sparse: impl FnOnce(&LayerMasks),
+    dense: impl FnOnce(),
+) {
+    if l.n_out == 128 && l.relu {
+        let mut m = LayerMasks::new();
+        // SAFETY: the contract, passed on.
+        if unsafe { layer_masks(l, mask, &mut m) } && (always || sparse_enough(m.nonzero, m.total)) {
+            return sparse(&m);
+        }
+    }
+    dense()
 }
 
 /// One block of a sparse packet kernel's walk: up to `SPARSE_BLOCK` consecutive inputs of a segment,
@@ -1357,7 +1365,7 @@ macro_rules! avx2 {
             }
 
             /// `PACKET` queries through the layer: 128-wide ReLU layers whose inputs are mostly zeros
-            /// (`layer_masks`, `sparse_enough`) by `packet_sparse`, the rest by `packet_dense`, each query's
+            /// by `packet_sparse_with`, the rest by `packet_dense` (`sparse_or_dense`), each query's
             /// bits the same either way.
             ///
             /// # Safety
@@ -1365,19 +1373,11 @@ macro_rules! avx2 {
             #[target_feature(enable = "avx2,fma,f16c")]
             pub(in crate::kernels) unsafe fn packet(l: &Dense<'_, $w>, out: *mut f32, os: usize) {
                 // SAFETY: the contract, passed on; the masks are the layer's.
-                unsafe {
-                    if l.n_out == 128 && l.relu {
-                        let mut m = LayerMasks::new();
-                        if layer_masks(l, |x, n| nonzero_mask_avx2(x, n), &mut m) && sparse_enough(m.nonzero, m.total) {
-                            return packet_sparse_with(l, out, os, &m);
-                        }
-                    }
-                    packet_dense(l, out, os)
-                }
+                unsafe { sparse_or_dense(l, |x, n| nonzero_mask_avx2(x, n), false, |m| packet_sparse_with(l, out, os, m), || packet_dense(l, out, os)) }
             }
 
-            /// `packet_sparse_with` on the layer's masks, `packet_dense` where it has too many
-            /// inputs for them: the sparse kernel on its own, for the tests.
+            /// `packet_sparse_with` on every 128-wide ReLU layer whose masks fit, however dense (the
+            /// rest by `packet_dense`): the sparse kernel on its own, for the tests.
             ///
             /// # Safety
             /// See the module docs (`check(PACKET, ..)`), with `l.n_out == 128`.
@@ -1385,14 +1385,7 @@ macro_rules! avx2 {
             #[target_feature(enable = "avx2,fma,f16c")]
             pub(in crate::kernels) unsafe fn packet_sparse(l: &Dense<'_, $w>, out: *mut f32, os: usize) {
                 // SAFETY: the contract, passed on; the masks are the layer's.
-                unsafe {
-                    let mut m = LayerMasks::new();
-                    if layer_masks(l, |x, n| nonzero_mask_avx2(x, n), &mut m) {
-                        packet_sparse_with(l, out, os, &m)
-                    } else {
-                        packet_dense(l, out, os)
-                    }
-                }
+                unsafe { sparse_or_dense(l, |x, n| nonzero_mask_avx2(x, n), true, |m| packet_sparse_with(l, out, os, m), || packet_dense(l, out, os)) }
             }
 
             /// The AVX-512 `packet_sparse_with` with 8-lane vectors: one query at a time over its
