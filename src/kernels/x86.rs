@@ -679,7 +679,7 @@ macro_rules! avx512 {
                             *a = _mm512_fmadd_ps(xb, _mm512_loadu_ps(r.add(16 * k)), *a);
                         }
                     }
-                    relu_store8(&acc, b.last, o);
+                    relu_store8(acc, b.last, o);
                 }
             }
 
@@ -716,23 +716,24 @@ macro_rules! avx512 {
                             acc_b[k] = _mm512_mask3_fmadd_ps(vb, w, acc_b[k], kb);
                         }
                     }
-                    relu_store8(&acc_a, b.last, oa);
-                    relu_store8(&acc_b, b.last, ob);
+                    relu_store8(acc_a, b.last, oa);
+                    relu_store8(acc_b, b.last, ob);
                 }
             }
 
-            /// Stores 128 sums at `o`, after a ReLU (as `max(v, 0)`) where `relu`.
+            /// Stores 128 sums at `o`, after a ReLU (`relu8`) where `relu`.
             ///
             /// # Safety
             /// `o` has room for 128 values.
             #[inline]
             #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
-            unsafe fn relu_store8(acc: &[__m512; 8], relu: bool, o: *mut f32) {
-                let zero = _mm512_setzero_ps();
+            unsafe fn relu_store8(mut acc: [__m512; 8], relu: bool, o: *mut f32) {
+                if relu {
+                    relu8(&mut acc);
+                }
                 for (k, a) in acc.iter().enumerate() {
-                    let v = if relu { _mm512_max_ps(*a, zero) } else { *a };
                     // SAFETY: see the contract.
-                    unsafe { _mm512_storeu_ps(o.add(16 * k), v) };
+                    unsafe { _mm512_storeu_ps(o.add(16 * k), *a) };
                 }
             }
 
