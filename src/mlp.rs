@@ -54,14 +54,12 @@ impl Weight for half::f16 {
         half::f16::to_f32(self)
     }
 
-    /// Through `half`'s slice conversion: one F16C check per slice and 8 values per `vcvtph2ps`. Per
-    /// element (`to_f32` in a loop: an out-of-line call with its own feature check each) the biases of
-    /// a paper-size network took a quarter of an f16 single query.
+    /// Through [`crate::kernels::widen_f16`]: one level check per slice and 16 values per
+    /// `vcvtph2ps`. Per element (`to_f32` in a loop: an out-of-line call with its own feature check
+    /// each) the biases of a paper-size network took a quarter of an f16 single query.
     #[inline]
     fn widen(src: &[half::f16], dst: &mut [f32]) {
-        use half::slice::HalfFloatSliceExt;
-        let n = src.len().min(dst.len());
-        src[..n].convert_to_f32_slice(&mut dst[..n]);
+        crate::kernels::widen_f16(src, dst);
     }
 }
 

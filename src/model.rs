@@ -39,6 +39,21 @@ pub const MAX_POSITION_INPUT: usize = encoded_len(3, crate::file::MAX_FREQUENCIE
 /// Largest number of per-object parameters.
 pub const MAX_OBJECT: usize = 4;
 
+/// Queries from which [`Model::eval_many`] on f16 weights widens the per-query network once for the
+/// call instead of each packet widening the rows it uses (`std`): four packets. The copy of a
+/// paper-size Single MLP takes ~12 µs here (written to L2 at 16 values per two cycles); at two
+/// packets both ways took the same time, at four the copy 0.93× (`docs/speed.md`).
+#[cfg(feature = "std")]
+const WIDEN_FROM: usize = 4 * PACKET;
+
+#[cfg(feature = "std")]
+std::thread_local! {
+    /// Each thread's f32 copy of an f16 model's per-query network, for [`Model::eval_many`]: kept
+    /// between calls (it grows to the largest network the thread evaluated), so a call allocates
+    /// nothing once the thread has seen its models.
+    static WIDENED: core::cell::RefCell<alloc::vec::Vec<CacheLine>> = const { core::cell::RefCell::new(alloc::vec::Vec::new()) };
+}
+
 /// Borrowed network weights in their stored precision.
 #[derive(Clone, Copy, Debug)]
 pub enum Weights<'a> {
@@ -368,6 +383,12 @@ impl<'a> Model<'a> {
     /// together (every weight row read once per packet): for the paper-size Single MLP 1.2-1.3x
     /// (Zen 4) to 1.5x (Intel Xeon) faster per pair than [`Model::eval`], where single queries are
     /// bound by streaming the weights from L2 and packets by the FMA rate (see `docs/speed.md`).
+    ///
+    /// With f16 weights and the `std` feature, a call of at least four packets (64 pairs) first widens
+    /// the per-query network to f32 in a buffer of the calling thread, kept for its next calls (as
+    /// large as the largest such network it evaluated: 0.4 MB for the paper's Single MLP), so the
+    /// packets run at the speed of f32 weights; smaller calls, and builds without `std`, widen each
+    /// packet's rows as it needs them. Both give the same bits.
     pub fn eval_many(&self, prepared: &Prepared, wi: &[Vec3], wo: &[Vec3], out: &mut [Rgb]) {
         let n = out.len().min(wi.len()).min(wo.len());
         self.eval_many_by(Arithmetic::F32, prepared, n, |i| (wi[i], wo[i]), |i, f| out[i] = f);
@@ -548,9 +569,23 @@ impl<'a> Model<'a> {
             }
             return;
         }
+        self.with_widened(math, n, |widened| self.eval_many_packets(math, widened, prepared, n, pair, put))
+    }
+
+    /// [`Model::eval_many_by`] for a valid neural model's packets, over `widened` weights where given.
+    #[inline]
+    fn eval_many_packets(
+        &self,
+        math: Arithmetic,
+        widened: Option<&[f32]>,
+        prepared: &Prepared,
+        n: usize,
+        pair: impl Fn(usize) -> (Vec3, Vec3),
+        mut put: impl FnMut(usize, Rgb),
+    ) {
         #[cfg(target_arch = "x86_64")]
         if crate::kernels::level() == crate::kernels::Level::Avx512 {
-            return self.eval_many_theta16(math, prepared, n, pair, put);
+            return self.eval_many_theta16(math, widened, prepared, n, pair, put);
         }
         let mut enc = [0.0f32; PACKET * MAX_ANGLE_INPUT];
         let mut index = [0usize; PACKET];
@@ -568,7 +603,7 @@ impl<'a> Model<'a> {
                 None => put(i, BLACK),
             }
             if filled == PACKET || (i + 1 == n && filled > 0) {
-                for (&i, f) in index[..filled].iter().zip(self.run_packet(math, prepared, &enc, len)) {
+                for (&i, f) in index[..filled].iter().zip(self.run_packet(math, widened, prepared, &enc, len)) {
                     put(i, sanitize(f));
                 }
                 filled = 0;
@@ -579,7 +614,10 @@ impl<'a> Model<'a> {
     /// The [`PACKET`] pairs encoded in `enc` (`MAX_ANGLE_INPUT` apart, `len` values each) through the
     /// model's networks in `math` ([`Model::eval_packet_with`] over its weights).
     #[inline]
-    fn run_packet(&self, math: Arithmetic, prepared: &Prepared, enc: &[f32], len: usize) -> [Rgb; PACKET] {
+    fn run_packet(&self, math: Arithmetic, widened: Option<&[f32]>, prepared: &Prepared, enc: &[f32], len: usize) -> [Rgb; PACKET] {
+        if let Some(q) = widened {
+            return self.eval_packet_with(math, &self.nets_widened(q), prepared, enc, len);
+        }
         match self.weights {
             Weights::F32(w) => self.eval_packet_with(math, &self.nets_f32(w), prepared, enc, len),
             Weights::F16(w) => self.eval_packet_with(math, &self.nets_f16(w), prepared, enc, len),
@@ -593,6 +631,7 @@ impl<'a> Model<'a> {
     fn eval_many_theta16(
         &self,
         math: Arithmetic,
+        widened: Option<&[f32]>,
         prepared: &Prepared,
         n: usize,
         pair: impl Fn(usize) -> (Vec3, Vec3),
@@ -601,7 +640,7 @@ impl<'a> Model<'a> {
         let frequencies = self.header.angle_frequencies as usize;
         let exact = self.header.reciprocity == Reciprocity::Exact;
         let len = self.header.angle_input_len();
-        let run = |enc: &[f32]| self.run_packet(math, prepared, enc, len);
+        let run = |enc: &[f32]| self.run_packet(math, widened, prepared, enc, len);
         // 16 encoded rows, and the packet the valid ones are gathered into where some are not.
         let mut stage = [0.0f32; PACKET * MAX_ANGLE_INPUT];
         let mut enc = [0.0f32; PACKET * MAX_ANGLE_INPUT];
@@ -689,6 +728,53 @@ impl<'a> Model<'a> {
             Some(Weights::F16(q)) => Some(q),
             _ => None,
         })
+    }
+
+    /// Views of the networks for packets whose per-query (last) network runs over `q`, its weights
+    /// widened to f32; the other networks are empty (packets read only the last one).
+    #[inline]
+    fn nets_widened<'b>(&self, q: &'b [f32]) -> [Net<'b, f32>; MAX_NETS] {
+        let mut nets = [Net { desc: NetDesc::default(), weights: &q[..0] }; MAX_NETS];
+        let descs = self.header.nets();
+        if let Some(last) = descs.len().checked_sub(1) {
+            nets[last] = Net { desc: descs[last], weights: &q[..descs[last].n_weights()] };
+        }
+        nets
+    }
+
+    /// Runs `f` over the per-query network's f16 weights widened to f32 once for the call where that
+    /// pays (f16 weights, f32 arithmetic, at least [`WIDEN_FROM`] queries; `std`, for the per-thread
+    /// buffer [`WIDENED`]); else `f(None)`, and each packet widens the rows it uses. The widening is
+    /// exact and the f16 kernels are the f32 ones over widened rows, so both ways give the same bits.
+    #[inline]
+    fn with_widened<R>(&self, math: Arithmetic, n: usize, f: impl FnOnce(Option<&[f32]>) -> R) -> R {
+        #[cfg(feature = "std")]
+        if let (Weights::F16(w), Arithmetic::F32, true) = (self.weights, math, n >= WIDEN_FROM) {
+            let q = self.nets_f16(w)[self.header.nets().len().saturating_sub(1)].weights;
+            let mut f = Some(f);
+            // `try_with`, `try_borrow_mut`: while the thread's storage is torn down, or (not done
+            // here) from inside a call, the packets widen their own rows instead.
+            let done = WIDENED.try_with(|cell| {
+                let mut lines = cell.try_borrow_mut().ok()?;
+                let need = (q.len() * 4).div_ceil(64);
+                if lines.len() < need {
+                    lines.resize(need, CacheLine([0; 64]));
+                }
+                // SAFETY: the lines are initialised, 64-byte aligned and hold at least `q.len()` f32
+                // values; f32 accepts every bit pattern; `lines` stays borrowed while `dst` lives.
+                let dst = unsafe { core::slice::from_raw_parts_mut(lines.as_mut_ptr().cast::<f32>(), q.len()) };
+                crate::kernels::widen_f16(q, dst);
+                Some(f.take()?(Some(dst)))
+            });
+            match (done, f) {
+                (Ok(Some(r)), _) => return r,
+                (_, Some(f)) => return f(None),
+                // `f` is taken only where it returned.
+                (_, None) => unreachable!("the widened call returned"),
+            }
+        }
+        let _ = (math, n);
+        f(None)
     }
 
     #[inline]

@@ -1,8 +1,16 @@
 //! The tiny-network kernels (`nbrdf::kernels::TinyNet`, the NBRDF-json evaluator) against a plain
 //! scalar f64 reference on random networks and inputs, at every kernel level this CPU has, including
 //! pre-activations that are exactly zero at the ReLU; and single queries against packets, bit for bit.
+//! Batches of `.nbrdf` models with f16 weights, widened once per call or per packet, against the f32
+//! model of the same values, bit for bit, at every level.
 
+use nbrdf::file::{encode, ModelBuf, ModelHeader, ModelKind, PositionEncoding, Reciprocity};
 use nbrdf::kernels::{detected, set_level, Level, TinyLayer, TinyNet, TINY_INPUTS, TINY_PACKET};
+use nbrdf::Vec3;
+use std::sync::Mutex;
+
+/// The level is process-wide: tests that set it take turns.
+static LEVEL: Mutex<()> = Mutex::new(());
 
 struct Rng(u64);
 impl Rng {
@@ -64,6 +72,7 @@ fn reference(layers: &[TinyLayer], params: &[f32], input: &[f32; TINY_INPUTS]) -
 
 #[test]
 fn tiny_networks_match_a_scalar_reference_and_packets_match_single_queries() {
+    let _level = LEVEL.lock().unwrap_or_else(|e| e.into_inner());
     let mut rng = Rng(0x2545f4914f6cdd1d);
     for widths in [&[6, 21, 21, 3][..], &[6, 3], &[6, 8, 3], &[6, 64, 17, 40, 3], &[6, 2, 3], &[6, 33, 3]] {
         // Dyadic inputs: the first one makes some pre-activations exactly zero.
@@ -93,4 +102,64 @@ fn tiny_networks_match_a_scalar_reference_and_packets_match_single_queries() {
         }
         set_level(None);
     }
+}
+
+/// `Model::eval_many` on f16 weights widens the per-query network into a per-thread f32 copy once a
+/// call from four packets on (`std`), and smaller batches widen each packet's rows. Either way a pair
+/// gets the bits of the f32 model whose weights are the f16 values (the widening is exact and the
+/// kernels are the f32 ones), at every level, whichever model the thread's copy held before (a
+/// large network, then a smaller one, then the large one again) and on several threads at once.
+#[test]
+fn f16_batches_widened_per_call_or_per_packet_give_the_bits_of_f32_weights() {
+    let _level = LEVEL.lock().unwrap_or_else(|e| e.into_inner());
+    let mut rng = Rng(0x9e3779b97f4a7c15);
+    let pos = PositionEncoding::Intrinsic { k: 6 };
+    let models: Vec<(ModelKind, ModelBuf, ModelBuf)> = [ModelKind::SingleMlp, ModelKind::AdditiveShared, ModelKind::SingleMlp, ModelKind::AdditiveSeparate]
+        .into_iter()
+        .map(|kind| {
+            let h = ModelHeader::paper(kind, kind.is_additive(), Reciprocity::Exact, pos, 4);
+            let w: Vec<f32> = (0..h.n_weights()).map(|_| half::f16::from_f32(rng.next() * 0.3).to_f32()).collect();
+            let f32_buf = ModelBuf::from_bytes(&encode(&h, &w, None).unwrap()).unwrap();
+            let f16_buf = ModelBuf::from_bytes(&f32_buf.model().to_f16().unwrap()).unwrap();
+            (kind, f32_buf, f16_buf)
+        })
+        .collect();
+    let n = 200; // over four packets, and not a multiple of one
+    let mut dir = || {
+        let v = Vec3::new(rng.next(), rng.next(), rng.next() + 0.3);
+        v.normalize_or_zero()
+    };
+    let (wi, wo): (Vec<Vec3>, Vec<Vec3>) = (0..n).map(|_| (dir(), dir())).unzip();
+    let point = [0.1, 0.5, -0.3, 0.2, 0.0, 0.9];
+    for level in Level::ALL.into_iter().filter(|l| *l <= detected()) {
+        set_level(Some(level));
+        let check = || {
+            for (kind, f32_buf, f16_buf) in &models {
+                let (m32, m16) = (f32_buf.model(), f16_buf.model());
+                let (p32, p16) = (m32.prepare(&point), m16.prepare(&point));
+                let mut want = vec![[f32::NAN; 3]; n];
+                m32.eval_many(&p32, &wi, &wo, &mut want);
+                let mut whole = vec![[f32::NAN; 3]; n];
+                m16.eval_many(&p16, &wi, &wo, &mut whole);
+                let mut chunked = vec![[f32::NAN; 3]; n];
+                for (k, out) in chunked.chunks_mut(40).enumerate() {
+                    m16.eval_many(&p16, &wi[k * 40..], &wo[k * 40..], out);
+                }
+                let nonzero = want.iter().filter(|f| **f != [0.0; 3]).count();
+                assert!(nonzero > n / 2, "{kind:?}: most pairs are valid ({nonzero})");
+                for i in 0..n {
+                    let bits = want[i].map(f32::to_bits);
+                    assert_eq!(whole[i].map(f32::to_bits), bits, "{level:?} {kind:?} pair {i}: widened per call");
+                    assert_eq!(chunked[i].map(f32::to_bits), bits, "{level:?} {kind:?} pair {i}: widened per packet");
+                }
+            }
+        };
+        check();
+        std::thread::scope(|s| {
+            for _ in 0..3 {
+                s.spawn(check);
+            }
+        });
+    }
+    set_level(None);
 }

@@ -62,6 +62,7 @@ mod output_map;
 mod portable;
 mod sincos;
 mod tiny;
+mod widen;
 #[cfg(target_arch = "x86_64")]
 pub(crate) mod theta16;
 #[cfg(target_arch = "x86_64")]
@@ -71,6 +72,7 @@ use core::sync::atomic::{AtomicU8, Ordering};
 
 pub use output_map::{map_outputs, sigmoid_slice, softplus_slice};
 pub use sincos::{sincos16, sincos_octaves};
+pub use widen::widen_f16;
 pub use tiny::{half_diff_packet, TinyLayer, TinyNet, TINY_INPUTS, TINY_MAX_WIDTH, TINY_PACKET};
 
 /// Queries per packet of the batched kernels: 16, so that one weight vector (one f16 conversion)
