@@ -41,8 +41,9 @@ pub const MAX_OBJECT: usize = 4;
 
 /// Queries from which [`Model::eval_many`] on f16 weights widens the per-query network once for the
 /// call instead of each packet widening the rows it uses (`std`): four packets. The copy of a
-/// paper-size Single MLP takes ~12 µs here (written to L2 at 16 values per two cycles); at two
-/// packets both ways took the same time, at four the copy 0.93× (`docs/speed.md`).
+/// paper-size Single MLP takes ~12 µs on the project's Zen 4 machine (written to L2, ~7 cycles per
+/// 16 values); at two packets both ways took the same time, at four the copy 0.92–0.96×
+/// (`docs/speed.md`).
 #[cfg(feature = "std")]
 const WIDEN_FROM: usize = 4 * PACKET;
 
