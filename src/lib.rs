@@ -3,7 +3,9 @@
 //! Embeddable evaluation of the neural and parametric BRDFs compared in *On Neural BRDFs: A Thorough
 //! Comparison of State-of-the-Art Approaches* (the paper). The crate is `#![no_std]` and evaluates every
 //! model with fixed-size stack arrays and no allocation; the `alloc` feature adds readers that own their
-//! data (MERL tables, NBRDF-json networks), `std` adds files, scenes and images.
+//! data (MERL tables, NBRDF-json networks), `std` adds files, scenes and images. One exception, with
+//! `std` only and switchable: batches of a model with f16 weights keep an f32 copy of its per-query
+//! network in a per-thread buffer ([`model::set_f16_batch_copy`]).
 //!
 //! Conventions (see `DESIGN.md`): directions are unit vectors in the local shading frame (normal = +z)
 //! pointing away from the surface, `wi` toward the light and `wo` toward the viewer. A BRDF value is in

@@ -47,6 +47,28 @@ pub const MAX_OBJECT: usize = 4;
 #[cfg(feature = "std")]
 const WIDEN_FROM: usize = 4 * PACKET;
 
+/// Whether f16 batches may use [`WIDENED`] ([`set_f16_batch_copy`]).
+#[cfg(feature = "std")]
+static F16_BATCH_COPY: core::sync::atomic::AtomicBool = core::sync::atomic::AtomicBool::new(true);
+
+/// Lets [`Model::eval_many`] on f16 weights widen the per-query network once per call into a buffer
+/// of the calling thread (`true`, the default), or keeps every evaluation free of allocation
+/// (`false`: each packet widens the rows it uses, ~1.15× the f32 time here instead of ~1.0×; the
+/// same bits either way). The buffer is allocated on a thread's first f16 batch of four packets or
+/// more and kept for its life, as large as the largest per-query network it evaluated (0.4 MB for
+/// the paper's Single MLP). Process-wide, like [`crate::kernels::set_level`]; returns the previous
+/// setting.
+///
+/// ```
+/// let before = nbrdf::model::set_f16_batch_copy(false); // a render loop that must not allocate
+/// assert!(before);
+/// nbrdf::model::set_f16_batch_copy(before);
+/// ```
+#[cfg(feature = "std")]
+pub fn set_f16_batch_copy(on: bool) -> bool {
+    F16_BATCH_COPY.swap(on, core::sync::atomic::Ordering::Relaxed)
+}
+
 #[cfg(feature = "std")]
 std::thread_local! {
     /// Each thread's f32 copy of an f16 model's per-query network, for [`Model::eval_many`]: kept
@@ -388,7 +410,8 @@ impl<'a> Model<'a> {
     /// With f16 weights and the `std` feature, a call of at least four packets (64 pairs) first widens
     /// the per-query network to f32 in a buffer of the calling thread, kept for its next calls (as
     /// large as the largest such network it evaluated: 0.4 MB for the paper's Single MLP), so the
-    /// packets run at the speed of f32 weights; smaller calls, and builds without `std`, widen each
+    /// packets run at the speed of f32 weights; smaller calls, builds without `std`, and processes
+    /// that turned it off ([`set_f16_batch_copy`]: evaluation then never allocates) widen each
     /// packet's rows as it needs them. Both give the same bits.
     pub fn eval_many(&self, prepared: &Prepared, wi: &[Vec3], wo: &[Vec3], out: &mut [Rgb]) {
         let n = out.len().min(wi.len()).min(wo.len());
@@ -745,12 +768,14 @@ impl<'a> Model<'a> {
 
     /// Runs `f` over the per-query network's f16 weights widened to f32 once for the call where that
     /// pays (f16 weights, f32 arithmetic, at least [`WIDEN_FROM`] queries; `std`, for the per-thread
-    /// buffer [`WIDENED`]); else `f(None)`, and each packet widens the rows it uses. The widening is
+    /// buffer [`WIDENED`]; not turned off by [`set_f16_batch_copy`]); else `f(None)`, and each packet widens the rows it uses. The widening is
     /// exact and the f16 kernels are the f32 ones over widened rows, so both ways give the same bits.
     #[inline]
     fn with_widened<R>(&self, math: Arithmetic, n: usize, f: impl FnOnce(Option<&[f32]>) -> R) -> R {
         #[cfg(feature = "std")]
-        if let (Weights::F16(w), Arithmetic::F32, true) = (self.weights, math, n >= WIDEN_FROM) {
+        if let (Weights::F16(w), Arithmetic::F32, true) =
+            (self.weights, math, n >= WIDEN_FROM && F16_BATCH_COPY.load(core::sync::atomic::Ordering::Relaxed))
+        {
             let q = self.nets_f16(w)[self.header.nets().len().saturating_sub(1)].weights;
             let mut f = Some(f);
             // `try_with`, `try_borrow_mut`: while the thread's storage is torn down, or (not done

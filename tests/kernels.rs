@@ -108,7 +108,8 @@ fn tiny_networks_match_a_scalar_reference_and_packets_match_single_queries() {
 /// call from four packets on (`std`), and smaller batches widen each packet's rows. Either way a pair
 /// gets the bits of the f32 model whose weights are the f16 values (the widening is exact and the
 /// kernels are the f32 ones), at every level, whichever model the thread's copy held before (a
-/// large network, then a smaller one, then the large one again) and on several threads at once.
+/// large network, then a smaller one, then the large one again), on several threads at once, and
+/// with the copy turned off.
 #[test]
 fn f16_batches_widened_per_call_or_per_packet_give_the_bits_of_f32_weights() {
     let _level = LEVEL.lock().unwrap_or_else(|e| e.into_inner());
@@ -160,6 +161,10 @@ fn f16_batches_widened_per_call_or_per_packet_give_the_bits_of_f32_weights() {
                 s.spawn(check);
             }
         });
+        // With the per-thread copy turned off every call widens per packet: the same bits.
+        assert!(nbrdf::model::set_f16_batch_copy(false));
+        check();
+        assert!(!nbrdf::model::set_f16_batch_copy(true));
     }
     set_level(None);
 }
