@@ -39,8 +39,9 @@ pub const MAX_POSITION_INPUT: usize = encoded_len(3, crate::file::MAX_FREQUENCIE
 /// Largest number of per-object parameters.
 pub const MAX_OBJECT: usize = 4;
 
-/// Queries from which [`Model::eval_many`] on f16 weights widens the per-query network once for the
-/// call instead of each packet widening the rows it uses (`std`): four packets. The copy of a
+/// Queries from which [`Model::eval_many`] on f16 weights widens the per-query network into the
+/// thread's copy (where the copy does not hold it already) instead of each packet widening the
+/// rows it uses (`std`): four packets. The copy of a
 /// paper-size Single MLP takes ~12 µs on the project's Zen 4 machine (written to L2, ~7 cycles per
 /// 16 values); at two packets both ways took the same time, at four the copy 0.92–0.96×
 /// (`docs/speed.md`).
@@ -51,12 +52,12 @@ const WIDEN_FROM: usize = 4 * PACKET;
 #[cfg(feature = "std")]
 static F16_BATCH_COPY: core::sync::atomic::AtomicBool = core::sync::atomic::AtomicBool::new(true);
 
-/// Lets [`Model::eval_many`] on f16 weights widen the per-query network once per call into a buffer
-/// of the calling thread (`true`, the default), or keeps every evaluation free of allocation
-/// (`false`: each packet widens the rows it uses, ~1.15× the f32 time here instead of ~1.0×; the
-/// same bits either way). The buffer is allocated on a thread's first f16 batch of four packets or
-/// more and kept for its life, as large as the largest per-query network it evaluated (0.4 MB for
-/// the paper's Single MLP). Process-wide, like [`crate::kernels::set_level`]; returns the previous
+/// Lets [`Model::eval_many`] on f16 weights keep an f32 copy of the per-query network in a buffer of
+/// the calling thread (`true`, the default), or keeps every evaluation free of allocation (`false`:
+/// each packet widens the rows it uses, ~1.15× the f32 time here instead of ~1.0×; the same bits
+/// either way). The buffer is allocated on a thread's first f16 batch of four packets or more and
+/// kept for its life, as large as the largest per-query network it evaluated (0.4 MB for the
+/// paper's Single MLP). Process-wide, like [`crate::kernels::set_level`]; returns the previous
 /// setting.
 ///
 /// ```
@@ -69,12 +70,21 @@ pub fn set_f16_batch_copy(on: bool) -> bool {
     F16_BATCH_COPY.swap(on, core::sync::atomic::Ordering::Relaxed)
 }
 
+/// A thread's f32 copy of an f16 model's per-query network, for [`Model::eval_many`].
+#[cfg(feature = "std")]
+struct Widened {
+    /// The copy; it grows to the largest network the thread evaluated, so a call allocates nothing
+    /// once the thread has seen its models.
+    lines: alloc::vec::Vec<CacheLine>,
+    /// The [`ModelBuf::id`] whose network the copy holds, 0 for none: later calls on that model
+    /// use the copy as it is, whatever their size.
+    id: usize,
+}
+
 #[cfg(feature = "std")]
 std::thread_local! {
-    /// Each thread's f32 copy of an f16 model's per-query network, for [`Model::eval_many`]: kept
-    /// between calls (it grows to the largest network the thread evaluated), so a call allocates
-    /// nothing once the thread has seen its models.
-    static WIDENED: core::cell::RefCell<alloc::vec::Vec<CacheLine>> = const { core::cell::RefCell::new(alloc::vec::Vec::new()) };
+    /// Each thread's [`Widened`] copy.
+    static WIDENED: core::cell::RefCell<Widened> = const { core::cell::RefCell::new(Widened { lines: alloc::vec::Vec::new(), id: 0 }) };
 }
 
 /// Borrowed network weights in their stored precision.
@@ -124,6 +134,10 @@ pub struct Model<'a> {
     query: Option<Weights<'a>>,
     /// The per-query network's hidden weights in bf16 parts, in AMX tile order ([`ModelBuf::enable_bf16`]).
     tiles: Option<&'a [u16]>,
+    /// The [`ModelBuf`]'s identity (`ModelBuf::id`); 0 for borrowed bytes, whose content may change
+    /// between two views of the same address. Read only by the `std` copy of f16 batches.
+    #[cfg_attr(not(feature = "std"), allow(dead_code))]
+    id: usize,
     object: [f32; MAX_OBJECT],
     table: &'a [f32],
 }
@@ -218,7 +232,7 @@ impl<'a> Model<'a> {
         }
         // SAFETY: as above.
         let table = unsafe { cast_slice::<f32>(&bytes[s.table.0..s.table.1]) };
-        Ok(Model { header, weights, query: None, tiles: None, object, table })
+        Ok(Model { header, weights, query: None, tiles: None, id: 0, object, table })
     }
 
     #[cfg(not(target_endian = "little"))]
@@ -408,11 +422,14 @@ impl<'a> Model<'a> {
     /// bound by streaming the weights from L2 and packets by the FMA rate (see `docs/speed.md`).
     ///
     /// With f16 weights and the `std` feature, a call of at least four packets (64 pairs) first widens
-    /// the per-query network to f32 in a buffer of the calling thread, kept for its next calls (as
-    /// large as the largest such network it evaluated: 0.4 MB for the paper's Single MLP), so the
-    /// packets run at the speed of f32 weights; smaller calls, builds without `std`, and processes
-    /// that turned it off ([`set_f16_batch_copy`]: evaluation then never allocates) widen each
-    /// packet's rows as it needs them. Both give the same bits.
+    /// the per-query network to f32 in a buffer of the calling thread (as large as the largest such
+    /// network it evaluated: 0.4 MB for the paper's Single MLP), so the packets run at the speed of
+    /// f32 weights; the thread's later calls on the same [`ModelBuf`] (or a clone) use that copy
+    /// whatever their size, until a large call on another model replaces it. Other small calls,
+    /// models over borrowed bytes ([`Model::from_bytes`]: their calls of 64 pairs or more widen
+    /// afresh), builds without `std`, and processes that turned it off ([`set_f16_batch_copy`]:
+    /// evaluation then never allocates) widen each packet's rows as it needs them. Every way gives
+    /// the same bits.
     pub fn eval_many(&self, prepared: &Prepared, wi: &[Vec3], wo: &[Vec3], out: &mut [Rgb]) {
         let n = out.len().min(wi.len()).min(wo.len());
         self.eval_many_by(Arithmetic::F32, prepared, n, |i| (wi[i], wo[i]), |i, f| out[i] = f);
@@ -766,30 +783,39 @@ impl<'a> Model<'a> {
         nets
     }
 
-    /// Runs `f` over the per-query network's f16 weights widened to f32 once for the call where that
-    /// pays (f16 weights, f32 arithmetic, at least [`WIDEN_FROM`] queries; `std`, for the per-thread
-    /// buffer [`WIDENED`]; not turned off by [`set_f16_batch_copy`]); else `f(None)`, and each packet widens the rows it uses. The widening is
-    /// exact and the f16 kernels are the f32 ones over widened rows, so both ways give the same bits.
+    /// Runs `f` over the per-query network's f16 weights widened to f32 where that pays (f16 weights,
+    /// f32 arithmetic, `std` for the per-thread copy [`WIDENED`], not turned off by
+    /// [`set_f16_batch_copy`]): the copy as it is where it holds this [`ModelBuf`]'s network, else
+    /// widened afresh for calls of at least [`WIDEN_FROM`] queries; otherwise `f(None)`, and each
+    /// packet widens the rows it uses. The widening is exact and the f16 kernels are the f32 ones
+    /// over widened rows, so every way gives the same bits.
     #[inline]
     fn with_widened<R>(&self, math: Arithmetic, n: usize, f: impl FnOnce(Option<&[f32]>) -> R) -> R {
         #[cfg(feature = "std")]
         if let (Weights::F16(w), Arithmetic::F32, true) =
-            (self.weights, math, n >= WIDEN_FROM && F16_BATCH_COPY.load(core::sync::atomic::Ordering::Relaxed))
+            (self.weights, math, F16_BATCH_COPY.load(core::sync::atomic::Ordering::Relaxed))
         {
             let q = self.nets_f16(w)[self.header.nets().len().saturating_sub(1)].weights;
             let mut f = Some(f);
             // `try_with`, `try_borrow_mut`: while the thread's storage is torn down, or (not done
             // here) from inside a call, the packets widen their own rows instead.
             let done = WIDENED.try_with(|cell| {
-                let mut lines = cell.try_borrow_mut().ok()?;
+                let mut copy = cell.try_borrow_mut().ok()?;
+                let held = self.id != 0 && copy.id == self.id;
+                if !held && n < WIDEN_FROM {
+                    return None;
+                }
                 let need = (q.len() * 4).div_ceil(64);
-                if lines.len() < need {
-                    lines.resize(need, CacheLine([0; 64]));
+                if copy.lines.len() < need {
+                    copy.lines.resize(need, CacheLine([0; 64]));
                 }
                 // SAFETY: the lines are initialised, 64-byte aligned and hold at least `q.len()` f32
-                // values; f32 accepts every bit pattern; `lines` stays borrowed while `dst` lives.
-                let dst = unsafe { core::slice::from_raw_parts_mut(lines.as_mut_ptr().cast::<f32>(), q.len()) };
-                crate::kernels::widen_f16(q, dst);
+                // values; f32 accepts every bit pattern; `copy` stays borrowed while `dst` lives.
+                let dst = unsafe { core::slice::from_raw_parts_mut(copy.lines.as_mut_ptr().cast::<f32>(), q.len()) };
+                if !held {
+                    crate::kernels::widen_f16(q, dst);
+                    copy.id = self.id;
+                }
                 Some(f.take()?(Some(dst)))
             });
             match (done, f) {
@@ -888,6 +914,10 @@ pub struct ModelBuf {
     /// The per-query network's hidden weights in AMX tile order and their number of bf16 values
     /// ([`ModelBuf::enable_bf16`]).
     tiles: Option<(alloc::vec::Vec<CacheLine>, usize)>,
+    /// Identifies these bytes for the per-thread f32 copy of f16 batches ([`Model::eval_many`]):
+    /// unique per `from_bytes` (never reused: the bytes cannot change, and the copy of one buffer
+    /// never serves another), shared by clones, whose bytes are the same.
+    id: usize,
     /// Where the file starts in `lines`, in bytes (a multiple of 4, below 64).
     shift: usize,
     len: usize,
@@ -921,6 +951,15 @@ impl CacheLine {
     }
 }
 
+/// The next [`ModelBuf`] identity: 1, 2, … and then 0 (no identity, never a repeated one) once
+/// `usize` runs out.
+#[cfg(feature = "alloc")]
+fn next_model_id() -> usize {
+    static NEXT: core::sync::atomic::AtomicUsize = core::sync::atomic::AtomicUsize::new(1);
+    let relaxed = core::sync::atomic::Ordering::Relaxed;
+    NEXT.fetch_update(relaxed, relaxed, |v| v.checked_add(1)).unwrap_or(0)
+}
+
 #[cfg(feature = "alloc")]
 impl ModelBuf {
     /// Copies `bytes` into storage whose per-query network starts on a 64-byte boundary, and validates
@@ -934,7 +973,7 @@ impl ModelBuf {
         let lines = CacheLine::copy_of(bytes, shift);
         let q = Model::query_weights_range(&header, &sections);
         let query = (!(q.start + shift).is_multiple_of(64)).then(|| CacheLine::copy_of(&bytes[q], 0));
-        let buf = ModelBuf { lines, query, tiles: None, shift, len: bytes.len(), header, sections };
+        let buf = ModelBuf { lines, query, tiles: None, id: next_model_id(), shift, len: bytes.len(), header, sections };
         // Surface host-dependent failures (byte order) here rather than at every `model()` call.
         Model::from_parsed(buf.bytes(), header, &sections)?;
         Ok(buf)
@@ -967,6 +1006,7 @@ impl ModelBuf {
             // `from_bytes` ran the same conversion on the same bytes and header successfully.
             Err(_) => unreachable!("ModelBuf was validated at construction"),
         };
+        model.id = self.id;
         if let Some(copy) = &self.query {
             let n = Model::query_weights_range(&self.header, &self.sections).len();
             // SAFETY: the copy holds the network's weights from a 64-byte boundary (`from_bytes`).

@@ -5,6 +5,7 @@
 //! model of the same values, bit for bit, at every level.
 
 use nbrdf::file::{encode, ModelBuf, ModelHeader, ModelKind, PositionEncoding, Reciprocity};
+use nbrdf::model::Model;
 use nbrdf::kernels::{detected, set_level, Level, TinyLayer, TinyNet, TINY_INPUTS, TINY_PACKET};
 use nbrdf::Vec3;
 use std::sync::Mutex;
@@ -104,12 +105,12 @@ fn tiny_networks_match_a_scalar_reference_and_packets_match_single_queries() {
     }
 }
 
-/// `Model::eval_many` on f16 weights widens the per-query network into a per-thread f32 copy once a
-/// call from four packets on (`std`), and smaller batches widen each packet's rows. Either way a pair
-/// gets the bits of the f32 model whose weights are the f16 values (the widening is exact and the
-/// kernels are the f32 ones), at every level, whichever model the thread's copy held before (a
-/// large network, then a smaller one, then the large one again), on several threads at once, and
-/// with the copy turned off.
+/// `Model::eval_many` on f16 weights widens the per-query network into a per-thread f32 copy for
+/// calls of four packets or more (`std`), later calls on the same `ModelBuf` use that copy whatever
+/// their size, and other small calls widen each packet's rows. Every way a pair gets the bits of the
+/// f32 model whose weights are the f16 values (the widening is exact and the kernels are the f32
+/// ones), at every level, whichever model the thread's copy held before (a large network, then a
+/// smaller one, then another large one), on several threads at once, and with the copy turned off.
 #[test]
 fn f16_batches_widened_per_call_or_per_packet_give_the_bits_of_f32_weights() {
     let _level = LEVEL.lock().unwrap_or_else(|e| e.into_inner());
@@ -140,20 +141,38 @@ fn f16_batches_widened_per_call_or_per_packet_give_the_bits_of_f32_weights() {
                 let (p32, p16) = (m32.prepare(&point), m16.prepare(&point));
                 let mut want = vec![[f32::NAN; 3]; n];
                 m32.eval_many(&p32, &wi, &wo, &mut want);
+                let chunked = || {
+                    let mut out = vec![[f32::NAN; 3]; n];
+                    for (k, out) in out.chunks_mut(40).enumerate() {
+                        m16.eval_many(&p16, &wi[k * 40..], &wo[k * 40..], out);
+                    }
+                    out
+                };
+                // Small calls while the thread's copy holds another model (or none): per packet.
+                let before = chunked();
                 let mut whole = vec![[f32::NAN; 3]; n];
                 m16.eval_many(&p16, &wi, &wo, &mut whole);
-                let mut chunked = vec![[f32::NAN; 3]; n];
-                for (k, out) in chunked.chunks_mut(40).enumerate() {
-                    m16.eval_many(&p16, &wi[k * 40..], &wo[k * 40..], out);
-                }
+                // Small calls on the model the copy now holds: over the copy.
+                let after = chunked();
                 let nonzero = want.iter().filter(|f| **f != [0.0; 3]).count();
                 assert!(nonzero > n / 2, "{kind:?}: most pairs are valid ({nonzero})");
                 for i in 0..n {
                     let bits = want[i].map(f32::to_bits);
-                    assert_eq!(whole[i].map(f32::to_bits), bits, "{level:?} {kind:?} pair {i}: widened per call");
-                    assert_eq!(chunked[i].map(f32::to_bits), bits, "{level:?} {kind:?} pair {i}: widened per packet");
+                    assert_eq!(before[i].map(f32::to_bits), bits, "{level:?} {kind:?} pair {i}: widened per packet");
+                    assert_eq!(whole[i].map(f32::to_bits), bits, "{level:?} {kind:?} pair {i}: widened for the call");
+                    assert_eq!(after[i].map(f32::to_bits), bits, "{level:?} {kind:?} pair {i}: the thread's copy");
                 }
             }
+            // Views of borrowed bytes have no identity: after a large call on one, a small call on
+            // another (a second Single MLP of the same shape) widens its own rows.
+            let (a, b) = (Model::from_bytes(models[0].2.as_bytes()).unwrap(), Model::from_bytes(models[2].2.as_bytes()).unwrap());
+            let b32 = models[2].1.model();
+            let mut big = vec![[0.0f32; 3]; n];
+            a.eval_many(&a.prepare(&point), &wi, &wo, &mut big);
+            let (mut small, mut want) = (vec![[f32::NAN; 3]; 40], vec![[f32::NAN; 3]; 40]);
+            b.eval_many(&b.prepare(&point), &wi[..40], &wo[..40], &mut small);
+            b32.eval_many(&b32.prepare(&point), &wi[..40], &wo[..40], &mut want);
+            assert_eq!(small, want, "{level:?}: a borrowed model after another");
         };
         check();
         std::thread::scope(|s| {
