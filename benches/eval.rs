@@ -2,7 +2,9 @@
 //! `prepare` (one shading point), f32 and f16 weights, single queries and batches of many directions
 //! at one point, at every kernel level this CPU has (`portable` is the pre-SIMD scalar path, the
 //! "before" of issue 8; the neural models' batches also with independent random directions,
-//! `batch-1024-random`, at the best level), plus the NBRDF-json networks, plus the neural models'
+//! `batch-1024-random`, and in calls of 32 pairs, `batch-32`, at the best level: with f16 weights
+//! these run over the thread's f32 copy of the network, `batch-32-no-copy` with the copy turned
+//! off), plus the NBRDF-json networks, plus the neural models'
 //! batched throughput with one thread per core (`eval-f32-N-threads`, wall time), and the floor that
 //! L2 bandwidth puts under a single Single MLP query (`eval-floor`). Run: `cargo bench --bench eval`,
 //! or e.g. `cargo bench --bench eval -- 'eval-f32/.*single-mlp'` for one model.
@@ -183,6 +185,25 @@ fn bench_models(c: &mut Criterion<Clock>) {
                     g.bench_function(BenchmarkId::new(format!("batch-1024-random/{lname}"), &name), |b| {
                         b.iter(|| m.eval_many(&prepared, black_box(&rwi), black_box(&rwo), &mut out))
                     });
+                    // Calls of 32 pairs, as a renderer makes at a shading point, stepping through the
+                    // directions.
+                    g.throughput(Throughput::Elements(32));
+                    let mut calls_of_32 = |id: &str| {
+                        let mut k = 0;
+                        g.bench_function(BenchmarkId::new(format!("{id}/{lname}"), &name), |b| {
+                            b.iter(|| {
+                                k = (k + 32) & 1023;
+                                m.eval_many(&prepared, black_box(&wi[k..k + 32]), black_box(&wo[k..k + 32]), &mut out[..32])
+                            })
+                        });
+                    };
+                    calls_of_32("batch-32");
+                    if precision == Precision::F16 {
+                        let was = nbrdf::model::set_f16_batch_copy(false);
+                        calls_of_32("batch-32-no-copy");
+                        nbrdf::model::set_f16_batch_copy(was);
+                    }
+                    g.throughput(Throughput::Elements(wi.len() as u64));
                 }
                 if level == Level::Avx512 && m.half_math() {
                     g.throughput(Throughput::Elements(1));

@@ -39,9 +39,9 @@ pub const MAX_POSITION_INPUT: usize = encoded_len(3, crate::file::MAX_FREQUENCIE
 /// Largest number of per-object parameters.
 pub const MAX_OBJECT: usize = 4;
 
-/// Queries from which [`Model::eval_many`] on f16 weights widens the per-query network into the
-/// thread's copy (where the copy does not hold it already) instead of each packet widening the
-/// rows it uses (`std`): four packets. The copy of a
+/// Pairs of one model in a row from which [`Model::eval_many`] on f16 weights widens the per-query
+/// network into the thread's copy (where the copy does not hold it already) instead of each packet
+/// widening the rows it uses (`std`): four packets. The copy of a
 /// paper-size Single MLP takes ~12 µs on the project's Zen 4 machine (written to L2, ~7 cycles per
 /// 16 values); at two packets both ways took the same time, at four the copy 0.92–0.96×
 /// (`docs/speed.md`).
@@ -55,8 +55,8 @@ static F16_BATCH_COPY: core::sync::atomic::AtomicBool = core::sync::atomic::Atom
 /// Lets [`Model::eval_many`] on f16 weights keep an f32 copy of the per-query network in a buffer of
 /// the calling thread (`true`, the default), or keeps every evaluation free of allocation (`false`:
 /// each packet widens the rows it uses, ~1.15× the f32 time here instead of ~1.0×; the same bits
-/// either way). The buffer is allocated on a thread's first f16 batch of four packets or more and
-/// kept for its life, as large as the largest per-query network it evaluated (0.4 MB for the
+/// either way). The buffer is allocated once a thread has evaluated four packets' worth of pairs
+/// (64) of one f16 model in a row and kept for its life, as large as the largest per-query network it evaluated (0.4 MB for the
 /// paper's Single MLP). Process-wide, like [`crate::kernels::set_level`]; returns the previous
 /// setting.
 ///
@@ -79,12 +79,16 @@ struct Widened {
     /// The [`ModelBuf::id`] whose network the copy holds, 0 for none: later calls on that model
     /// use the copy as it is, whatever their size.
     id: usize,
+    /// The model the thread evaluated last without the copy, and how many pairs in a row: small
+    /// calls on one model make the copy once they add up to [`WIDEN_FROM`] pairs.
+    candidate: usize,
+    seen: usize,
 }
 
 #[cfg(feature = "std")]
 std::thread_local! {
     /// Each thread's [`Widened`] copy.
-    static WIDENED: core::cell::RefCell<Widened> = const { core::cell::RefCell::new(Widened { lines: alloc::vec::Vec::new(), id: 0 }) };
+    static WIDENED: core::cell::RefCell<Widened> = const { core::cell::RefCell::new(Widened { lines: alloc::vec::Vec::new(), id: 0, candidate: 0, seen: 0 }) };
 }
 
 /// Borrowed network weights in their stored precision.
@@ -421,15 +425,14 @@ impl<'a> Model<'a> {
     /// (Zen 4) to 1.5x (Intel Xeon) faster per pair than [`Model::eval`], where single queries are
     /// bound by streaming the weights from L2 and packets by the FMA rate (see `docs/speed.md`).
     ///
-    /// With f16 weights and the `std` feature, a call of at least four packets (64 pairs) first widens
-    /// the per-query network to f32 in a buffer of the calling thread (as large as the largest such
-    /// network it evaluated: 0.4 MB for the paper's Single MLP), so the packets run at the speed of
-    /// f32 weights; the thread's later calls on the same [`ModelBuf`] (or a clone) use that copy
-    /// whatever their size, until a large call on another model replaces it. Other small calls,
-    /// models over borrowed bytes ([`Model::from_bytes`]: their calls of 64 pairs or more widen
-    /// afresh), builds without `std`, and processes that turned it off ([`set_f16_batch_copy`]:
-    /// evaluation then never allocates) widen each packet's rows as it needs them. Every way gives
-    /// the same bits.
+    /// With f16 weights and the `std` feature, once a thread has evaluated four packets' worth (64
+    /// pairs) of one [`ModelBuf`] in a row, in one call or several, it widens the per-query network
+    /// to f32 in a buffer of its own (as large as the largest such network it evaluated: 0.4 MB for
+    /// the paper's Single MLP), and its calls on that model (or a clone) run over the copy at the
+    /// speed of f32 weights until another model takes it over the same way. Until then, for models
+    /// over borrowed bytes ([`Model::from_bytes`]: a copy for each call of 64 pairs or more, never
+    /// reused), without `std`, and where turned off ([`set_f16_batch_copy`]: evaluation then never
+    /// allocates), each packet widens the rows it uses. Every way gives the same bits.
     pub fn eval_many(&self, prepared: &Prepared, wi: &[Vec3], wo: &[Vec3], out: &mut [Rgb]) {
         let n = out.len().min(wi.len()).min(wo.len());
         self.eval_many_by(Arithmetic::F32, prepared, n, |i| (wi[i], wo[i]), |i, f| out[i] = f);
@@ -786,8 +789,9 @@ impl<'a> Model<'a> {
     /// Runs `f` over the per-query network's f16 weights widened to f32 where that pays (f16 weights,
     /// f32 arithmetic, `std` for the per-thread copy [`WIDENED`], not turned off by
     /// [`set_f16_batch_copy`]): the copy as it is where it holds this [`ModelBuf`]'s network, else
-    /// widened afresh for calls of at least [`WIDEN_FROM`] queries; otherwise `f(None)`, and each
-    /// packet widens the rows it uses. The widening is exact and the f16 kernels are the f32 ones
+    /// widened afresh once the thread has evaluated [`WIDEN_FROM`] pairs of this model in a row (in
+    /// this call, or for a `ModelBuf` over consecutive calls); otherwise `f(None)`, and each packet
+    /// widens the rows it uses. The widening is exact and the f16 kernels are the f32 ones
     /// over widened rows, so every way gives the same bits.
     #[inline]
     fn with_widened<R>(&self, math: Arithmetic, n: usize, f: impl FnOnce(Option<&[f32]>) -> R) -> R {
@@ -802,8 +806,14 @@ impl<'a> Model<'a> {
             let done = WIDENED.try_with(|cell| {
                 let mut copy = cell.try_borrow_mut().ok()?;
                 let held = self.id != 0 && copy.id == self.id;
-                if !held && n < WIDEN_FROM {
-                    return None;
+                if !held {
+                    // Pairs of this model in a row on this thread, this call included (borrowed
+                    // bytes, without identity, count one call at a time).
+                    let run = if self.id != 0 && copy.candidate == self.id { copy.seen.saturating_add(n) } else { n };
+                    (copy.candidate, copy.seen) = (self.id, run);
+                    if run < WIDEN_FROM {
+                        return None;
+                    }
                 }
                 let need = (q.len() * 4).div_ceil(64);
                 if copy.lines.len() < need {

@@ -105,9 +105,9 @@ fn tiny_networks_match_a_scalar_reference_and_packets_match_single_queries() {
     }
 }
 
-/// `Model::eval_many` on f16 weights widens the per-query network into a per-thread f32 copy for
-/// calls of four packets or more (`std`), later calls on the same `ModelBuf` use that copy whatever
-/// their size, and other small calls widen each packet's rows. Every way a pair gets the bits of the
+/// `Model::eval_many` on f16 weights widens the per-query network into a per-thread f32 copy once the
+/// thread has evaluated four packets' worth of one `ModelBuf` in a row (`std`), later calls on it use
+/// that copy whatever their size, and other calls widen each packet's rows. Every way a pair gets the bits of the
 /// f32 model whose weights are the f16 values (the widening is exact and the kernels are the f32
 /// ones), at every level, whichever model the thread's copy held before (a large network, then a
 /// smaller one, then another large one), on several threads at once, and with the copy turned off.
@@ -148,11 +148,12 @@ fn f16_batches_widened_per_call_or_per_packet_give_the_bits_of_f32_weights() {
                     }
                     out
                 };
-                // Small calls while the thread's copy holds another model (or none): per packet.
+                // Small calls while the thread's copy holds another model (or none): per packet,
+                // until this model's pairs in a row reach four packets (the second call).
                 let before = chunked();
                 let mut whole = vec![[f32::NAN; 3]; n];
                 m16.eval_many(&p16, &wi, &wo, &mut whole);
-                // Small calls on the model the copy now holds: over the copy.
+                // Small calls on the model the copy holds: over the copy.
                 let after = chunked();
                 let nonzero = want.iter().filter(|f| **f != [0.0; 3]).count();
                 assert!(nonzero > n / 2, "{kind:?}: most pairs are valid ({nonzero})");
