@@ -50,8 +50,8 @@ const TILE: usize = 64;
 /// [`one`] gives it, in the same order (its `init`, then `x_i · row_i` for its nonzero inputs in row
 /// order), so the bits are those of one query at a time. Against running [`one`] per query (each
 /// row read, and its f16 weights converted, once per query): on this project's Zen 4 machine forced
-/// to this level, f32 batches 0.90–0.99× the time in one process, and f16 batches too small for the
-/// model's per-call f32 copy (48 pairs) 0.15–0.18× (`docs/speed.md`).
+/// to this level, f32 batches 0.90–0.99× the time in one process, and f16 calls of 48 pairs that
+/// widen per packet (without the model's per-thread f32 copy) 0.15–0.18× (`docs/speed.md`).
 ///
 /// # Safety
 /// `layer` passed `Dense::check(PACKET, ..)` for an output buffer at `out` with rows `out_stride` apart.
