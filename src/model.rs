@@ -41,10 +41,9 @@ pub const MAX_OBJECT: usize = 4;
 
 /// Pairs of one model in a row from which [`Model::eval_many`] on f16 weights widens the per-query
 /// network into the thread's copy (where the copy does not hold it already) instead of each packet
-/// widening the rows it uses (`std`): four packets. The copy of a
-/// paper-size Single MLP takes ~12 µs on the project's Zen 4 machine (written to L2, ~7 cycles per
-/// 16 values); at two packets both ways took the same time, at four the copy 0.92–0.96×
-/// (`docs/speed.md`).
+/// widening the rows it uses (`std`): four packets. The copy of a paper-size Single MLP takes ~12 µs
+/// on the project's Zen 4 machine (written to L2, ~7 cycles per 16 values); at two packets both ways
+/// took the same time, at four the copy 0.92–0.96× (`docs/speed.md`).
 #[cfg(feature = "std")]
 const WIDEN_FROM: usize = 4 * PACKET;
 
@@ -56,9 +55,9 @@ static F16_BATCH_COPY: core::sync::atomic::AtomicBool = core::sync::atomic::Atom
 /// the calling thread (`true`, the default), or keeps every evaluation free of allocation (`false`:
 /// each packet widens the rows it uses, ~1.15× the f32 time here instead of ~1.0×; the same bits
 /// either way). The buffer is allocated once a thread has evaluated four packets' worth of pairs
-/// (64) of one f16 model in a row and kept for its life, as large as the largest per-query network it evaluated (0.4 MB for the
-/// paper's Single MLP). Process-wide, like [`crate::kernels::set_level`]; returns the previous
-/// setting.
+/// (64) of one f16 model in a row and kept for its life, as large as the largest per-query network
+/// it evaluated (0.4 MB for the paper's Single MLP). Process-wide, like
+/// [`crate::kernels::set_level`]; returns the previous setting.
 ///
 /// ```
 /// let before = nbrdf::model::set_f16_batch_copy(false); // a render loop that must not allocate
@@ -791,8 +790,8 @@ impl<'a> Model<'a> {
     /// [`set_f16_batch_copy`]): the copy as it is where it holds this [`ModelBuf`]'s network, else
     /// widened afresh once the thread has evaluated [`WIDEN_FROM`] pairs of this model in a row (in
     /// this call, or for a `ModelBuf` over consecutive calls); otherwise `f(None)`, and each packet
-    /// widens the rows it uses. The widening is exact and the f16 kernels are the f32 ones
-    /// over widened rows, so every way gives the same bits.
+    /// widens the rows it uses. The widening is exact and the f16 kernels are the f32 ones over
+    /// widened rows, so every way gives the same bits.
     #[inline]
     fn with_widened<R>(&self, math: Arithmetic, n: usize, f: impl FnOnce(Option<&[f32]>) -> R) -> R {
         #[cfg(feature = "std")]

@@ -1,8 +1,8 @@
 //! The tiny-network kernels (`nbrdf::kernels::TinyNet`, the NBRDF-json evaluator) against a plain
 //! scalar f64 reference on random networks and inputs, at every kernel level this CPU has, including
 //! pre-activations that are exactly zero at the ReLU; and single queries against packets, bit for bit.
-//! Batches of `.nbrdf` models with f16 weights, widened once per call or per packet, against the f32
-//! model of the same values, bit for bit, at every level.
+//! Batches of `.nbrdf` models with f16 weights, over the thread's f32 copy or widened per packet,
+//! against the f32 model of the same values, bit for bit, at every level.
 
 use nbrdf::file::{encode, ModelBuf, ModelHeader, ModelKind, PositionEncoding, Reciprocity};
 use nbrdf::model::Model;
@@ -107,9 +107,9 @@ fn tiny_networks_match_a_scalar_reference_and_packets_match_single_queries() {
 
 /// `Model::eval_many` on f16 weights widens the per-query network into a per-thread f32 copy once the
 /// thread has evaluated four packets' worth of one `ModelBuf` in a row (`std`), later calls on it use
-/// that copy whatever their size, and other calls widen each packet's rows. Every way a pair gets the bits of the
-/// f32 model whose weights are the f16 values (the widening is exact and the kernels are the f32
-/// ones), at every level, whichever model the thread's copy held before (a large network, then a
+/// that copy whatever their size, and other calls widen each packet's rows. Every way a pair gets
+/// the bits of the f32 model whose weights are the f16 values (the widening is exact and the kernels
+/// are the f32 ones), at every level, whichever model the thread's copy held before (a large network, then a
 /// smaller one, then another large one), on several threads at once, and with the copy turned off.
 #[test]
 fn f16_batches_widened_per_call_or_per_packet_give_the_bits_of_f32_weights() {
