@@ -1,6 +1,6 @@
 //! Evaluation cost of every model: ns per `eval` (one direction pair at a prepared point) and per
-//! `prepare` (one shading point), f32 and f16 weights, single queries and batches of many directions
-//! at one point, at every kernel level this CPU has (`portable` is the pre-SIMD scalar path, the
+//! `prepare` (one shading point; at the best level also `prepare-many-1024`, 1 024 points at once),
+//! f32 and f16 weights, single queries and batches of many directions at one point, at every kernel level this CPU has (`portable` is the pre-SIMD scalar path, the
 //! "before" of issue 8; the neural models' batches also with independent random directions,
 //! `batch-1024-random`, and in calls of 32 pairs, `batch-32`, at the best level: with f16 weights
 //! these run over the thread's f32 copy of the network, `batch-32-no-copy` with the copy turned
@@ -152,6 +152,8 @@ impl Measurement for Clock {
 
 fn bench_models(c: &mut Criterion<Clock>) {
     let p: Vec<f32> = (0..64).map(|i| (i as f32 * 0.1).sin()).collect();
+    // 1 024 points' intrinsic features, neighbouring points alike (a smooth field over the surface).
+    let points: Vec<f32> = (0..1024 * 64).map(|i| ((i % 64) as f32 * 0.1 + (i / 64) as f32 * 0.013).sin()).collect();
     let (wi, wo) = directions(1024);
     let (rwi, rwo) = random_directions(1024);
     for precision in [Precision::F32, Precision::F16] {
@@ -176,6 +178,16 @@ fn bench_models(c: &mut Criterion<Clock>) {
                 g.bench_function(BenchmarkId::new(format!("prepare/{lname}"), &name), |b| {
                     b.iter(|| black_box(m.prepare(black_box(&p))))
                 });
+                if level == detected() {
+                    // 1 024 points of one material at once (a wavefront's hits): the position
+                    // networks in packets.
+                    g.throughput(Throughput::Elements(points.len() as u64 / 64));
+                    let mut many = vec![prepared; points.len() / 64];
+                    g.bench_function(BenchmarkId::new(format!("prepare-many-1024/{lname}"), &name), |b| {
+                        b.iter(|| m.prepare_many(black_box(&points), &mut many).unwrap())
+                    });
+                    g.throughput(Throughput::Elements(1));
+                }
                 g.throughput(Throughput::Elements(wi.len() as u64));
                 let mut out: Vec<Rgb> = vec![[0.0; 3]; wi.len()];
                 g.bench_function(BenchmarkId::new(format!("batch-1024/{lname}"), &name), |b| {

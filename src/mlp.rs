@@ -629,10 +629,117 @@ fn hidden_one_tiled<W: Weight>(tiled: Tiled<'_>, net: &Net<'_, W>, partial: &Par
     }
 }
 
-/// Runs the network on its whole input `x` (no precomputed head).
+/// Runs the network on its whole input `x` (no precomputed head: all of `x` is the tail, so the skip
+/// layer adds its rows after the hidden ones), one query; [`eval_packet`] gives each of its queries
+/// these bits.
 #[inline]
 pub fn eval<W: Weight>(net: &Net<'_, W>, x: &[f32], out: &mut [f32]) {
-    forward(net, &partial(net, x), &[], out)
+    forward(net, &partial(net, &[]), x, out)
+}
+
+/// [`eval`] for [`PACKET`] queries (the packet kernels): query `q`'s input at `x[q * stride..][..n]`,
+/// its `desc.output_len()` outputs at `out[q * out_stride..]`, each the bits of [`eval`] on that input.
+/// What [`crate::model::Model::prepare_many`] runs the position networks with: every point its own
+/// input, where [`forward_packet`]'s queries share one prepared point.
+///
+/// Panics when `x` or `out` is too short for the packet.
+///
+/// ```
+/// use nbrdf::mlp::{eval, eval_packet, Net, NetDesc, PACKET};
+/// let desc = NetDesc { n_in: 2, width: 4, hidden: 2, n_out: 1, skip: 1 };
+/// let w: Vec<f32> = (0..desc.n_weights()).map(|i| ((i * 7 % 11) as f32 - 5.0) * 0.1).collect();
+/// let net = Net { desc, weights: &w[..] };
+/// let x: Vec<f32> = (0..2 * PACKET).map(|i| (i as f32 * 0.37).sin()).collect();
+/// let mut many = [0.0f32; PACKET];
+/// eval_packet(&net, &x, 2, 2, &mut many, 1);
+/// for q in 0..PACKET {
+///     let mut one = [0.0f32; 1];
+///     eval(&net, &x[2 * q..2 * q + 2], &mut one);
+///     assert_eq!(one[0].to_bits(), many[q].to_bits());
+/// }
+/// ```
+#[inline]
+pub fn eval_packet<W: Weight>(net: &Net<'_, W>, x: &[f32], stride: usize, n: usize, out: &mut [f32], out_stride: usize) {
+    forward_packet(Arithmetic::F32, None, net, &partial(net, &[]), x, stride, n, out, out_stride)
+}
+
+/// The partials of [`PACKET`] points ([`partial_packet`]), point after point at the network's width:
+/// [`PartialPacket::write`] puts one into a [`Partial`] (2 KB each: written in place, not returned
+/// in an array of them, whose copies took ~13% of a packet's prepare).
+#[derive(Clone, Debug)]
+pub struct PartialPacket {
+    layer0: [f32; PACKET * MAX_WIDTH],
+    skip: [f32; PACKET * MAX_WIDTH],
+    width: usize,
+    has_skip: bool,
+    head_len: usize,
+}
+
+impl PartialPacket {
+    /// Point `q`'s partial into `p` (all of it: the values past the width are zero, as in [`partial`]).
+    #[inline]
+    pub fn write(&self, q: usize, p: &mut Partial) {
+        let w = self.width;
+        p.layer0[..w].copy_from_slice(&self.layer0[q * w..(q + 1) * w]);
+        p.layer0[w..].fill(0.0);
+        if self.has_skip {
+            p.skip[..w].copy_from_slice(&self.skip[q * w..(q + 1) * w]);
+            p.skip[w..].fill(0.0);
+        } else {
+            p.skip.fill(0.0);
+        }
+        p.head_len = self.head_len;
+    }
+}
+
+/// [`partial`] for [`PACKET`] points (the packet kernel): point `q`'s head at
+/// `heads[q * stride..][..n]`. Each partial is [`partial`]'s for that head but for the sign of a zero
+/// sum (the packet kernel adds the zero inputs that the one-query kernel skips), which the ReLU after
+/// it erases (see [`crate::kernels`], "Determinism"): evaluations from either give the same bits.
+///
+/// Panics when `heads` is too short for the packet.
+///
+/// ```
+/// use nbrdf::mlp::{forward, partial, partial_packet, Net, NetDesc, Partial, PACKET};
+/// let desc = NetDesc { n_in: 3, width: 4, hidden: 2, n_out: 1, skip: 1 };
+/// let w: Vec<f32> = (0..desc.n_weights()).map(|i| ((i * 5 % 13) as f32 - 6.0) * 0.1).collect();
+/// let net = Net { desc, weights: &w[..] };
+/// let heads: Vec<f32> = (0..2 * PACKET).map(|i| (i as f32 * 0.7).cos()).collect();
+/// let many = partial_packet(&net, &heads, 2, 2); // two head inputs a point, the third is the tail
+/// for q in 0..PACKET {
+///     let mut p = Partial::default();
+///     many.write(q, &mut p);
+///     let (mut a, mut b) = ([0.0f32; 1], [0.0f32; 1]);
+///     forward(&net, &p, &[0.5], &mut a);
+///     forward(&net, &partial(&net, &heads[2 * q..2 * q + 2]), &[0.5], &mut b);
+///     assert_eq!(a[0].to_bits(), b[0].to_bits());
+/// }
+/// ```
+#[inline]
+pub fn partial_packet<W: Weight>(net: &Net<'_, W>, heads: &[f32], stride: usize, n: usize) -> PartialPacket {
+    let k = kernels::<W>();
+    let d = &net.desc;
+    let width = (d.width as usize).min(MAX_WIDTH);
+    let n_in = d.n_in as usize;
+    let n = n.min(n_in);
+    let mut p = PartialPacket { layer0: [0.0; PACKET * MAX_WIDTH], skip: [0.0; PACKET * MAX_WIDTH], width, has_skip: d.skip != 0, head_len: n };
+    let mut bias = [0.0f32; MAX_WIDTH];
+    let w0 = &net.weights[..(n_in + 1) * width];
+    W::widen(&w0[n_in * width..], &mut bias[..width]);
+    let seg = Segment { x: heads, stride, n, rows: w0 };
+    let layer = Dense { init: &bias[..width], segs: [seg, none()], n_segs: 1, n_out: width, relu: false };
+    k.packet(&layer, &mut p.layer0, width);
+    if d.skip != 0 {
+        let s = d.skip as usize;
+        let off = d.layer_offset(s);
+        let rows = width + n_in;
+        let ws = &net.weights[off..off + (rows + 1) * width];
+        W::widen(&ws[rows * width..], &mut bias[..width]);
+        let seg = Segment { x: heads, stride, n, rows: &ws[width * width..] };
+        let layer = Dense { init: &bias[..width], segs: [seg, none()], n_segs: 1, n_out: width, relu: false };
+        k.packet(&layer, &mut p.skip, width);
+    }
+    p
 }
 
 #[cfg(test)]

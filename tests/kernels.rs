@@ -188,3 +188,76 @@ fn f16_batches_widened_per_call_or_per_packet_give_the_bits_of_f32_weights() {
     }
     set_level(None);
 }
+
+/// `Model::prepare_many` runs the position networks 16 points at a time through the packet kernels:
+/// every point's evaluations get the bits of `prepare` of that point, for every model kind (the
+/// parametric ones, whose whole network runs per point; the Single MLP with its one network and with
+/// a position trunk; both additive models), both weight types, every position encoding, at every
+/// level, with zeros (which the one-query kernels skip and the dense packet kernel adds), a NaN and
+/// 0, 5, 16 and 37 points (the last packet overlapping the one before).
+#[test]
+fn prepare_many_gives_each_point_the_evaluations_of_prepare() {
+    let _level = LEVEL.lock().unwrap_or_else(|e| e.into_inner());
+    let mut rng = Rng(0x2545f4914f6cdd1d);
+    let mut models = Vec::new();
+    for pos in [PositionEncoding::Intrinsic { k: 6 }, PositionEncoding::Extrinsic { frequencies: 2 }, PositionEncoding::Uniform] {
+        let mut headers: Vec<ModelHeader> = nbrdf::parametric::ParametricKind::ALL
+            .iter()
+            .map(|&k| ModelHeader::paper(ModelKind::Parametric(k), false, Reciprocity::None, pos, 0))
+            .collect();
+        for kind in [ModelKind::SingleMlp, ModelKind::AdditiveSeparate, ModelKind::AdditiveShared] {
+            headers.push(ModelHeader::paper(kind, kind.is_additive(), Reciprocity::Exact, pos, 2));
+        }
+        headers.push(ModelHeader::paper(ModelKind::SingleMlp, false, Reciprocity::None, pos, 2).with_direction_layers(2));
+        for h in headers {
+            let w: Vec<f32> = (0..h.n_weights()).map(|_| rng.next() * 0.3).collect();
+            let f32_buf = ModelBuf::from_bytes(&encode(&h, &w, None).unwrap()).unwrap();
+            let f16_buf = ModelBuf::from_bytes(&f32_buf.model().to_f16().unwrap()).unwrap();
+            models.push(f32_buf);
+            models.push(f16_buf);
+        }
+    }
+    let pairs: Vec<(Vec3, Vec3)> = (0..6)
+        .map(|_| (Vec3::new(rng.next(), rng.next(), rng.next() + 0.6).normalize(), Vec3::new(rng.next(), rng.next(), rng.next() + 0.6).normalize()))
+        .collect();
+    for level in Level::ALL.into_iter().filter(|l| *l <= detected()) {
+        set_level(Some(level));
+        for buf in &models {
+            let m = buf.model();
+            let k = m.position_len();
+            let name = format!("{level:?} {:?} {:?} {:?}", m.header().kind, m.header().position, m.header().precision);
+            for n in [0, 5, 16, 37] {
+                let mut points: Vec<f32> = (0..n * k).map(|_| rng.next() * 2.0).collect();
+                if n * k > 8 {
+                    // A point with zeros (every other input), one with a NaN.
+                    for v in points[k..2 * k].iter_mut().step_by(2) {
+                        *v = 0.0;
+                    }
+                    points[3 * k - 1] = f32::NAN;
+                }
+                let mut many = vec![m.prepare(&[f32::NAN]); n];
+                m.prepare_many(&points, &mut many).unwrap();
+                for (i, p) in many.iter().enumerate() {
+                    let one = m.prepare(&points[i * k..(i + 1) * k]);
+                    assert_eq!(p.diffuse().map(f32::to_bits), one.diffuse().map(f32::to_bits), "{name}: point {i} of {n}, diffuse");
+                    assert_eq!(format!("{:?}", p.parameters()), format!("{:?}", one.parameters()), "{name}: point {i} of {n}, parameters");
+                    for &(wi, wo) in &pairs {
+                        let (a, b) = (m.eval(p, wi, wo), m.eval(&one, wi, wo));
+                        assert_eq!(a.map(f32::to_bits), b.map(f32::to_bits), "{name}: point {i} of {n} at ({wi}, {wo})");
+                        if i != 2 && !matches!(m.header().position, PositionEncoding::Uniform) {
+                            assert!(a.iter().all(|c| c.is_finite()), "{name}: a finite value");
+                        }
+                    }
+                }
+                // Inputs that are not `n` points of `k` values: an error that names them, nothing written.
+                if k > 0 {
+                    let before: Vec<String> = many.iter().map(|p| format!("{p:?}")).collect();
+                    let err = m.prepare_many(&points[..n * k - (n > 0) as usize], &mut many);
+                    assert!(n == 0 || matches!(err, Err(nbrdf::Error::SizeMismatch { what, .. }) if what.contains("point")), "{name}: {err:?}");
+                    assert_eq!(before, many.iter().map(|p| format!("{p:?}")).collect::<Vec<_>>(), "{name}: nothing written");
+                }
+            }
+        }
+    }
+    set_level(None);
+}

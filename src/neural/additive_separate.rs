@@ -3,7 +3,7 @@
 //! softplus; 6 outputs when enhanced, Eq. 8).
 
 use super::split;
-use crate::mlp::{self, partial, Net, Partial, Weight, MAX_WIDTH};
+use crate::mlp::{self, partial, partial_packet, Net, Partial, PartialPacket, Weight, MAX_WIDTH, PACKET};
 use crate::Rgb;
 
 /// The angle-dependent half is the same for both additive architectures.
@@ -15,4 +15,13 @@ pub fn prepare<W: Weight>(diffuse: &Net<'_, W>, specular: &Net<'_, W>, pos: &[f3
     let mut d = [0.0f32; MAX_WIDTH];
     mlp::eval(diffuse, pos, &mut d);
     (split::diffuse(&d[..3]), partial(specular, pos))
+}
+
+/// [`prepare`] for [`PACKET`] points, point `q`'s position input at `pos[q * stride..][..n]`: the
+/// packet kernels, each point's [`prepare`] (see [`partial_packet`]).
+#[inline]
+pub fn prepare_packet<W: Weight>(diffuse: &Net<'_, W>, specular: &Net<'_, W>, pos: &[f32], stride: usize, n: usize) -> ([Rgb; PACKET], PartialPacket) {
+    let mut d = [0.0f32; PACKET * MAX_WIDTH];
+    mlp::eval_packet(diffuse, pos, stride, n, &mut d, MAX_WIDTH);
+    (core::array::from_fn(|q| split::diffuse(&d[q * MAX_WIDTH..q * MAX_WIDTH + 3])), partial_packet(specular, pos, stride, n))
 }

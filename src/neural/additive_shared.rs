@@ -3,7 +3,7 @@
 //! `[trunk, PE(a)]` (two layers, softplus; 6 outputs when enhanced, Eq. 8).
 
 use super::split;
-use crate::mlp::{self, partial, Net, Partial, Weight, MAX_WIDTH};
+use crate::mlp::{self, partial, partial_packet, Net, Partial, PartialPacket, Weight, MAX_WIDTH, PACKET};
 use crate::Rgb;
 
 /// The angle-dependent half is the same for both additive architectures.
@@ -23,4 +23,23 @@ pub fn prepare<W: Weight>(
     let mut d = [0.0f32; MAX_WIDTH];
     mlp::eval(diffuse, features, &mut d);
     (split::diffuse(&d[..3]), partial(specular, features))
+}
+
+/// [`prepare`] for [`PACKET`] points, point `q`'s position input at `pos[q * stride..][..n]`: the
+/// packet kernels, each point's [`prepare`] (see [`partial_packet`]).
+#[inline]
+pub fn prepare_packet<W: Weight>(
+    trunk: &Net<'_, W>,
+    diffuse: &Net<'_, W>,
+    specular: &Net<'_, W>,
+    pos: &[f32],
+    stride: usize,
+    n: usize,
+) -> ([Rgb; PACKET], PartialPacket) {
+    let mut t = [0.0f32; PACKET * MAX_WIDTH];
+    mlp::eval_packet(trunk, pos, stride, n, &mut t, MAX_WIDTH);
+    let features = trunk.desc.output_len();
+    let mut d = [0.0f32; PACKET * MAX_WIDTH];
+    mlp::eval_packet(diffuse, &t, MAX_WIDTH, features, &mut d, MAX_WIDTH);
+    (core::array::from_fn(|q| split::diffuse(&d[q * MAX_WIDTH..q * MAX_WIDTH + 3])), partial_packet(specular, &t, MAX_WIDTH, features))
 }

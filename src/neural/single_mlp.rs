@@ -3,7 +3,7 @@
 //! trunk runs first and the angles join the trunk's features.
 
 use crate::kernels::softplus_slice;
-use crate::mlp::{self, forward_packet, forward_with, Arithmetic, partial, Net, Partial, Tiled, Weight, MAX_WIDTH, PACKET};
+use crate::mlp::{self, forward_packet, forward_with, partial, partial_packet, Arithmetic, Net, Partial, PartialPacket, Tiled, Weight, MAX_WIDTH, PACKET};
 use crate::Rgb;
 
 /// Position-only work: the position rows of the network (one network), or the trunk and the head's
@@ -18,6 +18,21 @@ pub fn prepare<W: Weight>(nets: &[Net<'_, W>], pos: &[f32]) -> Partial {
         }
         [net, ..] => partial(net, pos),
         [] => Partial::default(),
+    }
+}
+
+/// [`prepare`] for [`PACKET`] points, point `q`'s position input at `pos[q * stride..][..n]`: the
+/// packet kernels, each point's [`prepare`] (see [`partial_packet`]).
+#[inline]
+pub fn prepare_packet<W: Weight>(nets: &[Net<'_, W>], pos: &[f32], stride: usize, n: usize) -> Option<PartialPacket> {
+    match nets {
+        [trunk, head] => {
+            let mut t = [0.0f32; PACKET * MAX_WIDTH];
+            mlp::eval_packet(trunk, pos, stride, n, &mut t, MAX_WIDTH);
+            Some(partial_packet(head, &t, MAX_WIDTH, trunk.desc.output_len()))
+        }
+        [net, ..] => Some(partial_packet(net, pos, stride, n)),
+        [] => None,
     }
 }
 
