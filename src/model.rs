@@ -4,7 +4,9 @@
 //! [`Model::prepare`] does everything that depends on the surface point only (the parameter network of a
 //! parametric model, the diffuse network, the trunk, and the position part of the first and skip layers of
 //! the direction network), and [`Model::eval`] adds the direction pair. Both run on stack arrays with no
-//! allocation. [`Model::eval_many`] evaluates many pairs at one point in packets, bit for bit as `eval`;
+//! allocation. [`Model::eval_many`] evaluates many pairs at one point in packets, bit for bit as `eval`,
+//! and [`Model::prepare_many`] prepares many points of one model in packets, whose evaluations are
+//! `prepare`'s bit for bit;
 //! [`Model::eval_half`] and [`Model::eval_many_half`] trade ~0.15% of accuracy for speed on f16 models
 //! (half-precision arithmetic, where the CPU has AVX512-FP16; [`Model::to_f16`] makes the copy).
 //!

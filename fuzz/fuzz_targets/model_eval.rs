@@ -5,7 +5,7 @@
 //! ±3.4e38 for f32, where activations overflow to inf) and fuzzer-chosen weight overrides. Invariants:
 //! the diffuse term and every evaluation are finite and non-negative; exactly 0 off the upper
 //! hemisphere; bitwise reciprocal for Θ networks and parametric models; a batch gives each pair the
-//! bits of its single query. The half-precision entry points
+//! bits of its single query, and `prepare_many` each point the evaluations of its own `prepare`. The half-precision entry points
 //! (`eval_half`, `eval_many_half`: f16 sums that overflow to infinity) and the split-bf16 arithmetic on
 //! AMX tiles (`eval_many_in(SplitBf16 | SplitBf16x6, ..)` after `enable_bf16`, where the CPU has AMX: width-32
 //! networks) and bf16 (`Bf16`, where it has AVX512-BF16: batches on vectors, single queries on rows)
@@ -44,6 +44,18 @@ fuzz_target!(|input: (u8, u8, u64, u8, [f32; 3], [f32; 6], Vec<(u16, f32)>)| {
     let (wi, wo) = common::pair(dirs);
     let f = model.eval(&prepared, wi, wo);
     common::assert_valid_brdf(f, "model eval");
+    // Many points at once (packets of 16, the last overlapping the one before): each point's
+    // evaluation has the bits of its own `prepare`.
+    let k = model.position_len();
+    let points: Vec<f32> = (0..17 * k).map(|i| point[i % k.max(1)] * [1.0, -0.5, 0.0, 2.0][(i / k.max(1)) % 4]).collect();
+    let mut states = vec![prepared; 17];
+    model.prepare_many(&points, &mut states).expect("17 points of position_len values");
+    for (q, p) in states.iter().enumerate() {
+        let one = model.prepare(&points[q * k..(q + 1) * k]);
+        let (a, b) = (model.eval(p, wi, wo), model.eval(&one, wi, wo));
+        assert!(common::same_bits(a, b), "prepare_many point {q}: {a:?} vs {b:?}");
+        assert!(common::same_bits(p.diffuse(), one.diffuse()), "prepare_many point {q}: diffuse");
+    }
     // A batch (angles mapped 16 pairs at a time on AVX-512) gives each pair its own bits: the pair,
     // its swap and their components exchanged, over more than one packet.
     let swap_xy = |v: nbrdf::Vec3| nbrdf::Vec3::new(v.y, v.x, v.z);

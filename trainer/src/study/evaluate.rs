@@ -49,6 +49,13 @@ pub struct Evaluation {
     /// prepared point), single thread; absent in results written before it was measured.
     #[serde(default)]
     pub eval_batch_ns_per_query: Option<f64>,
+    /// Mean nanoseconds per shading point of `prepare` (one point at a time) and of `prepare_many`
+    /// (the energy samples' points at once), single thread: the per-point cost that `eval` adds to;
+    /// absent in results written before they were measured.
+    #[serde(default)]
+    pub prepare_ns_per_point: Option<f64>,
+    #[serde(default)]
+    pub prepare_many_ns_per_point: Option<f64>,
 }
 
 /// Directions per batch of the batched timing: as a renderer shading many light or view samples at
@@ -153,6 +160,14 @@ pub fn evaluate(
     let reciprocity = reciprocity_rmse(&pairs, |k, wi, wo| eval(&recip_prepared[k], wi, wo));
 
     let energy_prepared: Vec<Prepared> = energy_idx.iter().map(|&i| prep(i)).collect();
+    let points: Vec<f32> = energy_idx
+        .iter()
+        .flat_map(|&i| {
+            let [b1, b2] = s.barycentric[i];
+            point_input(&model, ds, s.triangle[i], b1, b2, Vec3::from_array(s.position[i]))
+        })
+        .collect();
+    let (prepare_ns_per_point, prepare_many_ns_per_point) = time_prepare(&model, &points);
     let light_pairs: Vec<LightPair> = energy_idx
         .iter()
         .enumerate()
@@ -170,7 +185,40 @@ pub fn evaluate(
         eval_ns_per_query: time_eval(&|p: &Prepared, wi, wo| model.eval_in(math, p, wi, wo), &recip_prepared, &pairs),
         single_in_arithmetic: !batches_only,
         eval_batch_ns_per_query: Some(time_batches(&model, math, &recip_prepared, &pairs)),
+        prepare_ns_per_point,
+        prepare_many_ns_per_point,
     })
+}
+
+/// Mean ns per point of `prepare` one point at a time and of `prepare_many` on all of `points` (the
+/// inputs of `n` points back to back), each repeated to at least 16 384 points; `None` for a model
+/// whose points have no input (nothing to prepare per point) or for no points.
+fn time_prepare(model: &Model<'_>, points: &[f32]) -> (Option<f64>, Option<f64>) {
+    let k = model.position_len();
+    if k == 0 || points.len() < k {
+        return (None, None);
+    }
+    let n = points.len() / k;
+    let rounds = (16_384 / n).max(1);
+    let mut out = vec![model.prepare(&points[..k]); n];
+    let mut sink = 0.0f32;
+    let t = Instant::now();
+    for _ in 0..rounds {
+        for (i, o) in out.iter_mut().enumerate() {
+            *o = model.prepare(std::hint::black_box(&points[i * k..(i + 1) * k]));
+        }
+        sink += out[n / 2].diffuse()[0];
+    }
+    let single = t.elapsed().as_nanos() as f64 / (rounds * n) as f64;
+    let t = Instant::now();
+    for _ in 0..rounds {
+        // The length is right by construction; an error would leave `out` as it was.
+        model.prepare_many(std::hint::black_box(&points[..n * k]), &mut out).ok();
+        sink += out[n / 2].diffuse()[0];
+    }
+    let many = t.elapsed().as_nanos() as f64 / (rounds * n) as f64;
+    std::hint::black_box(sink);
+    (Some(single), Some(many))
 }
 
 /// Mean ns per pair of `eval_many_in(math, ..)` over batches of [`BATCH`] of the pairs' directions,

@@ -33,6 +33,9 @@ pub struct ModelSummary {
     pub eval_ns_per_query: f64,
     /// Batched evaluation ns per query (`None` unless every object has it).
     pub eval_batch_ns_per_query: Option<f64>,
+    /// `prepare` and `prepare_many` ns per shading point (`None` unless every object has it).
+    pub prepare_ns_per_point: Option<f64>,
+    pub prepare_many_ns_per_point: Option<f64>,
     pub n_weights: usize,
     pub size_bytes: u64,
     /// The f16-weight copies (purely neural models; `None` when some object has none).
@@ -55,6 +58,8 @@ pub struct F16Summary {
     pub brdf_rmse_cbrt: f64,
     pub eval_ns_per_query: f64,
     pub eval_batch_ns_per_query: Option<f64>,
+    pub prepare_ns_per_point: Option<f64>,
+    pub prepare_many_ns_per_point: Option<f64>,
     pub size_bytes: u64,
     /// Whether every object's single-query time is of this arithmetic (`Evaluation::single_in_arithmetic`).
     pub single_in_arithmetic: bool,
@@ -93,6 +98,8 @@ pub fn summarize(results: &[JobResult]) -> Vec<ModelSummary> {
                 train_wall_s: mean(rs.iter().map(|r| r.train_wall_s)),
                 eval_ns_per_query: mean(rs.iter().map(|r| r.eval.eval_ns_per_query)),
                 eval_batch_ns_per_query: mean_all(rs.iter().map(|r| r.eval.eval_batch_ns_per_query)),
+                prepare_ns_per_point: mean_all(rs.iter().map(|r| r.eval.prepare_ns_per_point)),
+                prepare_many_ns_per_point: mean_all(rs.iter().map(|r| r.eval.prepare_many_ns_per_point)),
                 n_weights: rs[0].n_weights,
                 size_bytes: rs[0].size_bytes,
                 f16: f16_summary(rs.iter().map(|r| r.eval_f16.as_ref().zip(r.size_bytes_f16))),
@@ -143,6 +150,8 @@ fn f16_summary<'a>(v: impl Iterator<Item = Option<(&'a Evaluation, u64)>>) -> Op
         eval_ns_per_query: mean(v.iter().map(|(e, _)| e.eval_ns_per_query)),
         single_in_arithmetic: v.iter().all(|(e, _)| e.single_in_arithmetic),
         eval_batch_ns_per_query: mean_all(v.iter().map(|(e, _)| e.eval_batch_ns_per_query)),
+        prepare_ns_per_point: mean_all(v.iter().map(|(e, _)| e.prepare_ns_per_point)),
+        prepare_many_ns_per_point: mean_all(v.iter().map(|(e, _)| e.prepare_many_ns_per_point)),
         size_bytes: v[0].1,
     })
 }
@@ -490,20 +499,24 @@ pub fn markdown(
          AMX-BF16 only; batches only, single queries stay f32, marked `(f32)`); `f32, bf16 (AVX512-BF16)` rows with \
          `Arithmetic::Bf16` (each product one bf16 product with f32 sums, on CPUs with AVX512-BF16; single queries too). \
          Batched: ns per pair of `eval_many_in` over batches of {} \
-         directions at one point. Means over the objects column.\n",
+         directions at one point. Prepare: ns per shading point of `Model::prepare` one point at a time and of \
+         `Model::prepare_many` over the evaluation's sample points at once (the per-point work every evaluation at a point \
+         adds to: for the parametric models their whole network). Means over the objects column.\n",
         super::evaluate::BATCH
     );
-    let _ = writeln!(md, "| model | weights | objects | train s | eval ns/query | batched ns/query | parameters | size (KiB) | PSNR ↑ | RMSE ∛ ×100 ↓ |");
-    let _ = writeln!(md, "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|");
+    let _ = writeln!(md, "| model | weights | objects | train s | eval ns/query | batched ns/query | prepare ns/point: single, many | parameters | size (KiB) | PSNR ↑ | RMSE ∛ ×100 ↓ |");
+    let _ = writeln!(md, "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+    let prepare = |single: Option<f64>, many: Option<f64>| format!("{}, {}", opt(single, 1.0, 0), opt(many, 1.0, 0));
     for m in &s {
         let _ = writeln!(
             md,
-            "| {} | f32 | {} | {:.1} | {:.0} | {} | {} | {:.1} | {:.2} | {:.2} |",
+            "| {} | f32 | {} | {:.1} | {:.0} | {} | {} | {} | {:.1} | {:.2} | {:.2} |",
             m.model,
             m.objects,
             m.train_wall_s,
             m.eval_ns_per_query,
             opt(m.eval_batch_ns_per_query, 1.0, 0),
+            prepare(m.prepare_ns_per_point, m.prepare_many_ns_per_point),
             m.n_weights,
             m.size_bytes as f64 / 1024.0,
             m.psnr,
@@ -513,7 +526,7 @@ pub fn markdown(
             let Some(f) = a.summary else { continue };
             let _ = writeln!(
                 md,
-                "| {} | {} | {} | {:.1} | {} | {} | {} | {:.1} | {:.2} | {:.2} |",
+                "| {} | {} | {} | {:.1} | {} | {} | {} | {} | {:.1} | {:.2} | {:.2} |",
                 m.model,
                 a.weights,
                 m.objects,
@@ -521,6 +534,7 @@ pub fn markdown(
                 // A single query that ran in f32 is marked so: it is not this row's arithmetic.
                 if a.single { format!("{:.0}", f.eval_ns_per_query) } else { format!("{:.0} (f32)", f.eval_ns_per_query) },
                 opt(f.eval_batch_ns_per_query, 1.0, 0),
+                prepare(f.prepare_ns_per_point, f.prepare_many_ns_per_point),
                 m.n_weights,
                 f.size_bytes as f64 / 1024.0,
                 f.psnr,
@@ -581,7 +595,7 @@ pub fn csv(results: &[JobResult]) -> String {
          eval_ns_per_query_f16_half,eval_batch_ns_per_query,eval_batch_ns_per_query_f16,eval_batch_ns_per_query_f16_half,\
          psnr_split_bf16,brdf_rmse_cbrt_split_bf16,eval_batch_ns_per_query_split_bf16,\
          psnr_split_bf16x6,brdf_rmse_cbrt_split_bf16x6,eval_batch_ns_per_query_split_bf16x6,\
-         psnr_bf16,brdf_rmse_cbrt_bf16,eval_batch_ns_per_query_bf16\n",
+         psnr_bf16,brdf_rmse_cbrt_bf16,eval_batch_ns_per_query_bf16,prepare_ns_per_point,prepare_many_ns_per_point\n",
     );
     let o = |v: Option<f64>| v.map_or(String::new(), |x| x.to_string());
     for r in results {
@@ -593,7 +607,7 @@ pub fn csv(results: &[JobResult]) -> String {
         let bf16 = r.eval_bf16.as_ref();
         let _ = writeln!(
             out,
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             r.scene,
             r.model,
             e.image.psnr,
@@ -631,6 +645,8 @@ pub fn csv(results: &[JobResult]) -> String {
             o(bf16.map(|e| e.image.psnr)),
             o(bf16.map(|e| e.brdf_rmse_cbrt.value)),
             o(bf16.and_then(|e| e.eval_batch_ns_per_query)),
+            o(e.prepare_ns_per_point),
+            o(e.prepare_many_ns_per_point),
         );
     }
     out
