@@ -285,28 +285,43 @@ fn none<'a, W>() -> Segment<'a, W> {
 #[inline]
 pub fn partial<W: Weight>(net: &Net<'_, W>, head: &[f32]) -> Partial {
     let k = kernels::<W>();
-    let d = &net.desc;
-    let width = d.width as usize;
-    let head = &head[..head.len().min(d.n_in as usize)];
+    let width = net.desc.width as usize;
+    let head = &head[..head.len().min(net.desc.n_in as usize)];
     let mut p = Partial { head_len: head.len(), ..Partial::default() };
-    let n_in = d.n_in as usize;
-    let mut bias = [0.0f32; MAX_WIDTH];
-    let w0 = &net.weights[..(n_in + 1) * width];
-    W::widen(&w0[n_in * width..], &mut bias[..width]);
-    let seg = Segment { x: head, stride: 0, n: head.len(), rows: w0 };
-    let layer = Dense { init: &bias[..width], segs: [seg, none()], n_segs: 1, n_out: width, relu: false };
-    k.one(&layer, &mut p.layer0[..width]);
-    if d.skip != 0 {
-        let s = d.skip as usize;
-        let off = d.layer_offset(s);
-        let rows = width + n_in;
-        let ws = &net.weights[off..off + (rows + 1) * width];
-        W::widen(&ws[rows * width..], &mut bias[..width]);
-        let seg = Segment { x: head, stride: 0, n: head.len(), rows: &ws[width * width..] };
-        let layer = Dense { init: &bias[..width], segs: [seg, none()], n_segs: 1, n_out: width, relu: false };
-        k.one(&layer, &mut p.skip[..width]);
+    let mut bias = [[0.0f32; MAX_WIDTH]; 2];
+    let (l0, skip) = head_layers(net, head, 0, head.len(), &mut bias);
+    k.one(&l0, &mut p.layer0[..width]);
+    if let Some(ls) = skip {
+        k.one(&ls, &mut p.skip[..width]);
     }
     p
+}
+
+/// The layers of `net` that read its input, layer 0 and the skip layer (where there is one), over
+/// the `n ≤ n_in` head inputs at `x` (`stride` apart for packets): their head rows from their biases
+/// (widened into `bias`), no ReLU. What [`partial`] and [`partial_packet`] run.
+#[inline(always)]
+fn head_layers<'a, W: Weight>(
+    net: &Net<'a, W>,
+    x: &'a [f32],
+    stride: usize,
+    n: usize,
+    bias: &'a mut [[f32; MAX_WIDTH]; 2],
+) -> (Dense<'a, W>, Option<Dense<'a, W>>) {
+    let d = &net.desc;
+    let (width, n_in) = (d.width as usize, d.n_in as usize);
+    let w0 = &net.weights[..(n_in + 1) * width];
+    W::widen(&w0[n_in * width..], &mut bias[0][..width]);
+    let skip_rows = (d.skip != 0).then(|| {
+        let off = d.layer_offset(d.skip as usize);
+        let rows = width + n_in;
+        let ws = &net.weights[off..off + (rows + 1) * width];
+        W::widen(&ws[rows * width..], &mut bias[1][..width]);
+        &ws[width * width..]
+    });
+    let bias: &'a [[f32; MAX_WIDTH]; 2] = bias;
+    let layer = |init: &'a [f32], rows| Dense { init: &init[..width], segs: [Segment { x, stride, n, rows }, none()], n_segs: 1, n_out: width, relu: false };
+    (layer(&bias[0], w0), skip_rows.map(|rows| layer(&bias[1], rows)))
 }
 
 /// The network after `partial`, for one query (`Q = 1`, the one-query kernels) or a packet of
@@ -720,24 +735,13 @@ pub fn partial_packet<W: Weight>(net: &Net<'_, W>, heads: &[f32], stride: usize,
     let k = kernels::<W>();
     let d = &net.desc;
     let width = (d.width as usize).min(MAX_WIDTH);
-    let n_in = d.n_in as usize;
-    let n = n.min(n_in);
+    let n = n.min(d.n_in as usize);
     let mut p = PartialPacket { layer0: [0.0; PACKET * MAX_WIDTH], skip: [0.0; PACKET * MAX_WIDTH], width, has_skip: d.skip != 0, head_len: n };
-    let mut bias = [0.0f32; MAX_WIDTH];
-    let w0 = &net.weights[..(n_in + 1) * width];
-    W::widen(&w0[n_in * width..], &mut bias[..width]);
-    let seg = Segment { x: heads, stride, n, rows: w0 };
-    let layer = Dense { init: &bias[..width], segs: [seg, none()], n_segs: 1, n_out: width, relu: false };
-    k.packet(&layer, &mut p.layer0, width);
-    if d.skip != 0 {
-        let s = d.skip as usize;
-        let off = d.layer_offset(s);
-        let rows = width + n_in;
-        let ws = &net.weights[off..off + (rows + 1) * width];
-        W::widen(&ws[rows * width..], &mut bias[..width]);
-        let seg = Segment { x: heads, stride, n, rows: &ws[width * width..] };
-        let layer = Dense { init: &bias[..width], segs: [seg, none()], n_segs: 1, n_out: width, relu: false };
-        k.packet(&layer, &mut p.skip, width);
+    let mut bias = [[0.0f32; MAX_WIDTH]; 2];
+    let (l0, skip) = head_layers(net, heads, stride, n, &mut bias);
+    k.packet(&l0, &mut p.layer0, width);
+    if let Some(ls) = skip {
+        k.packet(&ls, &mut p.skip, width);
     }
     p
 }
