@@ -371,7 +371,12 @@ impl<'a> Model<'a> {
         if points.len() != out.len() * k {
             return Err(Error::SizeMismatch { what: "point inputs (points × position_len)", expected: out.len() * k, found: points.len() });
         }
-        if out.len() < PACKET || k == 0 {
+        if k == 0 {
+            // One state for every point: nothing depends on the point.
+            out.fill(self.prepare(&[]));
+            return Ok(());
+        }
+        if out.len() < PACKET {
             for (i, o) in out.iter_mut().enumerate() {
                 *o = self.prepare(&points[i * k..(i + 1) * k]);
             }

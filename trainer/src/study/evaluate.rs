@@ -147,11 +147,11 @@ pub fn evaluate(
     let s = samples(ds, Split::Test, 1).map_err(Error::Core)?;
     let recip_idx = energy::pick(s.len(), config.reciprocity_pairs, config.seed ^ 0x5eed);
     let energy_idx = energy::pick(s.len(), config.energy_pairs, config.seed ^ 0xe4e7);
-    let prep = |i: usize| {
+    let input = |i: usize| {
         let [b1, b2] = s.barycentric[i];
-        model.prepare(&point_input(&model, ds, s.triangle[i], b1, b2, Vec3::from_array(s.position[i])))
+        point_input(&model, ds, s.triangle[i], b1, b2, Vec3::from_array(s.position[i]))
     };
-    let recip_prepared: Vec<Prepared> = recip_idx.iter().map(|&i| prep(i)).collect();
+    let recip_prepared: Vec<Prepared> = recip_idx.iter().map(|&i| model.prepare(&input(i))).collect();
     let pairs: Vec<DirectionPair> = recip_idx
         .iter()
         .enumerate()
@@ -159,15 +159,9 @@ pub fn evaluate(
         .collect();
     let reciprocity = reciprocity_rmse(&pairs, |k, wi, wo| eval(&recip_prepared[k], wi, wo));
 
-    let energy_prepared: Vec<Prepared> = energy_idx.iter().map(|&i| prep(i)).collect();
-    let points: Vec<f32> = energy_idx
-        .iter()
-        .flat_map(|&i| {
-            let [b1, b2] = s.barycentric[i];
-            point_input(&model, ds, s.triangle[i], b1, b2, Vec3::from_array(s.position[i]))
-        })
-        .collect();
-    let (prepare_ns_per_point, prepare_many_ns_per_point) = time_prepare(&model, &points);
+    let energy_inputs: Vec<Vec<f32>> = energy_idx.iter().map(|&i| input(i)).collect();
+    let energy_prepared: Vec<Prepared> = energy_inputs.iter().map(|p| model.prepare(p)).collect();
+    let (prepare_ns_per_point, prepare_many_ns_per_point) = time_prepare(&model, &energy_inputs.concat());
     let light_pairs: Vec<LightPair> = energy_idx
         .iter()
         .enumerate()
