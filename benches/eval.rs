@@ -82,11 +82,7 @@ fn variants() -> Vec<(String, ModelHeader)> {
 
 /// The kernel levels to compare: portable (the scalar "before") and every SIMD level the CPU has.
 fn levels() -> Vec<(Level, &'static str)> {
-    Level::ALL
-        .into_iter()
-        .filter(|l| *l <= detected())
-        .map(|l| (l, match l { Level::Portable => "portable", Level::Avx2 => "avx2", Level::Avx512 => "avx512" }))
-        .collect()
+    Level::usable().map(|l| (l, l.name())).collect()
 }
 
 /// Thread CPU time in ns (Linux), or wall time where `NBRDF_BENCH_WALL` is set or elsewhere.

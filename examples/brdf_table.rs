@@ -4,7 +4,8 @@
 //! "measured-like" materials, and, when `../shared/data` (or `NBRDF_DATA`) is present, a few of the
 //! measured MERL materials as NBRDF networks.
 //!
-//! Run: `cargo run --release --example brdf_table`
+//! Run: `cargo run --release --example brdf_table` (its first line names the kernel level in use;
+//! `NBRDF_KERNEL=portable` forces the plain-Rust kernels, whose table agrees to ~1e-6 relative).
 
 use nbrdf::builtin::Builtin;
 use nbrdf::math::PI;
@@ -54,6 +55,14 @@ fn reciprocity(f: &dyn Fn(Vec3, Vec3) -> Rgb) -> f32 {
 }
 
 fn main() {
+    // The kernel level first: `NBRDF_KERNEL=portable|avx2|avx512|neon` forces one the CPU runs.
+    match nbrdf::kernels::requested() {
+        Err(e) => {
+            eprintln!("error: {e}");
+            std::process::exit(2);
+        }
+        Ok(_) => println!("kernel level: {}", nbrdf::kernels::level()),
+    }
     type Eval = Box<dyn Fn(Vec3, Vec3) -> Rgb>;
     let mut rows: Vec<(String, Eval)> = vec![
         ("Lambert (kd 0.8)".into(), Box::new(|a, b| Parametric::Lambert(Lambert { kd: [0.8; 3] }).eval(a, b))),

@@ -185,6 +185,7 @@ fn light_of(spec: &str) -> Result<DirectionalLight, String> {
 }
 
 fn run(args: Args) -> Result<(), String> {
+    nbrdf::kernels::requested().map_err(|e| e.to_string())?;
     let mesh = mesh_of(&args.mesh)?;
     let n_tris = mesh.triangles.len();
     let geometry = Geometry::new(mesh).map_err(|e| format!("mesh: {e}"))?;

@@ -59,7 +59,9 @@ pub(crate) mod bf16_rows;
 #[cfg(target_arch = "x86_64")]
 mod half_math;
 mod output_map;
-mod portable;
+mod lanes;
+#[cfg(target_arch = "aarch64")]
+mod neon;
 mod sincos;
 mod tiny;
 mod widen;
@@ -82,8 +84,10 @@ pub const PACKET: usize = 16;
 /// An instruction-set level of the kernels.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum Level {
-    /// Plain Rust (autovectorised for the compile-time target only).
+    /// Plain Rust, every target: multiply, then add (autovectorised for the compile-time target only).
     Portable,
+    /// aarch64 Advanced SIMD (NEON, part of every aarch64 CPU): 4 lanes, fused multiply-add.
+    Neon,
     /// x86-64 AVX2 + FMA + F16C, 8 lanes.
     Avx2,
     /// x86-64 AVX-512 (F, BW, VL) + FMA + F16C + POPCNT, 16 lanes.
@@ -91,13 +95,49 @@ pub enum Level {
 }
 
 impl Level {
-    /// Every level, slowest first.
-    pub const ALL: [Level; 3] = [Level::Portable, Level::Avx2, Level::Avx512];
+    /// Every level of this target architecture, slowest first.
+    #[cfg(target_arch = "x86_64")]
+    pub const ALL: &'static [Level] = &[Level::Portable, Level::Avx2, Level::Avx512];
+    /// Every level of this target architecture, slowest first.
+    #[cfg(target_arch = "aarch64")]
+    pub const ALL: &'static [Level] = &[Level::Portable, Level::Neon];
+    /// Every level of this target architecture, slowest first.
+    #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
+    pub const ALL: &'static [Level] = &[Level::Portable];
+
+    /// The levels this process may use, slowest first: those of [`Level::ALL`] up to [`detected`].
+    /// Tests and benchmarks loop over these to cover every path the host can run.
+    pub fn usable() -> impl Iterator<Item = Level> {
+        let top = detected();
+        Level::ALL.iter().copied().filter(move |l| *l <= top)
+    }
+
+    /// The level's name as `NBRDF_KERNEL` spells it: `portable`, `neon`, `avx2` or `avx512`.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Level::Portable => "portable",
+            Level::Neon => "neon",
+            Level::Avx2 => "avx2",
+            Level::Avx512 => "avx512",
+        }
+    }
+
+    /// The level named `name` (as [`Level::name`] spells it, any case), if any.
+    ///
+    /// ```
+    /// use nbrdf::kernels::Level;
+    /// assert_eq!(Level::parse("AVX2"), Some(Level::Avx2));
+    /// assert_eq!(Level::parse("sse"), None);
+    /// ```
+    pub fn parse(name: &str) -> Option<Level> {
+        [Level::Portable, Level::Neon, Level::Avx2, Level::Avx512].into_iter().find(|l| l.name().eq_ignore_ascii_case(name.trim()))
+    }
 
     fn from_u8(v: u8) -> Level {
         match v {
-            2 => Level::Avx2,
-            3 => Level::Avx512,
+            2 => Level::Neon,
+            3 => Level::Avx2,
+            4 => Level::Avx512,
             _ => Level::Portable,
         }
     }
@@ -105,23 +145,117 @@ impl Level {
     fn to_u8(self) -> u8 {
         match self {
             Level::Portable => 1,
-            Level::Avx2 => 2,
-            Level::Avx512 => 3,
+            Level::Neon => 2,
+            Level::Avx2 => 3,
+            Level::Avx512 => 4,
         }
     }
 }
 
-/// The best level this CPU supports (detected once with `std`; compile-time features without it).
+impl core::fmt::Display for Level {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// Why `NBRDF_KERNEL` cannot be honoured.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LevelError {
+    /// The value names no level (the value's first bytes, lossy, and its length).
+    Unknown([u8; 16], usize),
+    /// The level exists but this CPU (or target) lacks it; the best it has is the second.
+    Unsupported(Level, Level),
+}
+
+impl core::fmt::Display for LevelError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            LevelError::Unknown(b, n) => {
+                let shown = core::str::from_utf8(&b[..(*n).min(16)]).unwrap_or("?");
+                write!(f, "NBRDF_KERNEL={shown:?} names no kernel level; use portable, neon (aarch64), avx2 or avx512 (x86-64)")
+            }
+            LevelError::Unsupported(want, have) => {
+                write!(f, "NBRDF_KERNEL={want}: this CPU lacks that level (the best it runs is {have}); choose a level at or below it")
+            }
+        }
+    }
+}
+
+#[cfg(feature = "std")]
+impl std::error::Error for LevelError {}
+
+/// The level `NBRDF_KERNEL` asks for: `Ok(None)` where it is unset or empty, an error where it names
+/// no level or one above what the CPU runs ([`cpu_level`]). Command-line tools call this first and
+/// stop on the error; the library itself ignores a bad value (with one message on stderr) and runs
+/// the CPU's level.
+#[cfg(feature = "std")]
+pub fn requested() -> Result<Option<Level>, LevelError> {
+    let Some(v) = std::env::var_os("NBRDF_KERNEL") else {
+        return Ok(None);
+    };
+    let v = v.to_string_lossy();
+    if v.trim().is_empty() {
+        return Ok(None);
+    }
+    let Some(l) = Level::parse(&v) else {
+        let mut b = [0u8; 16];
+        let n = v.len().min(16);
+        b[..n].copy_from_slice(&v.as_bytes()[..n]);
+        // Cut at a character boundary so the message stays valid UTF-8.
+        let n = (0..=n).rev().find(|i| v.is_char_boundary(*i)).unwrap_or(0);
+        return Err(LevelError::Unknown(b, n));
+    };
+    let cpu = cpu_level();
+    if !Level::ALL.contains(&l) || l > cpu {
+        return Err(LevelError::Unsupported(l, cpu));
+    }
+    Ok(Some(l))
+}
+
+/// The best level this CPU runs, whatever `NBRDF_KERNEL` says (detected once with `std`;
+/// compile-time target features without it).
+pub fn cpu_level() -> Level {
+    static CPU: AtomicU8 = AtomicU8::new(0);
+    match CPU.load(Ordering::Relaxed) {
+        0 => {
+            let l = detect();
+            CPU.store(l.to_u8(), Ordering::Relaxed);
+            l
+        }
+        v => Level::from_u8(v),
+    }
+}
+
+/// The highest level this process uses: [`cpu_level`], lowered to `NBRDF_KERNEL` where that names a
+/// level the CPU runs (with `std`). Nothing in the crate runs code of a level above it, so one host
+/// tests every level below its own by setting the variable.
 pub fn detected() -> Level {
     static DETECTED: AtomicU8 = AtomicU8::new(0);
     match DETECTED.load(Ordering::Relaxed) {
         0 => {
-            let l = detect();
+            let l = ceiling();
             DETECTED.store(l.to_u8(), Ordering::Relaxed);
             l
         }
         v => Level::from_u8(v),
     }
+}
+
+#[cfg(feature = "std")]
+fn ceiling() -> Level {
+    match requested() {
+        Ok(Some(l)) => l,
+        Ok(None) => cpu_level(),
+        Err(e) => {
+            std::eprintln!("nbrdf: {e}; running {}", cpu_level());
+            cpu_level()
+        }
+    }
+}
+
+#[cfg(not(feature = "std"))]
+fn ceiling() -> Level {
+    cpu_level()
 }
 
 /// 0: not chosen yet; otherwise the level the evaluator uses.
@@ -140,10 +274,15 @@ pub fn level() -> Level {
     }
 }
 
-/// Makes the evaluator use `level` (clamped to [`detected`]), or the detected level for `None`;
-/// returns the level now in use. Process-wide: for benchmarks and tests that compare levels.
+/// Makes the evaluator use `level` (clamped to [`detected`]; a level of another architecture gives
+/// [`Level::Portable`]), or the detected level for `None`; returns the level now in use.
+/// Process-wide: for benchmarks and tests that compare levels.
 pub fn set_level(level: Option<Level>) -> Level {
-    let l = level.map_or(detected(), |l| l.min(detected()));
+    let l = match level {
+        None => detected(),
+        Some(l) if Level::ALL.contains(&l) => l.min(detected()),
+        Some(_) => Level::Portable,
+    };
     ACTIVE.store(l.to_u8(), Ordering::Relaxed);
     l
 }
@@ -186,7 +325,17 @@ fn detect() -> Level {
     }
 }
 
-#[cfg(not(target_arch = "x86_64"))]
+#[cfg(target_arch = "aarch64")]
+fn detect() -> Level {
+    // Advanced SIMD is part of the aarch64 base architecture (and of every Rust aarch64 target).
+    if cfg!(target_feature = "neon") {
+        Level::Neon
+    } else {
+        Level::Portable
+    }
+}
+
+#[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
 fn detect() -> Level {
     Level::Portable
 }
@@ -423,7 +572,9 @@ macro_rules! tables {
             #[inline]
             fn table(level: Level) -> &'static Kernels<$w> {
                 static PORTABLE: Kernels<$w> =
-                    Kernels { one: portable::one::<$w>, packet: portable::packet::<$w>, chain: None };
+                    Kernels { one: lanes::portable::one::<$w>, packet: lanes::portable::packet::<$w>, chain: None };
+                #[cfg(target_arch = "aarch64")]
+                static NEON: Kernels<$w> = Kernels { one: neon::one::<$w>, packet: neon::packet::<$w>, chain: None };
                 #[cfg(target_arch = "x86_64")]
                 static AVX2: Kernels<$w> = Kernels { one: x86::$avx2::one, packet: x86::$avx2::packet, chain: None };
                 #[cfg(target_arch = "x86_64")]
@@ -436,7 +587,8 @@ macro_rules! tables {
                     Level::Avx2 => &AVX2,
                     #[cfg(target_arch = "x86_64")]
                     Level::Avx512 => &AVX512,
-                    #[cfg(not(target_arch = "x86_64"))]
+                    #[cfg(target_arch = "aarch64")]
+                    Level::Neon => &NEON,
                     _ => &PORTABLE,
                 }
             }
@@ -648,7 +800,7 @@ pub(crate) mod tests {
             let os = n_out + 3;
             let mut portable = [0.0f32; PACKET * 260];
             W::table(Level::Portable).packet(&layer, &mut portable, os);
-            for level in Level::ALL.into_iter().filter(|l| *l <= detected()) {
+            for level in Level::usable() {
                 let k = W::table(level);
                 let mut packed = [f32::NAN; PACKET * 260];
                 k.packet(&layer, &mut packed, os);

@@ -30,7 +30,7 @@ pub fn widen_f16(src: &[half::f16], dst: &mut [f32]) {
         Level::Avx512 => return unsafe { x86::avx512(src, dst) },
         // SAFETY: as above (the AVX2 level includes F16C).
         Level::Avx2 => return unsafe { x86::avx2(src, dst) },
-        Level::Portable => {}
+        _ => {}
     }
     for (d, s) in dst.iter_mut().zip(src) {
         *d = s.to_f32();

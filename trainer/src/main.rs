@@ -194,6 +194,7 @@ fn main() {
 }
 
 fn run(cli: Cli) -> trainer::Result<()> {
+    nbrdf::kernels::requested().map_err(|e| trainer::Error::Invalid(e.to_string()))?;
     let Some(command) = cli.command else { return study(StudyArgs::default()) };
     match command {
         Command::Study(args) => study(args)?,

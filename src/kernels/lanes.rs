@@ -1,0 +1,250 @@
+//! The one-query and packet kernels written once over a small lane trait, for the levels without
+//! hand-tiled x86 kernels: [`Scalar`] (portable, every target) and `Neon` (aarch64, `neon.rs`).
+//!
+//! A level supplies [`Lanes`]: a vector of `N` f32 lanes with load, store, broadcast, multiply-add and
+//! ReLU. The algorithm lives here only: outputs go in tiles of [`TILE`]; a packet reads each weight
+//! row once (widened into a padded f32 buffer) and adds it to every query whose input is nonzero.
+//! Each query's accumulator sees its `init`, then one multiply-add per nonzero input in row order, in
+//! both kernels, so a packet gives every query the bits of [`one`] at the same level.
+
+use super::{Dense, PACKET};
+
+/// A vector of `N` f32 lanes of one instruction-set level.
+///
+/// # Safety
+/// Implementors' functions may use instructions of their level: callers run them only on CPUs that
+/// have it (the dispatch hands out levels at most [`super::detected`]).
+pub(super) unsafe trait Lanes {
+    /// Lanes per vector; divides [`TILE`].
+    const N: usize;
+    /// The vector.
+    type V: Copy;
+    /// All lanes `x`.
+    fn splat(x: f32) -> Self::V;
+    /// `N` values from `p`.
+    ///
+    /// # Safety
+    /// `p` addresses `N` readable values.
+    unsafe fn load(p: *const f32) -> Self::V;
+    /// `N` values to `p`.
+    ///
+    /// # Safety
+    /// `p` addresses `N` writable values.
+    unsafe fn store(p: *mut f32, v: Self::V);
+    /// `c + a · b`, fused or not as the level computes it (every lane alike).
+    fn mul_add(a: Self::V, b: Self::V, c: Self::V) -> Self::V;
+    /// `max(v, 0)` as every kernel computes it: `+0` for either zero and for NaN.
+    fn relu(v: Self::V) -> Self::V;
+}
+
+/// A weight type as the generic kernels read it: f32 rows as they are, f16 rows widened.
+pub(super) trait Row: Copy {
+    /// The slice itself where it already holds f32 values.
+    fn as_f32(s: &[Self]) -> Option<&[f32]>;
+    /// `dst[i] = src[i]` as f32 over the common length.
+    fn widen(src: &[Self], dst: &mut [f32]);
+}
+
+impl Row for f32 {
+    #[inline(always)]
+    fn as_f32(s: &[f32]) -> Option<&[f32]> {
+        Some(s)
+    }
+
+    #[inline(always)]
+    fn widen(src: &[f32], dst: &mut [f32]) {
+        let n = src.len().min(dst.len());
+        dst[..n].copy_from_slice(&src[..n]);
+    }
+}
+
+impl Row for half::f16 {
+    #[inline(always)]
+    fn as_f32(_: &[half::f16]) -> Option<&[f32]> {
+        None
+    }
+
+    #[inline(always)]
+    fn widen(src: &[half::f16], dst: &mut [f32]) {
+        super::widen_f16(src, dst);
+    }
+}
+
+/// Outputs per tile: a query's accumulators for a tile (64 values) and one widened row stay in L1
+/// (a packet's 16 × 64 accumulators are 4 KB) while the weight rows stream past.
+pub(super) const TILE: usize = 64;
+
+/// Plain Rust, 8 lanes as an array the compiler vectorises for the compile-time target; multiply,
+/// then add (`mul_add` is not in `core`, and its software fallback is slow).
+pub(super) struct Scalar;
+
+// SAFETY: plain Rust, no instruction beyond the compile-time target's.
+unsafe impl Lanes for Scalar {
+    const N: usize = 8;
+    type V = [f32; 8];
+
+    #[inline(always)]
+    fn splat(x: f32) -> [f32; 8] {
+        [x; 8]
+    }
+
+    #[inline(always)]
+    unsafe fn load(p: *const f32) -> [f32; 8] {
+        // SAFETY: the caller's contract.
+        unsafe { p.cast::<[f32; 8]>().read_unaligned() }
+    }
+
+    #[inline(always)]
+    unsafe fn store(p: *mut f32, v: [f32; 8]) {
+        // SAFETY: the caller's contract.
+        unsafe { p.cast::<[f32; 8]>().write_unaligned(v) }
+    }
+
+    #[inline(always)]
+    fn mul_add(a: [f32; 8], b: [f32; 8], c: [f32; 8]) -> [f32; 8] {
+        core::array::from_fn(|i| c[i] + a[i] * b[i])
+    }
+
+    #[inline(always)]
+    fn relu(v: [f32; 8]) -> [f32; 8] {
+        v.map(|x| if x > 0.0 { x } else { 0.0 })
+    }
+}
+
+/// `acc[..w] = mul_add(x, row[..w], acc[..w])` over whole vectors (the lanes past `w` are padding).
+///
+/// # Safety
+/// `acc` and `row` hold `w` rounded up to `L::N` values; the level's features are present.
+#[inline(always)]
+unsafe fn axpy<L: Lanes>(x: f32, row: *const f32, acc: *mut f32, w: usize) {
+    let xv = L::splat(x);
+    let mut v = 0;
+    while v < w {
+        // SAFETY: `v < w`, and both buffers hold `w` rounded up to `N`.
+        unsafe { L::store(acc.add(v), L::mul_add(xv, L::load(row.add(v)), L::load(acc.add(v)))) };
+        v += L::N;
+    }
+}
+
+/// `out[..w] = relu?(acc[..w])`.
+///
+/// # Safety
+/// As [`axpy`]; `out` holds `w` values.
+#[inline(always)]
+unsafe fn store_tile<L: Lanes>(acc: &[f32; TILE], out: *mut f32, w: usize, relu: bool) {
+    let mut t = [0.0f32; TILE];
+    let mut v = 0;
+    while v < w {
+        // SAFETY: within the tile.
+        unsafe {
+            let a = L::load(acc.as_ptr().add(v));
+            L::store(t.as_mut_ptr().add(v), if relu { L::relu(a) } else { a });
+        }
+        v += L::N;
+    }
+    // SAFETY: the caller's contract.
+    unsafe { core::ptr::copy_nonoverlapping(t.as_ptr(), out, w) };
+}
+
+/// The tile of row `i` from output `t0` on, widened into `buf` (zero past `w`); for f32 rows whose
+/// tile is whole, the row itself.
+#[inline(always)]
+fn row_tile<W: Row>(rows: &[W], i: usize, n: usize, t0: usize, w: usize, buf: &mut [f32; TILE]) -> *const f32 {
+    let r = &rows[i * n + t0..i * n + t0 + w];
+    if let Some(f) = W::as_f32(r) {
+        if w == TILE {
+            return f.as_ptr();
+        }
+    }
+    W::widen(r, &mut buf[..w]);
+    buf.as_ptr()
+}
+
+/// One query: `out = act(init + Σ x_i rows[i])`, skipping zero inputs (the module docs of `kernels`).
+///
+/// # Safety
+/// `layer` passed `Dense::check(1, ..)` for an output buffer at `out`; the CPU has `L`'s level.
+#[inline(always)]
+pub(super) unsafe fn one<L: Lanes, W: Row>(layer: &Dense<'_, W>, out: *mut f32) {
+    let n = layer.n_out;
+    let mut acc = [0.0f32; TILE];
+    let mut buf = [0.0f32; TILE];
+    for t0 in (0..n).step_by(TILE) {
+        let w = (n - t0).min(TILE);
+        acc[..w].copy_from_slice(&layer.init[t0..t0 + w]);
+        for s in &layer.segs[..layer.n_segs] {
+            for (i, xi) in s.x[..s.n].iter().enumerate() {
+                if *xi == 0.0 {
+                    continue;
+                }
+                let r = row_tile(s.rows, i, n, t0, w, &mut buf);
+                // SAFETY: `acc` and the row tile hold `TILE ≥ w` rounded up to `N` values.
+                unsafe { axpy::<L>(*xi, r, acc.as_mut_ptr(), w) };
+            }
+        }
+        // SAFETY: `check` verified that `out` holds `n_out` values.
+        unsafe { store_tile::<L>(&acc, out.add(t0), w, layer.relu) };
+    }
+}
+
+/// [`PACKET`] queries, a tile of outputs at a time: each weight row is read (and widened) once for
+/// the packet, then added to every query whose input is nonzero.
+///
+/// # Safety
+/// `layer` passed `Dense::check(PACKET, ..)` for an output buffer at `out` with rows `out_stride`
+/// apart; the CPU has `L`'s level.
+#[inline(always)]
+pub(super) unsafe fn packet<L: Lanes, W: Row>(layer: &Dense<'_, W>, out: *mut f32, out_stride: usize) {
+    let n = layer.n_out;
+    let mut acc = [[0.0f32; TILE]; PACKET];
+    let mut buf = [0.0f32; TILE];
+    for t0 in (0..n).step_by(TILE) {
+        let w = (n - t0).min(TILE);
+        for a in acc.iter_mut() {
+            a[..w].copy_from_slice(&layer.init[t0..t0 + w]);
+        }
+        for s in &layer.segs[..layer.n_segs] {
+            for i in 0..s.n {
+                let x = |q: usize| s.x[q * s.stride + i];
+                if (0..PACKET).all(|q| x(q) == 0.0) {
+                    continue;
+                }
+                let r = row_tile(s.rows, i, n, t0, w, &mut buf);
+                for (q, a) in acc.iter_mut().enumerate() {
+                    let xi = x(q);
+                    if xi != 0.0 {
+                        // SAFETY: as in `one`.
+                        unsafe { axpy::<L>(xi, r, a.as_mut_ptr(), w) };
+                    }
+                }
+            }
+        }
+        for (q, a) in acc.iter().enumerate() {
+            // SAFETY: `check` verified that query `q`'s `n_out` outputs lie at `out + q * out_stride`.
+            unsafe { store_tile::<L>(a, out.add(q * out_stride + t0), w, layer.relu) };
+        }
+    }
+}
+
+/// The portable level's kernels.
+pub(super) mod portable {
+    use super::*;
+
+    /// [`super::one`] over [`Scalar`].
+    ///
+    /// # Safety
+    /// As [`super::one`].
+    pub(in crate::kernels) unsafe fn one<W: Row>(layer: &Dense<'_, W>, out: *mut f32) {
+        // SAFETY: forwarded; `Scalar` needs no CPU feature.
+        unsafe { super::one::<Scalar, W>(layer, out) }
+    }
+
+    /// [`super::packet`] over [`Scalar`].
+    ///
+    /// # Safety
+    /// As [`super::packet`].
+    pub(in crate::kernels) unsafe fn packet<W: Row>(layer: &Dense<'_, W>, out: *mut f32, out_stride: usize) {
+        // SAFETY: forwarded; `Scalar` needs no CPU feature.
+        unsafe { super::packet::<Scalar, W>(layer, out, out_stride) }
+    }
+}
