@@ -21,6 +21,27 @@ fn bits(t: &Tensor) -> Vec<u32> {
     t.flatten_all().unwrap().to_vec1::<f32>().unwrap().into_iter().map(f32::to_bits).collect()
 }
 
+/// Whether the trainer's products run the AVX-512 kernels, which sum every output and every weight
+/// gradient as one chain in row order whatever the blocking, so two paths through them agree bit for
+/// bit. Below that level (`NBRDF_KERNEL`, or the CPU) the `gemm` crate sums in blocks that depend on
+/// the shapes, and two paths agree only to the order bound [`order_bound`].
+fn same_order() -> bool {
+    nbrdf::kernels::detected() >= nbrdf::kernels::Level::Avx512
+}
+
+/// How far two sums of `n` terms in different orders may drift, relative to the largest entry of the
+/// result: each is within γ_n ≈ n·u (u = ε/2) of the exact sum times the sum of the terms' magnitudes
+/// (Higham, Accuracy and Stability, 3.1), so two orders within 2γ_n = n·ε of it; the factor 4 allows
+/// for a condition (the terms' magnitudes over the largest result, through the layers a gradient
+/// passes) of up to 4, where the toy data's gradients reach ~2.2. Zero where [`same_order`].
+fn order_bound(n: usize) -> f32 {
+    if same_order() {
+        0.0
+    } else {
+        4.0 * n as f32 * f32::EPSILON
+    }
+}
+
 fn random(rng: &mut ChaCha8Rng, n: usize) -> Vec<f32> {
     (0..n).map(|_| rng.random_range(-1.0f32..1.0)).collect()
 }
@@ -150,9 +171,11 @@ fn whole_network_op_matches_layer_by_layer_for_every_variant() {
         };
         let ((f, g), (f_ref, g_ref)) = (run(true), run(false));
         assert!(rel_err(&f, &f_ref) < 1e-5, "{}: f {}", config.name(), rel_err(&f, &f_ref));
+        // A weight gradient sums the batch's `n` rows: in blocks here, whole per layer.
+        let tol = order_bound(n).max(1e-5);
         for (j, v) in model.vars().iter().enumerate() {
             let (a, e) = (g.get(v.as_tensor()).unwrap(), g_ref.get(v.as_tensor()).unwrap());
-            assert!(rel_err(a, e) < 1e-5, "{}: variable {j}: {}", config.name(), rel_err(a, e));
+            assert!(rel_err(a, e) < tol, "{}: variable {j}: {} (bound {tol:e})", config.name(), rel_err(a, e));
         }
     }
 }
@@ -186,12 +209,20 @@ fn additive_shared_op_is_its_three_networks() {
         let d_ref = n_nets[1].forward(&t, &x.ones).unwrap();
         let s_ref = n_nets[2].forward(&Tensor::cat(&[&t, &x.angles], 1).unwrap(), &x.ones).unwrap();
         let g_ref = loss(&d_ref, &s_ref).backward().unwrap();
-        assert!(bits(&d) == bits(&d_ref) && bits(&s) == bits(&s_ref), "{}: outputs differ", config.name());
+        if same_order() {
+            assert!(bits(&d) == bits(&d_ref) && bits(&s) == bits(&s_ref), "{}: outputs differ", config.name());
+        } else {
+            // The specular head's inputs `[t, PE(a)]` are two operands here and one joined matrix
+            // there: sums of at most a layer's width plus the angles' encoding.
+            let width = x.angles.dim(1).unwrap() + 256;
+            let tol = order_bound(width);
+            assert!(rel_err(&d, &d_ref) <= tol && rel_err(&s, &s_ref) <= tol, "{}: outputs differ by {} and {} (bound {tol:e})", config.name(), rel_err(&d, &d_ref), rel_err(&s, &s_ref));
+        }
         for (j, v) in model.vars().iter().enumerate() {
             let (a, e) = (g.get(v.as_tensor()).unwrap(), g_ref.get(v.as_tensor()).unwrap());
             // Variables 0.. are the trunk's (file order): only they see the two orders of `∂t`.
-            let tol = if j < 2 * n_nets[0].layers.len() { 2e-6 } else { 0.0 };
-            assert!(rel_err(a, e) <= tol, "{}: gradient of variable {j} differs by {}", config.name(), rel_err(a, e));
+            let tol = if j < 2 * n_nets[0].layers.len() { 2e-6f32 } else { 0.0 }.max(order_bound(n));
+            assert!(rel_err(a, e) <= tol, "{}: gradient of variable {j} differs by {} (bound {tol:e})", config.name(), rel_err(a, e));
         }
     }
 }

@@ -94,17 +94,10 @@ impl Epilogue {
     pub const ADD: Epilogue = Epilogue { accumulate: true, bias: None, relu: false, mask: None };
 }
 
-/// Whether this CPU runs the AVX-512 kernels (checked once).
+/// Whether the AVX-512 kernels run: the CPU has them and `NBRDF_KERNEL` does not ask for a lower
+/// level (the core's [`nbrdf::kernels::detected`], so one host tests both paths).
 pub(crate) fn avx512() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        static HAS: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
-        *HAS.get_or_init(|| std::arch::is_x86_feature_detected!("avx512f"))
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
-    }
+    nbrdf::kernels::detected() >= nbrdf::kernels::Level::Avx512
 }
 
 /// `C [rows × cols] ← epilogue(A1 [rows × p1] · B[0..p1] + A2 [rows × p2] · B[p1..p1 + p2])`, with `B`
