@@ -18,7 +18,6 @@ use criterion::measurement::{Measurement, ValueFormatter, WallTime};
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use nbrdf::kernels::{detected, set_level, Level};
 use nbrdf::measured::NbrdfNetwork;
-use nbrdf::mlp::Arithmetic;
 use nbrdf::file::{encode, ModelBuf, ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity};
 use nbrdf::parametric::ParametricKind;
 use nbrdf::{Rgb, Vec3};
@@ -160,9 +159,7 @@ fn bench_models(c: &mut Criterion<Clock>) {
         let mut g = c.benchmark_group(format!("eval-{precision:?}").to_lowercase());
         for (name, mut h) in variants() {
             h.precision = precision;
-            let mut buf = ModelBuf::from_bytes(&encode(&h, &weights(h.n_weights()), None).unwrap()).unwrap();
-            // The AMX tiles of the per-query network, where the CPU has them (unused by the other paths).
-            buf.enable_bf16();
+            let buf = ModelBuf::from_bytes(&encode(&h, &weights(h.n_weights()), None).unwrap()).unwrap();
             let m = buf.model();
             for (level, lname) in levels() {
                 set_level(Some(level));
@@ -216,40 +213,6 @@ fn bench_models(c: &mut Criterion<Clock>) {
                         nbrdf::model::set_f16_batch_copy(was);
                     }
                     g.throughput(Throughput::Elements(wi.len() as u64));
-                }
-                if level == Level::Avx512 && m.half_math() {
-                    g.throughput(Throughput::Elements(1));
-                    g.bench_function(BenchmarkId::new(format!("single-half-math/{lname}"), &name), |b| {
-                        let mut i = 0;
-                        b.iter(|| {
-                            i = (i + 1) & 1023;
-                            black_box(m.eval_half(&prepared, black_box(wi[i]), black_box(wo[i])))
-                        })
-                    });
-                    g.throughput(Throughput::Elements(wi.len() as u64));
-                    g.bench_function(BenchmarkId::new(format!("batch-1024-half-math/{lname}"), &name), |b| {
-                        b.iter(|| m.eval_many_half(&prepared, black_box(&wi), black_box(&wo), &mut out))
-                    });
-                }
-                if level == Level::Avx512 && (m.amx() || m.bf16()) {
-                    g.throughput(Throughput::Elements(wi.len() as u64));
-                    let tiles = [(Arithmetic::SplitBf16, "split-bf16"), (Arithmetic::SplitBf16x6, "split-bf16x6")];
-                    let maths = tiles.iter().filter(|_| m.amx()).chain([(Arithmetic::Bf16, "bf16")].iter().filter(|_| m.bf16()));
-                    for &(math, id) in maths {
-                        g.bench_function(BenchmarkId::new(format!("batch-1024-{id}/{lname}"), &name), |b| {
-                            b.iter(|| m.eval_many_in(math, &prepared, black_box(&wi), black_box(&wo), &mut out))
-                        });
-                    }
-                    if m.bf16() {
-                        g.throughput(Throughput::Elements(1));
-                        g.bench_function(BenchmarkId::new(format!("single-bf16/{lname}"), &name), |b| {
-                            let mut i = 0;
-                            b.iter(|| {
-                                i = (i + 1) & 1023;
-                                black_box(m.eval_in(Arithmetic::Bf16, &prepared, black_box(wi[i]), black_box(wo[i])))
-                            })
-                        });
-                    }
                 }
             }
             set_level(None);
@@ -318,29 +281,24 @@ fn bench_all_cores(c: &mut Criterion<WallTime>) {
     let mut g = c.benchmark_group(format!("eval-f32-{threads}-threads"));
     g.throughput(Throughput::Elements((threads * 8 * wi.len()) as u64));
     for (name, h) in variants().into_iter().filter(|(n, _)| !ParametricKind::ALL.iter().any(|k| k.id() == n)) {
-        let mut buf = ModelBuf::from_bytes(&encode(&h, &weights(h.n_weights()), None).unwrap()).unwrap();
-        buf.enable_bf16();
+        let buf = ModelBuf::from_bytes(&encode(&h, &weights(h.n_weights()), None).unwrap()).unwrap();
         let m = buf.model();
-        let tiles = [(Arithmetic::SplitBf16, "batch-8x1024-split-bf16"), (Arithmetic::SplitBf16x6, "batch-8x1024-split-bf16x6")];
-        let maths = [(Arithmetic::F32, "batch-8x1024")].into_iter().chain(tiles.into_iter().filter(|_| m.amx()));
-        for (math, id) in maths.chain([(Arithmetic::Bf16, "batch-8x1024-bf16")].into_iter().filter(|_| m.bf16())) {
-            g.bench_function(BenchmarkId::new(id, &name), |b| {
-                b.iter(|| {
-                    std::thread::scope(|s| {
-                        for _ in 0..threads {
-                            s.spawn(|| {
-                                let prepared = m.prepare(&p);
-                                let mut out: Vec<Rgb> = vec![[0.0; 3]; wi.len()];
-                                for _ in 0..8 {
-                                    m.eval_many_in(math, &prepared, black_box(&wi), black_box(&wo), &mut out);
-                                }
-                                black_box(out[0])
-                            });
-                        }
-                    })
+        g.bench_function(BenchmarkId::new("batch-8x1024", &name), |b| {
+            b.iter(|| {
+                std::thread::scope(|s| {
+                    for _ in 0..threads {
+                        s.spawn(|| {
+                            let prepared = m.prepare(&p);
+                            let mut out: Vec<Rgb> = vec![[0.0; 3]; wi.len()];
+                            for _ in 0..8 {
+                                m.eval_many(&prepared, black_box(&wi), black_box(&wo), &mut out);
+                            }
+                            black_box(out[0])
+                        });
+                    }
                 })
-            });
-        }
+            })
+        });
     }
     g.finish();
 }

@@ -6,9 +6,7 @@
 //! the direction network), and [`Model::eval`] adds the direction pair. Both run on stack arrays with no
 //! allocation. [`Model::eval_many`] evaluates many pairs at one point in packets, bit for bit as `eval`,
 //! and [`Model::prepare_many`] prepares many points of one model in packets, whose evaluations are
-//! `prepare`'s bit for bit;
-//! [`Model::eval_half`] and [`Model::eval_many_half`] trade ~0.15% of accuracy for speed on f16 models
-//! (half-precision arithmetic, where the CPU has AVX512-FP16; [`Model::to_f16`] makes the copy).
+//! `prepare`'s bit for bit.
 //!
 //! ```
 //! use nbrdf::file::{encode, ModelBuf, ModelHeader, ModelKind, PositionEncoding, Reciprocity};
@@ -29,7 +27,7 @@ use crate::angles::{rusinkiewicz_angles, theta_map, upper_hemisphere_pair};
 use crate::encoding::{encoded_len, positional_encoding};
 use crate::file::{ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity, Sections, MAX_NETS};
 use crate::math::sanitize;
-use crate::mlp::{Arithmetic, Net, NetDesc, Partial, Tiled, Weight, PACKET};
+use crate::mlp::{Net, NetDesc, Partial, Weight, PACKET};
 use crate::neural::{additive_separate, additive_shared, parametric_net, single_mlp};
 use crate::parametric::Parametric;
 use crate::{Error, Rgb, Vec3, BLACK};
@@ -137,8 +135,6 @@ pub struct Model<'a> {
     /// A cache-line-aligned copy of the per-query (last) network's weights that replaces them in
     /// evaluation, where the file's own cannot be aligned (see [`ModelBuf`]).
     query: Option<Weights<'a>>,
-    /// The per-query network's hidden weights in bf16 parts, in AMX tile order ([`ModelBuf::enable_bf16`]).
-    tiles: Option<&'a [u16]>,
     /// The [`ModelBuf`]'s identity (`ModelBuf::id`); 0 for borrowed bytes, whose content may change
     /// between two views of the same address. Read only by the `std` copy of f16 batches.
     #[cfg_attr(not(feature = "std"), allow(dead_code))]
@@ -237,7 +233,7 @@ impl<'a> Model<'a> {
         }
         // SAFETY: as above.
         let table = unsafe { cast_slice::<f32>(&bytes[s.table.0..s.table.1]) };
-        Ok(Model { header, weights, query: None, tiles: None, id: 0, object, table })
+        Ok(Model { header, weights, query: None, id: 0, object, table })
     }
 
     #[cfg(not(target_endian = "little"))]
@@ -416,42 +412,6 @@ impl<'a> Model<'a> {
     /// model) `eval(p, wi, wo) == eval(p, wo, wi)` bit for bit.
     #[inline]
     pub fn eval(&self, prepared: &Prepared, wi: Vec3, wo: Vec3) -> Rgb {
-        self.eval_in(Arithmetic::F32, prepared, wi, wo)
-    }
-
-    /// [`Model::eval`] with half-precision arithmetic in the hidden layers where [`Model::half_math`]
-    /// says it applies; elsewhere exactly [`Model::eval`]. A single query streams its weight rows from
-    /// cache: half weights without widening halve those bytes (`docs/speed.md`). Rounding as in
-    /// [`Model::eval_many_half`], not bitwise equal to it (the one-query kernel sums in another order).
-    ///
-    /// ```
-    /// use nbrdf::file::{encode, ModelBuf, ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity};
-    /// use nbrdf::Vec3;
-    /// let pos = PositionEncoding::Intrinsic { k: 64 };
-    /// let mut h = ModelHeader::paper(ModelKind::AdditiveShared, false, Reciprocity::Exact, pos, 4);
-    /// h.precision = Precision::F16;
-    /// let w: Vec<f32> = (0..h.n_weights()).map(|i| ((i * 7919 % 1000) as f32 - 500.0) * 2e-4).collect();
-    /// let buf = ModelBuf::from_bytes(&encode(&h, &w, None).unwrap()).unwrap();
-    /// let (model, p) = (buf.model(), buf.model().prepare(&[0.1; 64]));
-    /// let (wi, wo) = (Vec3::new(0.3, 0.1, 0.9).normalize(), Vec3::new(-0.2, 0.4, 0.8).normalize());
-    /// let (exact, fast) = (model.eval(&p, wi, wo), model.eval_half(&p, wi, wo));
-    /// for c in 0..3 {
-    ///     assert!((exact[c] - fast[c]).abs() <= 0.02 * exact[c] + 1e-4);
-    /// }
-    /// ```
-    #[inline]
-    pub fn eval_half(&self, prepared: &Prepared, wi: Vec3, wo: Vec3) -> Rgb {
-        self.eval_in(Arithmetic::HalfHidden, prepared, wi, wo)
-    }
-
-    /// [`Model::eval`] (`math` = [`Arithmetic::F32`]) or [`Model::eval_half`]
-    /// ([`Arithmetic::HalfHidden`]), for callers that choose the arithmetic at run time; with
-    /// [`Arithmetic::Bf16`], where [`Model::bf16`] says it applies, the hidden layers in bf16 products
-    /// with the bits of the same pair in [`Model::eval_many_in`] (a single query streams half the
-    /// bytes of f32 weights: `docs/speed.md`). The split-bf16 arithmetics are [`Model::eval`] for one
-    /// query (a tile multiplies 16 queries at once).
-    #[inline(always)]
-    pub fn eval_in(&self, math: Arithmetic, prepared: &Prepared, wi: Vec3, wo: Vec3) -> Rgb {
         // 0.83x the time of an FMBRDF query in a loop of independent ones (see `load_pair`).
         let (wi, wo) = crate::math::load_pair(&wi, &wo);
         if !prepared.valid {
@@ -468,8 +428,8 @@ impl<'a> Model<'a> {
             return BLACK;
         };
         let f = match self.weights {
-            Weights::F32(w) => self.eval_with(math, &self.nets_f32(w), prepared, &enc[..n]),
-            Weights::F16(w) => self.eval_with(math, &self.nets_f16(w), prepared, &enc[..n]),
+            Weights::F32(w) => self.eval_with(&self.nets_f32(w), prepared, &enc[..n]),
+            Weights::F16(w) => self.eval_with(&self.nets_f16(w), prepared, &enc[..n]),
         };
         sanitize(f)
     }
@@ -511,110 +471,12 @@ impl<'a> Model<'a> {
     /// allocates), each packet widens the rows it uses. Every way gives the same bits.
     pub fn eval_many(&self, prepared: &Prepared, wi: &[Vec3], wo: &[Vec3], out: &mut [Rgb]) {
         let n = out.len().min(wi.len()).min(wo.len());
-        self.eval_many_by(Arithmetic::F32, prepared, n, |i| (wi[i], wo[i]), |i, f| out[i] = f);
+        self.eval_many_by(prepared, n, |i| (wi[i], wo[i]), |i, f| out[i] = f);
     }
 
-    /// [`Model::eval_many`] with half-precision arithmetic in the hidden layers, where
-    /// [`Model::half_math`] says it applies (a model with f16 weights, a CPU with AVX512-FP16); there
-    /// about twice as fast per pair, elsewhere exactly [`Model::eval_many`].
-    ///
-    /// Every product and partial sum of a hidden layer is rounded to f16 (11 significant bits), and
-    /// the prepared accumulators and the encoded angles are rounded to f16 on the way in; the output
-    /// layer and the output map stay in f32. On a trained paper-size model the values move by a few
-    /// tenths of a percent (`docs/speed.md` measures it); a hidden sum beyond ±65504 would become
-    /// infinite and its pair 0. The results are no longer bit for bit those of [`Model::eval`], nor
-    /// exactly reciprocal; each pair's value still does not depend on the other pairs of the batch.
-    ///
-    /// ```
-    /// use nbrdf::file::{encode, ModelBuf, ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity};
-    /// use nbrdf::Vec3;
-    /// // The paper's Single MLP with f16 weights (the weights here made up).
-    /// let pos = PositionEncoding::Intrinsic { k: 64 };
-    /// let mut h = ModelHeader::paper(ModelKind::SingleMlp, false, Reciprocity::Exact, pos, 4);
-    /// h.precision = Precision::F16;
-    /// let w: Vec<f32> = (0..h.n_weights()).map(|i| ((i * 7919 % 1000) as f32 - 500.0) * 2e-4).collect();
-    /// let buf = ModelBuf::from_bytes(&encode(&h, &w, None).unwrap()).unwrap();
-    /// let model = buf.model();
-    /// let p = model.prepare(&[0.1; 64]);
-    /// let wi = [Vec3::new(0.3, 0.1, 0.9).normalize(); 32];
-    /// let wo = [Vec3::new(-0.2, 0.4, 0.8).normalize(); 32];
-    /// let (mut exact, mut fast) = ([[0.0; 3]; 32], [[0.0; 3]; 32]);
-    /// model.eval_many(&p, &wi, &wo, &mut exact);
-    /// model.eval_many_half(&p, &wi, &wo, &mut fast);
-    /// for (e, f) in exact.iter().zip(&fast) {
-    ///     for c in 0..3 {
-    ///         assert!((e[c] - f[c]).abs() <= 0.02 * e[c] + 1e-4);
-    ///     }
-    /// }
-    /// ```
-    pub fn eval_many_half(&self, prepared: &Prepared, wi: &[Vec3], wo: &[Vec3], out: &mut [Rgb]) {
-        let n = out.len().min(wi.len()).min(wo.len());
-        self.eval_many_by(Arithmetic::HalfHidden, prepared, n, |i| (wi[i], wo[i]), |i, f| out[i] = f);
-    }
-
-    /// [`Model::eval_many`] ([`Arithmetic::F32`]), [`Model::eval_many_half`] ([`Arithmetic::HalfHidden`])
-    /// or a bf16 arithmetic (split on AMX tiles: [`Arithmetic::SplitBf16`], [`Arithmetic::SplitBf16x6`];
-    /// on vectors: [`Arithmetic::Bf16`]), chosen at run time.
-    ///
-    /// With the split-bf16 arithmetic, where [`Model::amx`] says it applies (a [`ModelBuf`] after
-    /// [`ModelBuf::enable_bf16`], a CPU with AMX-BF16), each f32 product of the per-query network's
-    /// hidden layers is taken as three (`SplitBf16`) or six (`SplitBf16x6`) bf16 products with f32
-    /// sums (`crate::kernels`, "Split-bf16 arithmetic"): values move by a few 1e-6 relative with
-    /// three, by about what f32 sums in another order move them with six; not bit for bit those of
-    /// [`Model::eval`] nor exactly reciprocal; each pair's value still does not depend on the others
-    /// of the batch. With [`Arithmetic::Bf16`], where [`Model::bf16`] says it applies (the same copy, a
-    /// CPU with AVX512-BF16), each product is one bf16 product with f32 sums: ~1e-3 relative, twice
-    /// the multiply-adds per instruction of f32, and each pair's value that of [`Model::eval_in`] on
-    /// it alone. Elsewhere exactly [`Model::eval_many`].
-    ///
-    /// ```
-    /// use nbrdf::file::{encode, ModelBuf, ModelHeader, ModelKind, PositionEncoding, Reciprocity};
-    /// use nbrdf::mlp::Arithmetic;
-    /// use nbrdf::Vec3;
-    /// let h = ModelHeader::paper(ModelKind::SingleMlp, false, Reciprocity::Exact, PositionEncoding::Intrinsic { k: 64 }, 4);
-    /// let w: Vec<f32> = (0..h.n_weights()).map(|i| ((i * 7919 % 1000) as f32 - 500.0) * 2e-4).collect();
-    /// let mut buf = ModelBuf::from_bytes(&encode(&h, &w, None).unwrap()).unwrap();
-    /// let made = buf.enable_bf16(); // false without AMX and AVX512-BF16: then all three are F32
-    /// let model = buf.model();
-    /// assert_eq!(model.amx() || model.bf16(), made);
-    /// let p = model.prepare(&[0.1; 64]);
-    /// let wi = [Vec3::new(0.3, 0.1, 0.9).normalize(); 32];
-    /// let wo = [Vec3::new(-0.2, 0.4, 0.8).normalize(); 32];
-    /// let (mut exact, mut x3, mut x6, mut x1) = ([[0.0; 3]; 32], [[0.0; 3]; 32], [[0.0; 3]; 32], [[0.0; 3]; 32]);
-    /// model.eval_many(&p, &wi, &wo, &mut exact);
-    /// model.eval_many_in(Arithmetic::SplitBf16, &p, &wi, &wo, &mut x3);
-    /// model.eval_many_in(Arithmetic::SplitBf16x6, &p, &wi, &wo, &mut x6);
-    /// model.eval_many_in(Arithmetic::Bf16, &p, &wi, &wo, &mut x1);
-    /// for (((e, a), b), d) in exact.iter().zip(&x3).zip(&x6).zip(&x1) {
-    ///     for c in 0..3 {
-    ///         assert!((e[c] - a[c]).abs() <= 1e-4 * e[c] + 1e-6);
-    ///         assert!((e[c] - b[c]).abs() <= 2e-6 * e[c] + 1e-7);
-    ///         assert!((e[c] - d[c]).abs() <= 1e-2 * e[c] + 1e-4);
-    ///     }
-    /// }
-    /// ```
-    pub fn eval_many_in(&self, math: Arithmetic, prepared: &Prepared, wi: &[Vec3], wo: &[Vec3], out: &mut [Rgb]) {
-        let n = out.len().min(wi.len()).min(wo.len());
-        self.eval_many_by(math, prepared, n, |i| (wi[i], wo[i]), |i, f| out[i] = f);
-    }
-
-    /// Whether [`Arithmetic::SplitBf16`] and [`Arithmetic::SplitBf16x6`] run on AMX tiles for this model
-    /// here: its per-query network's tiles were made ([`ModelBuf::enable_bf16`]) and
-    /// [`crate::kernels::amx_available`].
-    pub fn amx(&self) -> bool {
-        self.tiles.is_some() && crate::kernels::amx_available()
-    }
-
-    /// Whether [`Arithmetic::Bf16`] runs in bf16 for this model here: its bf16 copy was made
-    /// ([`ModelBuf::enable_bf16`]) and [`crate::kernels::bf16_available`].
-    pub fn bf16(&self) -> bool {
-        self.tiles.is_some() && crate::kernels::bf16_available()
-    }
-
-    /// The model re-encoded with f16 network weights ([`Precision::F16`]: half the weight bytes, and
-    /// the half-precision arithmetic of [`Model::eval_half`] where the CPU has it), as the bytes of a
-    /// `.nbrdf` file. Object parameters and the position table stay f32, as the file format keeps
-    /// them; the header is unchanged apart from the precision. Feature `alloc`.
+    /// The model re-encoded with f16 network weights ([`Precision::F16`]: half the weight bytes), as
+    /// the bytes of a `.nbrdf` file. Object parameters and the position table stay f32, as the file
+    /// format keeps them; the header is unchanged apart from the precision. Feature `alloc`.
     ///
     /// Errors: [`Error::InvalidValue`] when the weights are f16 already; [`Error::NonFinite`] for a
     /// weight beyond ±65504 (it would round to infinity).
@@ -644,14 +506,6 @@ impl<'a> Model<'a> {
         crate::file::encode(&header, &weights, (!table.is_empty()).then_some(table))
     }
 
-    /// Whether [`Model::eval_half`] and [`Model::eval_many_half`] compute in half precision for this model on this CPU: a
-    /// neural model with f16 weights, and [`crate::kernels::half_math_available`].
-    pub fn half_math(&self) -> bool {
-        matches!(self.weights, Weights::F16(_))
-            && !matches!(self.header.kind, ModelKind::Parametric(_))
-            && crate::kernels::half_math_available()
-    }
-
     /// [`Model::eval_many`] over directions as structure of arrays: pair `i` is
     /// `wi = (wi[0][i], wi[1][i], wi[2][i])`, `wo` likewise, and its RGB goes to
     /// `(out[0][i], out[1][i], out[2][i])`, for the common length of all nine slices.
@@ -659,7 +513,6 @@ impl<'a> Model<'a> {
         let n = wi.iter().chain(&wo).map(|s| s.len()).chain(out.iter().map(|s| s.len())).min().unwrap_or(0);
         let [r, g, b] = out;
         self.eval_many_by(
-            Arithmetic::F32,
             prepared,
             n,
             |i| (Vec3::new(wi[0][i], wi[1][i], wi[2][i]), Vec3::new(wo[0][i], wo[1][i], wo[2][i])),
@@ -676,7 +529,6 @@ impl<'a> Model<'a> {
     #[inline]
     fn eval_many_by(
         &self,
-        math: Arithmetic,
         prepared: &Prepared,
         n: usize,
         pair: impl Fn(usize) -> (Vec3, Vec3),
@@ -689,14 +541,13 @@ impl<'a> Model<'a> {
             }
             return;
         }
-        self.with_widened(math, n, |widened| self.eval_many_packets(math, widened, prepared, n, pair, put))
+        self.with_widened(n, |widened| self.eval_many_packets(widened, prepared, n, pair, put))
     }
 
     /// [`Model::eval_many_by`] for a valid neural model's packets, over `widened` weights where given.
     #[inline]
     fn eval_many_packets(
         &self,
-        math: Arithmetic,
         widened: Option<&[f32]>,
         prepared: &Prepared,
         n: usize,
@@ -705,7 +556,7 @@ impl<'a> Model<'a> {
     ) {
         #[cfg(target_arch = "x86_64")]
         if crate::kernels::level() == crate::kernels::Level::Avx512 {
-            return self.eval_many_theta16(math, widened, prepared, n, pair, put);
+            return self.eval_many_theta16(widened, prepared, n, pair, put);
         }
         let mut enc = [0.0f32; PACKET * MAX_ANGLE_INPUT];
         let mut index = [0usize; PACKET];
@@ -723,7 +574,7 @@ impl<'a> Model<'a> {
                 None => put(i, BLACK),
             }
             if filled == PACKET || (i + 1 == n && filled > 0) {
-                for (&i, f) in index[..filled].iter().zip(self.run_packet(math, widened, prepared, &enc, len)) {
+                for (&i, f) in index[..filled].iter().zip(self.run_packet(widened, prepared, &enc, len)) {
                     put(i, sanitize(f));
                 }
                 filled = 0;
@@ -732,15 +583,15 @@ impl<'a> Model<'a> {
     }
 
     /// The [`PACKET`] pairs encoded in `enc` (`MAX_ANGLE_INPUT` apart, `len` values each) through the
-    /// model's networks in `math` ([`Model::eval_packet_with`] over its weights).
+    /// model's networks ([`Model::eval_packet_with`] over its weights).
     #[inline]
-    fn run_packet(&self, math: Arithmetic, widened: Option<&[f32]>, prepared: &Prepared, enc: &[f32], len: usize) -> [Rgb; PACKET] {
+    fn run_packet(&self, widened: Option<&[f32]>, prepared: &Prepared, enc: &[f32], len: usize) -> [Rgb; PACKET] {
         if let Some(q) = widened {
-            return self.eval_packet_with(math, &self.nets_widened(q), prepared, enc, len);
+            return self.eval_packet_with(&self.nets_widened(q), prepared, enc, len);
         }
         match self.weights {
-            Weights::F32(w) => self.eval_packet_with(math, &self.nets_f32(w), prepared, enc, len),
-            Weights::F16(w) => self.eval_packet_with(math, &self.nets_f16(w), prepared, enc, len),
+            Weights::F32(w) => self.eval_packet_with(&self.nets_f32(w), prepared, enc, len),
+            Weights::F16(w) => self.eval_packet_with(&self.nets_f16(w), prepared, enc, len),
         }
     }
 
@@ -750,7 +601,6 @@ impl<'a> Model<'a> {
     #[cfg(target_arch = "x86_64")]
     fn eval_many_theta16(
         &self,
-        math: Arithmetic,
         widened: Option<&[f32]>,
         prepared: &Prepared,
         n: usize,
@@ -760,7 +610,7 @@ impl<'a> Model<'a> {
         let frequencies = self.header.angle_frequencies as usize;
         let exact = self.header.reciprocity == Reciprocity::Exact;
         let len = self.header.angle_input_len();
-        let run = |enc: &[f32]| self.run_packet(math, widened, prepared, enc, len);
+        let run = |enc: &[f32]| self.run_packet(widened, prepared, enc, len);
         // 16 encoded rows, and the packet the valid ones are gathered into where some are not.
         let mut stage = [0.0f32; PACKET * MAX_ANGLE_INPUT];
         let mut enc = [0.0f32; PACKET * MAX_ANGLE_INPUT];
@@ -863,18 +713,16 @@ impl<'a> Model<'a> {
     }
 
     /// Runs `f` over the per-query network's f16 weights widened to f32 where that pays (f16 weights,
-    /// f32 arithmetic, `std` for the per-thread copy [`WIDENED`], not turned off by
+    /// `std` for the per-thread copy [`WIDENED`], not turned off by
     /// [`set_f16_batch_copy`]): the copy as it is where it holds this [`ModelBuf`]'s network, else
     /// widened afresh once the thread has evaluated [`WIDEN_FROM`] pairs of this model in a row (in
     /// this call, or for a `ModelBuf` over consecutive calls); otherwise `f(None)`, and each packet
     /// widens the rows it uses. The widening is exact and the f16 kernels are the f32 ones over
     /// widened rows, so every way gives the same bits.
     #[inline]
-    fn with_widened<R>(&self, math: Arithmetic, n: usize, f: impl FnOnce(Option<&[f32]>) -> R) -> R {
+    fn with_widened<R>(&self, n: usize, f: impl FnOnce(Option<&[f32]>) -> R) -> R {
         #[cfg(feature = "std")]
-        if let (Weights::F16(w), Arithmetic::F32, true) =
-            (self.weights, math, F16_BATCH_COPY.load(core::sync::atomic::Ordering::Relaxed))
-        {
+        if let (Weights::F16(w), true) = (self.weights, F16_BATCH_COPY.load(core::sync::atomic::Ordering::Relaxed)) {
             let q = self.nets_f16(w)[self.header.nets().len().saturating_sub(1)].weights;
             let mut f = Some(f);
             // `try_with`, `try_borrow_mut`: while the thread's storage is torn down, or (not done
@@ -911,7 +759,7 @@ impl<'a> Model<'a> {
                 (_, None) => unreachable!("the widened call returned"),
             }
         }
-        let _ = (math, n);
+        let _ = n;
         f(None)
     }
 
@@ -965,44 +813,29 @@ impl<'a> Model<'a> {
     }
 
     #[inline]
-    fn eval_with<W: Weight>(&self, math: Arithmetic, nets: &[Net<'a, W>; MAX_NETS], p: &Prepared, angles: &[f32]) -> Rgb {
+    fn eval_with<W: Weight>(&self, nets: &[Net<'a, W>; MAX_NETS], p: &Prepared, angles: &[f32]) -> Rgb {
         let enhanced = self.header.enhanced;
-        let tiled = self.tiles.map(|values| Tiled { values, n_tail: self.header.angle_input_len() });
         match self.header.kind {
             ModelKind::Parametric(_) => BLACK,
-            ModelKind::SingleMlp => single_mlp::eval(math, tiled, &nets[self.header.n_nets as usize - 1], &p.partial, angles),
-            ModelKind::AdditiveSeparate => {
-                additive_separate::eval(math, tiled, &nets[1], p.diffuse, &p.partial, angles, enhanced)
-            }
-            ModelKind::AdditiveShared => additive_shared::eval(math, tiled, &nets[2], p.diffuse, &p.partial, angles, enhanced),
+            ModelKind::SingleMlp => single_mlp::eval(&nets[self.header.n_nets as usize - 1], &p.partial, angles),
+            ModelKind::AdditiveSeparate => additive_separate::eval(&nets[1], p.diffuse, &p.partial, angles, enhanced),
+            ModelKind::AdditiveShared => additive_shared::eval(&nets[2], p.diffuse, &p.partial, angles, enhanced),
         }
     }
 
     /// [`Model::eval_with`] for the [`PACKET`] queries encoded in `enc` (`MAX_ANGLE_INPUT` apart,
     /// `n` values each); lanes past the filled ones hold stale inputs whose results are discarded.
     #[inline]
-    fn eval_packet_with<W: Weight>(
-        &self,
-        math: Arithmetic,
-        nets: &[Net<'a, W>; MAX_NETS],
-        p: &Prepared,
-        enc: &[f32],
-        n: usize,
-    ) -> [Rgb; PACKET] {
+    fn eval_packet_with<W: Weight>(&self, nets: &[Net<'a, W>; MAX_NETS], p: &Prepared, enc: &[f32], n: usize) -> [Rgb; PACKET] {
         let enhanced = self.header.enhanced;
         let s = MAX_ANGLE_INPUT;
-        let tiled = self.tiles.map(|values| Tiled { values, n_tail: self.header.angle_input_len() });
         match self.header.kind {
             ModelKind::Parametric(_) => [BLACK; PACKET],
-            ModelKind::SingleMlp => {
-                single_mlp::eval_packet(math, tiled, &nets[self.header.n_nets as usize - 1], &p.partial, enc, s, n)
-            }
+            ModelKind::SingleMlp => single_mlp::eval_packet(&nets[self.header.n_nets as usize - 1], &p.partial, enc, s, n),
             ModelKind::AdditiveSeparate => {
-                additive_separate::eval_packet(math, tiled, &nets[1], p.diffuse, &p.partial, enc, s, n, enhanced)
+                additive_separate::eval_packet(&nets[1], p.diffuse, &p.partial, enc, s, n, enhanced)
             }
-            ModelKind::AdditiveShared => {
-                additive_shared::eval_packet(math, tiled, &nets[2], p.diffuse, &p.partial, enc, s, n, enhanced)
-            }
+            ModelKind::AdditiveShared => additive_shared::eval_packet(&nets[2], p.diffuse, &p.partial, enc, s, n, enhanced),
         }
     }
 }
@@ -1027,9 +860,6 @@ pub struct ModelBuf {
     lines: alloc::vec::Vec<CacheLine>,
     /// The aligned copy of the per-query network's weights, where the file's cannot be aligned.
     query: Option<alloc::vec::Vec<CacheLine>>,
-    /// The per-query network's hidden weights in AMX tile order and their number of bf16 values
-    /// ([`ModelBuf::enable_bf16`]).
-    tiles: Option<(alloc::vec::Vec<CacheLine>, usize)>,
     /// Identifies these bytes for the per-thread f32 copy of f16 batches ([`Model::eval_many`]):
     /// unique per `from_bytes` (never reused: the bytes cannot change, and the copy of one buffer
     /// never serves another), shared by clones, whose bytes are the same.
@@ -1089,7 +919,7 @@ impl ModelBuf {
         let lines = CacheLine::copy_of(bytes, shift);
         let q = Model::query_weights_range(&header, &sections);
         let query = (!(q.start + shift).is_multiple_of(64)).then(|| CacheLine::copy_of(&bytes[q], 0));
-        let buf = ModelBuf { lines, query, tiles: None, id: next_model_id(), shift, len: bytes.len(), header, sections };
+        let buf = ModelBuf { lines, query, id: next_model_id(), shift, len: bytes.len(), header, sections };
         // Surface host-dependent failures (byte order) here rather than at every `model()` call.
         Model::from_parsed(buf.bytes(), header, &sections)?;
         Ok(buf)
@@ -1128,54 +958,7 @@ impl ModelBuf {
             // SAFETY: the copy holds the network's weights from a 64-byte boundary (`from_bytes`).
             model.query = Some(unsafe { weights_of(self.header.precision, &CacheLine::bytes(copy)[..n]) });
         }
-        if let Some((lines, n)) = &self.tiles {
-            // SAFETY: the lines are 64-byte aligned and hold `n` u16 values (`enable_bf16`).
-            model.tiles = Some(unsafe { &cast_slice::<u16>(CacheLine::bytes(lines))[..*n] });
-        }
         model
-    }
-
-    /// Makes the bf16 copy of the per-query network that [`Arithmetic::SplitBf16`] and
-    /// [`Arithmetic::SplitBf16x6`] evaluate on AMX tiles and [`Arithmetic::Bf16`] on AVX512-BF16
-    /// vectors ([`Model::eval_many_in`]); `true` where it now serves one of them: a neural model whose
-    /// per-query network has a hidden width of a multiple of 32 (the paper's 128), on a CPU (and OS)
-    /// with AMX-BF16 ([`crate::kernels::amx_available`]) or AVX512-BF16
-    /// ([`crate::kernels::bf16_available`]; built with `std`, Linux). The copy holds three bf16 parts
-    /// of each hidden weight in tile order, then the first part again in rows of one input each for
-    /// single queries in [`Arithmetic::Bf16`] ([`Model::eval_in`]): 2× the bytes of the f32 network
-    /// (4× those of an f16 one).
-    pub fn enable_bf16(&mut self) -> bool {
-        #[cfg(all(target_arch = "x86_64", target_os = "linux", feature = "std"))]
-        {
-            use crate::kernels::amx;
-            let here = crate::kernels::amx_available() || crate::kernels::bf16_available();
-            if self.tiles.is_some() {
-                return here;
-            }
-            if !here || matches!(self.header.kind, ModelKind::Parametric(_)) {
-                return false;
-            }
-            let n_tail = self.header.angle_input_len();
-            let model = self.model();
-            let last = self.header.nets().len() - 1;
-            let len = amx::copy_len(&self.header.nets()[last], n_tail);
-            if len == 0 {
-                return false;
-            }
-            let mut lines = alloc::vec![CacheLine([0; 64]); (2 * len).div_ceil(64)];
-            // SAFETY: the lines are 64-byte aligned, `2 * len` bytes fit, and every bit pattern is a u16.
-            let values = unsafe { core::slice::from_raw_parts_mut(lines.as_mut_ptr().cast::<u16>(), len) };
-            match model.weights {
-                Weights::F32(w) => amx::make_copy(&model.nets_f32(w)[last], n_tail, values),
-                Weights::F16(w) => amx::make_copy(&model.nets_f16(w)[last], n_tail, values),
-            }
-            self.tiles = Some((lines, len));
-            true
-        }
-        #[cfg(not(all(target_arch = "x86_64", target_os = "linux", feature = "std")))]
-        {
-            false
-        }
     }
 }
 

@@ -485,50 +485,6 @@ fn neural_models_of_every_kind_and_precision_with_extreme_weights() {
     assert!(n > 100_000, "{n} evaluations");
 }
 
-/// The opt-in arithmetics keep the contract with extreme weights: half precision (f16 sums that
-/// overflow to inf at 65504) and split bf16 on AMX tiles, bf16x3 and bf16x6 (inf activations split
-/// into inf and NaN parts), and bf16 give finite, non-negative values, exactly 0 off the upper
-/// hemisphere, in batches and single queries of every pair of the edge grid. On a CPU without AVX512-FP16 or AMX these are the f32 paths, checked alike.
-#[test]
-fn half_and_split_bf16_arithmetic_with_extreme_weights() {
-    use nbrdf::mlp::Arithmetic;
-    let pairs = edge_pairs();
-    let (wi, wo): (Vec<Vec3>, Vec<Vec3>) = pairs.iter().copied().unzip();
-    let mut n = 0;
-    for kind in [ModelKind::SingleMlp, ModelKind::AdditiveSeparate, ModelKind::AdditiveShared] {
-        for precision in [Precision::F32, Precision::F16] {
-            // The most angle inputs a tile row holds: Θ with 16 octaves (132, padded to 160).
-            let h = ModelHeader::paper(kind, kind.is_additive(), Reciprocity::Exact, PositionEncoding::Intrinsic { k: 5 }, nbrdf::file::MAX_FREQUENCIES);
-            let h = ModelHeader { precision, ..h };
-            for (what, w) in weight_sets(h.n_weights(), precision, 3) {
-                let name = format!("{kind:?} {precision:?} {what}");
-                let mut buf = ModelBuf::from_bytes(&encode(&h, &w, None).unwrap()).unwrap_or_else(|e| panic!("{name}: {e}"));
-                assert_eq!(buf.enable_bf16(), nbrdf::kernels::amx_available() || nbrdf::kernels::bf16_available(), "{name}");
-                let model = buf.model();
-                for p in points(h.position) {
-                    let prepared = model.try_prepare(&p).unwrap();
-                    for math in [Arithmetic::HalfHidden, Arithmetic::SplitBf16, Arithmetic::SplitBf16x6, Arithmetic::Bf16] {
-                        let mut out = vec![[f32::NAN; 3]; pairs.len()];
-                        model.eval_many_in(math, &prepared, &wi, &wo, &mut out);
-                        for (&(a, b), f) in pairs.iter().zip(&out) {
-                            // Single queries too: bf16 has its own one-query kernel (`bf16_rows`).
-                            let one = model.eval_in(math, &prepared, a, b);
-                            for f in [f, &one] {
-                                assert!(f.iter().all(|c| c.is_finite() && *c >= 0.0), "{name} {math:?}: f({a}, {b}) = {f:?}");
-                                if !(above(a) && above(b)) {
-                                    assert_eq!(*f, BLACK, "{name} {math:?}: f({a}, {b}) must be 0");
-                                }
-                            }
-                        }
-                        n += pairs.len();
-                    }
-                }
-            }
-        }
-    }
-    assert!(n > 50_000, "{n} evaluations");
-}
-
 #[test]
 fn f16_weights_that_round_to_infinity_are_rejected_at_encode() {
     // 65520 is the first value that rounds to +inf in f16: the export must refuse it rather than write a

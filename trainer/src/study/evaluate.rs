@@ -5,19 +5,13 @@
 //! - the rendered BRDF values are compared with the stored raw ground-truth ones in cube-root RMSE, on
 //!   lit pixels within the angle limit of [`brdf_rmse::keep`];
 //! - reciprocity RMSE and the energy analysis use points and directions of the test samples;
-//! - the evaluation cost is timed in-process on the reciprocity pairs: one query at a time (`eval_in`),
-//!   and in batches of many directions at one point (`eval_many_in`).
-//!
-//! With the split-bf16 arithmetics ([`Arithmetic::SplitBf16`], [`Arithmetic::SplitBf16x6`]; batches
-//! only: their single queries keep f32) every value is taken from a batch: a pair's value does not
-//! depend on the batch it is in, so a batch of one gives the value any batch would. With
-//! [`Arithmetic::Bf16`] a single query has its batch value's bits, and is timed as itself.
+//! - the evaluation cost is timed in-process on the reciprocity pairs: one query at a time (`eval`),
+//!   and in batches of many directions at one point (`eval_many`).
 
 use std::time::Instant;
 
 use nbrdf::file::ModelBuf;
 use nbrdf::image::{read_exr, RgbImage};
-use nbrdf::mlp::Arithmetic;
 use nbrdf::model::{Model, Prepared};
 use nbrdf::scene::render::{render_view, RenderOptions, SurfaceSample};
 use nbrdf::{Rgb, Vec3};
@@ -40,12 +34,7 @@ pub struct Evaluation {
     pub energy: EnergySummary,
     /// Mean nanoseconds per `eval` (one direction pair, point already prepared), single thread.
     pub eval_ns_per_query: f64,
-    /// Whether `eval_ns_per_query` timed single queries in the arithmetic under test: false for the
-    /// split-bf16 arithmetics (their single queries are f32) and in bf16 evaluations written before
-    /// bf16 single queries ran in bf16 (the field is absent there).
-    #[serde(default)]
-    pub single_in_arithmetic: bool,
-    /// Mean nanoseconds per direction pair of `eval_many_in` (batches of [`BATCH`] pairs at one
+    /// Mean nanoseconds per direction pair of `eval_many` (batches of [`BATCH`] pairs at one
     /// prepared point), single thread; absent in results written before it was measured.
     #[serde(default)]
     pub eval_batch_ns_per_query: Option<f64>,
@@ -89,28 +78,10 @@ pub fn evaluate(
     model_path: &std::path::Path,
     lpips: &std::result::Result<Lpips, String>,
     config: &super::StudyConfig,
-    math: Arithmetic,
 ) -> Result<Evaluation> {
-    let mut buf = ModelBuf::load(model_path).map_err(Error::Core)?;
-    if math.on_tiles() {
-        buf.enable_bf16();
-    }
-    let batches_only = math.on_tiles() && math != Arithmetic::Bf16;
+    let buf = ModelBuf::load(model_path).map_err(Error::Core)?;
     let model = buf.model();
-    let runs = if math == Arithmetic::Bf16 { model.bf16() } else { model.amx() };
-    if math.on_tiles() && !runs {
-        return Err(Error::Invalid(format!("{}: {math:?} does not run here (no AMX or AVX512-BF16, or not a neural model)", model_path.display())));
-    }
-    // Every query of the evaluation, in the arithmetic under test.
-    let eval = |p: &Prepared, wi: Vec3, wo: Vec3| {
-        if batches_only {
-            let mut f = [[0.0; 3]];
-            model.eval_many_in(math, p, &[wi], &[wo], &mut f);
-            f[0]
-        } else {
-            model.eval_in(math, p, wi, wo)
-        }
-    };
+    let eval = |p: &Prepared, wi: Vec3, wo: Vec3| model.eval(p, wi, wo);
     let mut image_metrics = Vec::new();
     let (mut pred_brdf, mut ref_brdf, mut keep) = (Vec::<Rgb>::new(), Vec::<Rgb>::new(), Vec::new());
     for view in ds.views.iter().filter(|v| v.split == Split::Test) {
@@ -176,9 +147,8 @@ pub fn evaluate(
         brdf_rmse_cbrt: brdf_rmse::cube_root_rmse(&pred_brdf, &ref_brdf, &keep),
         reciprocity_rmse: reciprocity,
         energy,
-        eval_ns_per_query: time_eval(&|p: &Prepared, wi, wo| model.eval_in(math, p, wi, wo), &recip_prepared, &pairs),
-        single_in_arithmetic: !batches_only,
-        eval_batch_ns_per_query: Some(time_batches(&model, math, &recip_prepared, &pairs)),
+        eval_ns_per_query: time_eval(&eval, &recip_prepared, &pairs),
+        eval_batch_ns_per_query: Some(time_batches(&model, &recip_prepared, &pairs)),
         prepare_ns_per_point,
         prepare_many_ns_per_point,
     })
@@ -215,20 +185,20 @@ fn time_prepare(model: &Model<'_>, points: &[f32]) -> (Option<f64>, Option<f64>)
     (Some(single), Some(many))
 }
 
-/// Mean ns per pair of `eval_many_in(math, ..)` over batches of [`BATCH`] of the pairs' directions,
-/// each batch at the next prepared point, repeated to at least ~200k queries.
-fn time_batches(model: &Model<'_>, math: Arithmetic, prepared: &[Prepared], pairs: &[DirectionPair]) -> f64 {
+/// Mean ns per pair of `eval_many` over batches of [`BATCH`] of the pairs' directions, each batch at
+/// the next prepared point, repeated to at least ~200k queries.
+fn time_batches(model: &Model<'_>, prepared: &[Prepared], pairs: &[DirectionPair]) -> f64 {
     if pairs.is_empty() || prepared.is_empty() {
         return f64::NAN;
     }
     let (wi, wo): (Vec<Vec3>, Vec<Vec3>) = (0..BATCH).map(|i| (pairs[i % pairs.len()].wi, pairs[i % pairs.len()].wo)).unzip();
     let mut out = vec![[0.0f32; 3]; BATCH];
-    model.eval_many_in(math, &prepared[0], &wi, &wo, &mut out);
+    model.eval_many(&prepared[0], &wi, &wo, &mut out);
     let rounds = (200_000 / BATCH).max(1);
     let mut sink = 0.0f32;
     let t = Instant::now();
     for r in 0..rounds {
-        model.eval_many_in(math, &prepared[r % prepared.len()], std::hint::black_box(&wi), &wo, &mut out);
+        model.eval_many(&prepared[r % prepared.len()], std::hint::black_box(&wi), &wo, &mut out);
         sink += out[r % BATCH][1];
     }
     let ns = t.elapsed().as_nanos() as f64 / (rounds * BATCH) as f64;
