@@ -5,13 +5,15 @@
 //! ±3.4e38 for f32, where activations overflow to inf) and fuzzer-chosen weight overrides. Invariants:
 //! the diffuse term and every evaluation are finite and non-negative; exactly 0 off the upper
 //! hemisphere; bitwise reciprocal for Θ networks and parametric models; a batch gives each pair the
-//! bits of its single query, and `prepare_many` each point the evaluations of its own `prepare`.
+//! bits of its single query, and `prepare_many` each point the evaluations of its own `prepare`. The
+//! model is borrowed in place (`Model::from_bytes`: f16 weights run the f16 kernels); the `ModelBuf`
+//! of the same file (an f16 one widened to f32 at load) gives the same bits.
 #![no_main]
 
 mod common;
 
 use libfuzzer_sys::fuzz_target;
-use nbrdf::file::{encode, ModelBuf, ModelKind, Precision, Reciprocity};
+use nbrdf::file::{encode, Model, ModelBuf, ModelKind, Precision, Reciprocity};
 
 fuzz_target!(|input: (u8, u8, u64, u8, [f32; 3], [f32; 6], Vec<(u16, f32)>)| {
     let (shape, variant, seed, scale, point, dirs, patches) = input;
@@ -28,7 +30,11 @@ fuzz_target!(|input: (u8, u8, u64, u8, [f32; 3], [f32; 6], Vec<(u16, f32)>)| {
     // Non-finite weights, and f16 weights beyond ±65504, are export errors (tests/bad_input.rs).
     let Ok(bytes) = encode(&h, &w, None) else { return };
     let buf = ModelBuf::from_bytes(&bytes).expect("encode's output loads");
-    let model = buf.model();
+    let mut words = vec![0u32; bytes.len().div_ceil(4)];
+    // SAFETY: u8 has no alignment requirement; the u32 storage is initialised.
+    let aligned = unsafe { std::slice::from_raw_parts_mut(words.as_mut_ptr().cast::<u8>(), words.len() * 4) };
+    aligned[..bytes.len()].copy_from_slice(&bytes);
+    let model = Model::from_bytes(&aligned[..bytes.len()]).expect("encode's output loads in place");
     let len = model.position_len().min(3);
     let prepared = model.prepare(&point[..len]);
     if len != model.position_len() {
@@ -38,6 +44,9 @@ fuzz_target!(|input: (u8, u8, u64, u8, [f32; 3], [f32; 6], Vec<(u16, f32)>)| {
     let (wi, wo) = common::pair(dirs);
     let f = model.eval(&prepared, wi, wo);
     common::assert_valid_brdf(f, "model eval");
+    let held = buf.model();
+    let f_held = held.eval(&held.prepare(&point[..len]), wi, wo);
+    assert!(common::same_bits(f, f_held), "ModelBuf ({:?} file): {f_held:?} vs in place {f:?}", h.precision);
     // Many points at once (packets of 16, the last overlapping the one before): each point's
     // evaluation has the bits of its own `prepare`.
     let k = model.position_len();

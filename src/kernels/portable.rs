@@ -51,7 +51,7 @@ const TILE: usize = 64;
 /// order), so the bits are those of one query at a time. Against running [`one`] per query (each
 /// row read, and its f16 weights converted, once per query): on this project's Zen 4 machine forced
 /// to this level, f32 batches 0.90–0.99× the time in one process, and f16 calls of 48 pairs that
-/// widen per packet (without the model's per-thread f32 copy) 0.15–0.18× (`docs/speed.md`).
+/// widen per packet 0.15–0.18× (`docs/speed.md`).
 ///
 /// # Safety
 /// `layer` passed `Dense::check(PACKET, ..)` for an output buffer at `out` with rows `out_stride` apart.
