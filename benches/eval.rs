@@ -2,12 +2,13 @@
 //! `prepare` (one shading point; at the best level also `prepare-many-1024`, 1 024 points at once),
 //! f32 and f16 weights, single queries and batches of many directions at one point, at every kernel level this CPU has (`portable` is the pre-SIMD scalar path, the
 //! "before" of issue 8; the neural models' batches also with independent random directions,
-//! `batch-1024-random`, and in calls of 32 pairs, `batch-32`, at the best level: with f16 weights
-//! these run over the thread's f32 copy of the network, `batch-32-no-copy` with the copy turned
-//! off), plus the NBRDF-json networks, plus the neural models'
+//! `batch-1024-random`, and in calls of 32 pairs, `batch-32`, at the best level), plus the NBRDF-json networks, plus the neural models'
 //! batched throughput with one thread per core (`eval-f32-N-threads`, wall time), and the floor that
 //! L2 bandwidth puts under a single Single MLP query (`eval-floor`). Run: `cargo bench --bench eval`,
-//! or e.g. `cargo bench --bench eval -- 'eval-f32/.*single-mlp'` for one model.
+//! or e.g. `cargo bench --bench eval -- 'eval-f32/.*single-mlp'` for one model. f32 models load
+//! through `ModelBuf`; f16 ones are borrowed in place (`Model::from_bytes`, the `no_std` path whose
+//! kernels widen the f16 rows as they read them), since a `ModelBuf` widens an f16 file at load and
+//! then runs it as the f32 one.
 //!
 //! On Linux the clock is the thread's CPU time (`CLOCK_THREAD_CPUTIME_ID`), not wall time: the
 //! development machine is shared by several compiling users, and CPU time stays meaningful while the
@@ -18,8 +19,7 @@ use criterion::measurement::{Measurement, ValueFormatter, WallTime};
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use nbrdf::kernels::{detected, set_level, Level};
 use nbrdf::measured::NbrdfNetwork;
-use nbrdf::mlp::Arithmetic;
-use nbrdf::file::{encode, ModelBuf, ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity};
+use nbrdf::file::{encode, Model, ModelBuf, ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity};
 use nbrdf::parametric::ParametricKind;
 use nbrdf::{Rgb, Vec3};
 
@@ -146,6 +146,36 @@ impl Measurement for Clock {
     }
 }
 
+/// A model file in a buffer of the caller's, placed as `Model::query_weights_offset_of` advises (the
+/// per-query network on a cache line, to the 4 bytes a section's alignment allows), for
+/// `Model::from_bytes`.
+struct InPlace {
+    words: Vec<u32>,
+    start: usize,
+    len: usize,
+}
+
+impl InPlace {
+    fn new(bytes: &[u8]) -> Self {
+        let at = Model::query_weights_offset_of(bytes).unwrap();
+        let mut words = vec![0u32; bytes.len().div_ceil(4) + 16];
+        let base = words.as_ptr() as usize;
+        let start = (64 - (base + at) % 64) % 64 / 4;
+        for (w, c) in words[start..].iter_mut().zip(bytes.chunks(4)) {
+            let mut b = [0u8; 4];
+            b[..c.len()].copy_from_slice(c);
+            *w = u32::from_ne_bytes(b);
+        }
+        InPlace { words, start, len: bytes.len() }
+    }
+
+    fn model(&self) -> Model<'_> {
+        // SAFETY: u8 has no alignment requirement and every byte of a u32 slice is initialised.
+        let bytes = unsafe { std::slice::from_raw_parts(self.words.as_ptr().cast::<u8>(), self.words.len() * 4) };
+        Model::from_bytes(&bytes[4 * self.start..4 * self.start + self.len]).unwrap()
+    }
+}
+
 fn bench_models(c: &mut Criterion<Clock>) {
     let p: Vec<f32> = (0..64).map(|i| (i as f32 * 0.1).sin()).collect();
     // 1 024 points' intrinsic features, neighbouring points alike (a smooth field over the surface).
@@ -156,10 +186,13 @@ fn bench_models(c: &mut Criterion<Clock>) {
         let mut g = c.benchmark_group(format!("eval-{precision:?}").to_lowercase());
         for (name, mut h) in variants() {
             h.precision = precision;
-            let mut buf = ModelBuf::from_bytes(&encode(&h, &weights(h.n_weights()), None).unwrap()).unwrap();
-            // The AMX tiles of the per-query network, where the CPU has them (unused by the other paths).
-            buf.enable_bf16();
-            let m = buf.model();
+            let bytes = encode(&h, &weights(h.n_weights()), None).unwrap();
+            let buf = ModelBuf::from_bytes(&bytes).unwrap();
+            let in_place = InPlace::new(&bytes);
+            let m = match precision {
+                Precision::F32 => buf.model(),
+                Precision::F16 => in_place.model(),
+            };
             for (level, lname) in levels() {
                 set_level(Some(level));
                 let prepared = m.prepare(&p);
@@ -196,56 +229,14 @@ fn bench_models(c: &mut Criterion<Clock>) {
                     // Calls of 32 pairs, as a renderer makes at a shading point, stepping through the
                     // directions.
                     g.throughput(Throughput::Elements(32));
-                    let mut calls_of_32 = |id: &str| {
-                        let mut k = 0;
-                        g.bench_function(BenchmarkId::new(format!("{id}/{lname}"), &name), |b| {
-                            b.iter(|| {
-                                k = (k + 32) & 1023;
-                                m.eval_many(&prepared, black_box(&wi[k..k + 32]), black_box(&wo[k..k + 32]), &mut out[..32])
-                            })
-                        });
-                    };
-                    calls_of_32("batch-32");
-                    if precision == Precision::F16 {
-                        let was = nbrdf::model::set_f16_batch_copy(false);
-                        calls_of_32("batch-32-no-copy");
-                        nbrdf::model::set_f16_batch_copy(was);
-                    }
-                    g.throughput(Throughput::Elements(wi.len() as u64));
-                }
-                if level == Level::Avx512 && m.half_math() {
-                    g.throughput(Throughput::Elements(1));
-                    g.bench_function(BenchmarkId::new(format!("single-half-math/{lname}"), &name), |b| {
-                        let mut i = 0;
+                    let mut k = 0;
+                    g.bench_function(BenchmarkId::new(format!("batch-32/{lname}"), &name), |b| {
                         b.iter(|| {
-                            i = (i + 1) & 1023;
-                            black_box(m.eval_half(&prepared, black_box(wi[i]), black_box(wo[i])))
+                            k = (k + 32) & 1023;
+                            m.eval_many(&prepared, black_box(&wi[k..k + 32]), black_box(&wo[k..k + 32]), &mut out[..32])
                         })
                     });
                     g.throughput(Throughput::Elements(wi.len() as u64));
-                    g.bench_function(BenchmarkId::new(format!("batch-1024-half-math/{lname}"), &name), |b| {
-                        b.iter(|| m.eval_many_half(&prepared, black_box(&wi), black_box(&wo), &mut out))
-                    });
-                }
-                if level == Level::Avx512 && (m.amx() || m.bf16()) {
-                    g.throughput(Throughput::Elements(wi.len() as u64));
-                    let tiles = [(Arithmetic::SplitBf16, "split-bf16"), (Arithmetic::SplitBf16x6, "split-bf16x6")];
-                    let maths = tiles.iter().filter(|_| m.amx()).chain([(Arithmetic::Bf16, "bf16")].iter().filter(|_| m.bf16()));
-                    for &(math, id) in maths {
-                        g.bench_function(BenchmarkId::new(format!("batch-1024-{id}/{lname}"), &name), |b| {
-                            b.iter(|| m.eval_many_in(math, &prepared, black_box(&wi), black_box(&wo), &mut out))
-                        });
-                    }
-                    if m.bf16() {
-                        g.throughput(Throughput::Elements(1));
-                        g.bench_function(BenchmarkId::new(format!("single-bf16/{lname}"), &name), |b| {
-                            let mut i = 0;
-                            b.iter(|| {
-                                i = (i + 1) & 1023;
-                                black_box(m.eval_in(Arithmetic::Bf16, &prepared, black_box(wi[i]), black_box(wo[i])))
-                            })
-                        });
-                    }
                 }
             }
             set_level(None);
@@ -314,29 +305,24 @@ fn bench_all_cores(c: &mut Criterion<WallTime>) {
     let mut g = c.benchmark_group(format!("eval-f32-{threads}-threads"));
     g.throughput(Throughput::Elements((threads * 8 * wi.len()) as u64));
     for (name, h) in variants().into_iter().filter(|(n, _)| !ParametricKind::ALL.iter().any(|k| k.id() == n)) {
-        let mut buf = ModelBuf::from_bytes(&encode(&h, &weights(h.n_weights()), None).unwrap()).unwrap();
-        buf.enable_bf16();
+        let buf = ModelBuf::from_bytes(&encode(&h, &weights(h.n_weights()), None).unwrap()).unwrap();
         let m = buf.model();
-        let tiles = [(Arithmetic::SplitBf16, "batch-8x1024-split-bf16"), (Arithmetic::SplitBf16x6, "batch-8x1024-split-bf16x6")];
-        let maths = [(Arithmetic::F32, "batch-8x1024")].into_iter().chain(tiles.into_iter().filter(|_| m.amx()));
-        for (math, id) in maths.chain([(Arithmetic::Bf16, "batch-8x1024-bf16")].into_iter().filter(|_| m.bf16())) {
-            g.bench_function(BenchmarkId::new(id, &name), |b| {
-                b.iter(|| {
-                    std::thread::scope(|s| {
-                        for _ in 0..threads {
-                            s.spawn(|| {
-                                let prepared = m.prepare(&p);
-                                let mut out: Vec<Rgb> = vec![[0.0; 3]; wi.len()];
-                                for _ in 0..8 {
-                                    m.eval_many_in(math, &prepared, black_box(&wi), black_box(&wo), &mut out);
-                                }
-                                black_box(out[0])
-                            });
-                        }
-                    })
+        g.bench_function(BenchmarkId::new("batch-8x1024", &name), |b| {
+            b.iter(|| {
+                std::thread::scope(|s| {
+                    for _ in 0..threads {
+                        s.spawn(|| {
+                            let prepared = m.prepare(&p);
+                            let mut out: Vec<Rgb> = vec![[0.0; 3]; wi.len()];
+                            for _ in 0..8 {
+                                m.eval_many(&prepared, black_box(&wi), black_box(&wo), &mut out);
+                            }
+                            black_box(out[0])
+                        });
+                    }
                 })
-            });
-        }
+            })
+        });
     }
     g.finish();
 }

@@ -36,9 +36,6 @@ struct Args {
     /// a file whose extension says which.
     #[arg(long, default_value = "lambert:0.8,0.8,0.8")]
     brdf: String,
-    /// Evaluate a `.nbrdf` model in half-precision arithmetic (its f16 copy, on CPUs with AVX512-FP16).
-    #[arg(long)]
-    half: bool,
     /// `native` (own lobes or fitted proxy) or `cosine`.
     #[arg(long, default_value = "native")]
     sampling: String,
@@ -195,20 +192,7 @@ fn run(args: Args) -> Result<(), String> {
         s => return Err(format!("--sampling `{s}`: expected native or cosine")),
     };
     let fit_start = std::time::Instant::now();
-    let mut brdf = brdf_of(&args.brdf)?;
-    if let (true, Brdf::Model(buf)) = (args.half, &brdf) {
-        if buf.header().precision == nbrdf::file::Precision::F32 {
-            let f16 = buf.model().to_f16().map_err(|e| format!("--half: {e}"))?;
-            brdf = Brdf::Model(ModelBuf::from_bytes(&f16).map_err(|e| format!("--half: {e}"))?);
-        }
-    }
-    let material = Material::new(brdf)
-        .map_err(|e| format!("material: {e}"))?
-        .with_sampling(sampling)
-        .with_half_math(args.half);
-    if args.half && !material.half_math() {
-        println!("--half: no half-precision arithmetic here (it needs a neural .nbrdf model and AVX512-FP16)");
-    }
+    let material = Material::new(brdf_of(&args.brdf)?).map_err(|e| format!("material: {e}"))?.with_sampling(sampling);
     let fit_secs = fit_start.elapsed().as_secs_f64();
     let lights: Vec<DirectionalLight> = args.light.iter().map(|l| light_of(l)).collect::<Result<_, _>>()?;
     let env = match (&args.env, args.env_color) {

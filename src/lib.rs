@@ -3,9 +3,12 @@
 //! Embeddable evaluation of the neural and parametric BRDFs compared in *On Neural BRDFs: A Thorough
 //! Comparison of State-of-the-Art Approaches* (the paper). The crate is `#![no_std]` and evaluates every
 //! model with fixed-size stack arrays and no allocation; the `alloc` feature adds readers that own their
-//! data (MERL tables, NBRDF-json networks), `std` adds files, scenes and images. One exception, with
-//! `std` only and switchable: batches of a model with f16 weights keep an f32 copy of its per-query
-//! network in a per-thread buffer ([`model::set_f16_batch_copy`]).
+//! data (MERL tables, NBRDF-json networks), `std` adds files, scenes and images.
+//!
+//! Evaluation has one arithmetic, f32. f16 model files are a storage format (half the weight bytes):
+//! [`file::ModelBuf`] (`alloc`) widens their weights to f32 once at load and evaluates those, while a
+//! [`model::Model`] over borrowed f16 bytes (`no_std`) widens each row as it reads it; both give the
+//! same bits.
 //!
 //! Conventions (see `DESIGN.md`): directions are unit vectors in the local shading frame (normal = +z)
 //! pointing away from the surface, `wi` toward the light and `wo` toward the viewer. A BRDF value is in

@@ -63,71 +63,6 @@ impl Weight for half::f16 {
     }
 }
 
-/// The arithmetic of [`forward_packet`]'s hidden layers.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
-pub enum Arithmetic {
-    /// f32 multiply-adds (f16 weights widened as they are read): the same bits as one query at a
-    /// time, at every level up to FMA rounding.
-    #[default]
-    F32,
-    /// f16 multiply-adds in the hidden layers of half-weight networks where the CPU has AVX512-FP16
-    /// ([`crate::kernels::packet_half_math`]): twice the multiply-adds per instruction, each product
-    /// and partial sum rounded to f16. The output layer, f32 weights and other CPUs: as [`F32`](Self::F32).
-    HalfHidden,
-    /// "bf16x3": each product of the hidden layers as three bf16 products on AMX tiles,
-    /// `x_0·w_0 + x_0·w_1 + x_1·w_0` with f32 sums (`x = x_0 + x_1`, `crate::kernels` "Split-bf16
-    /// arithmetic"): ~16 significant bits a product, results within a few 1e-6 relative of
-    /// [`F32`](Self::F32), for packets of a network with [`Tiled`] weights where
-    /// [`crate::kernels::amx_available`]. The output layer, single queries, networks without tiles
-    /// and other CPUs: as [`F32`](Self::F32).
-    SplitBf16,
-    /// "bf16x6": as [`SplitBf16`](Self::SplitBf16) with each value in three bf16 parts and six
-    /// products, `x_0·w_0 + x_0·w_1 + x_1·w_0 + x_0·w_2 + x_1·w_1 + x_2·w_0`: ~24 significant bits a
-    /// product, results as close to [`F32`](Self::F32) as f32 sums in another order, at twice the
-    /// tile work of bf16x3.
-    SplitBf16x6,
-    /// "bf16": each product of the hidden layers as one bf16 product (activations and weights rounded
-    /// to bf16, 8 significant bits) with f32 sums, `vdpbf16ps` on AVX512-BF16 vectors: twice the
-    /// multiply-adds of an f32 FMA per instruction, results ~1e-3 relative from [`F32`](Self::F32)
-    /// (`docs/speed.md`), for a network with [`Tiled`] weights where
-    /// [`crate::kernels::bf16_available`] (the CPUs without AMX or AVX512-FP16 among them, such as
-    /// AMD Zen 4). Single queries get the same bits from f32 FMAs over rows of bf16 weights that
-    /// skip zero inputs ([`forward_with`]; `crate::kernels`, "bf16 arithmetic on vectors"). The output layer,
-    /// networks without tiles and other CPUs: as [`F32`](Self::F32).
-    Bf16,
-}
-
-impl Arithmetic {
-    /// Whether this arithmetic reads the bf16 copy of a network's weights ([`Tiled`]: the split-bf16
-    /// arithmetics on AMX tiles, for batches only (their single queries stay in f32), and bf16, for
-    /// batches and single queries).
-    ///
-    /// ```
-    /// use nbrdf::mlp::Arithmetic;
-    /// assert!(Arithmetic::SplitBf16x6.on_tiles() && !Arithmetic::HalfHidden.on_tiles());
-    /// ```
-    #[inline]
-    pub const fn on_tiles(self) -> bool {
-        matches!(self, Arithmetic::SplitBf16 | Arithmetic::SplitBf16x6 | Arithmetic::Bf16)
-    }
-}
-
-/// A network's hidden-layer weights re-laid for the AMX tiles of [`Arithmetic::SplitBf16`] and
-/// [`Arithmetic::SplitBf16x6`]: three bf16 parts of each weight in the order the tiles read them (whose
-/// first part [`Arithmetic::Bf16`] reads on vectors), then that first part again in rows of one input
-/// each (the single queries of [`Arithmetic::Bf16`]), for a network whose last `n_tail` inputs are
-/// the per-query tail (the encoded angles).
-/// [`crate::model::ModelBuf::enable_bf16`] makes and keeps them.
-#[derive(Clone, Copy, Debug)]
-// Read only where the AMX kernels are built (x86-64 Linux with `std`).
-#[cfg_attr(not(all(target_arch = "x86_64", target_os = "linux", feature = "std")), allow(dead_code))]
-pub struct Tiled<'a> {
-    /// The bf16 bits, 64-byte aligned.
-    pub(crate) values: &'a [u16],
-    /// Number of tail inputs the layout was made for.
-    pub(crate) n_tail: usize,
-}
-
 /// Shape of one network: `Mlp(n_in, width, hidden, n_out, skip)` of `docs/models.md`.
 ///
 /// ```
@@ -331,7 +266,6 @@ fn head_layers<'a, W: Weight>(
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn run<W: Weight, const Q: usize>(
-    math: Arithmetic,
     net: &Net<'_, W>,
     partial: &Partial,
     tail: &[f32],
@@ -343,13 +277,10 @@ fn run<W: Weight, const Q: usize>(
     t: &mut [f32],
 ) {
     let k = kernels::<W>();
-    let half = math == Arithmetic::HalfHidden;
     let layer = |l: &Dense<'_, W>, out: &mut [f32], os: usize| {
         if Q == 1 {
-            if !(half && l.relu && W::one_half_math(l, out)) {
-                k.one(l, out)
-            }
-        } else if !(half && l.relu && W::packet_half_math(l, out, os)) {
+            k.one(l, out)
+        } else {
             k.packet(l, out, os)
         }
     };
@@ -389,8 +320,8 @@ fn run<W: Weight, const Q: usize>(
     output_layer::<W, Q>(net, h, out, out_stride);
 }
 
-/// The output layer of `net` (f32 arithmetic) on the last hidden activations `h` (`Q × width`, query
-/// after query), or those activations themselves for a trunk without one.
+/// The output layer of `net` on the last hidden activations `h` (`Q × width`, query after query),
+/// or those activations themselves for a trunk without one.
 #[inline(always)]
 fn output_layer<W: Weight, const Q: usize>(net: &Net<'_, W>, h: &[f32], out: &mut [f32], out_stride: usize) {
     let d = &net.desc;
@@ -420,44 +351,23 @@ fn output_layer<W: Weight, const Q: usize>(net: &Net<'_, W>, h: &[f32], out: &mu
 /// `desc.output_len()` values to the front of `out` (which must hold them; `MAX_WIDTH` always does).
 #[inline]
 pub fn forward<W: Weight>(net: &Net<'_, W>, partial: &Partial, tail: &[f32], out: &mut [f32]) {
-    forward_with(Arithmetic::F32, None, net, partial, tail, out)
-}
-
-/// [`forward`] with the hidden layers in `math`: [`Arithmetic::HalfHidden`], the one-query kernel
-/// [`crate::kernels::one_half_math`] where it applies; [`Arithmetic::Bf16`], `tiled` (the network's
-/// [`Tiled`] weights) on AVX512-BF16 vectors where they apply (as in [`forward_packet`]); otherwise
-/// f32 (the split-bf16 arithmetics too: a tile multiplies 16 queries at once, so for one it costs
-/// more than the f32 vectors).
-#[inline]
-pub fn forward_with<W: Weight>(math: Arithmetic, tiled: Option<Tiled<'_>>, net: &Net<'_, W>, partial: &Partial, tail: &[f32], out: &mut [f32]) {
-    if let (Arithmetic::Bf16, Some(tiled)) = (math, tiled) {
-        let mut h = [0.0f32; MAX_WIDTH];
-        if hidden_one_tiled(tiled, net, partial, tail, &mut h) {
-            return output_layer::<W, 1>(net, &h, out, 0);
-        }
-    }
-    let half = math == Arithmetic::HalfHidden && W::HALF && crate::kernels::half_math_available();
-    let math = if half { math } else { Arithmetic::F32 };
-    if forward_chain(math, net, partial, tail, out) {
+    if forward_chain(net, partial, tail, out) {
         return;
     }
     let mut h = [0.0f32; MAX_WIDTH];
     let mut t = [0.0f32; MAX_WIDTH];
-    run::<W, 1>(math, net, partial, tail, 0, tail.len(), out, 0, &mut h, &mut t);
+    run::<W, 1>(net, partial, tail, 0, tail.len(), out, 0, &mut h, &mut t);
 }
 
 /// [`forward`] in one kernel call ([`Chain`]) where the level has the kernel and the network its shape
 /// (hidden width [`CHAIN_WIDTH`], at most [`CHAIN_OUT_MAX`] outputs); `false` where it ran nothing.
-/// In half arithmetic the chain kernel runs the hidden layers and [`Kernels::one`] the output layer
-/// (f32 arithmetic, as in packets).
 #[inline]
-fn forward_chain<W: Weight>(math: Arithmetic, net: &Net<'_, W>, partial: &Partial, tail: &[f32], out: &mut [f32]) -> bool {
+fn forward_chain<W: Weight>(net: &Net<'_, W>, partial: &Partial, tail: &[f32], out: &mut [f32]) -> bool {
     let k = kernels::<W>();
-    let half = math == Arithmetic::HalfHidden;
     let d = &net.desc;
     let (width, n_in, head) = (d.width as usize, d.n_in as usize, partial.head_len);
     let n_tail = tail.len().min(n_in - head);
-    if !(half || k.has_chain())
+    if !k.has_chain()
         || width != CHAIN_WIDTH
         || d.n_out as usize > CHAIN_OUT_MAX
         || d.hidden == 0
@@ -484,50 +394,25 @@ fn forward_chain<W: Weight>(math: Arithmetic, net: &Net<'_, W>, partial: &Partia
         let off = d.layer_offset(d.hidden as usize);
         (&w[off + width * n_out..off + (width + 1) * n_out], &w[off..off + width * n_out], n_out)
     });
-    let mut chain = Chain {
+    let chain = Chain {
         tail: &tail[..n_tail],
         first_init: &partial.layer0[..width],
         first_rows: &w[head * width..(head + n_tail) * width],
         hidden: &hidden[1..d.hidden as usize],
         out: out_layer,
     };
-    if !half {
-        return k.chain(&chain, out);
-    }
-    chain.out = None;
-    let Some((bias, rows, n_out)) = out_layer else {
-        return W::chain_half_math(&chain, out);
-    };
-    let mut h = [0.0f32; CHAIN_WIDTH];
-    if !W::chain_half_math(&chain, &mut h) {
-        return false;
-    }
-    let mut init = [0.0f32; CHAIN_OUT_MAX];
-    W::widen(bias, &mut init[..n_out]);
-    let hs = Segment { x: &h[..], stride: 0, n: CHAIN_WIDTH, rows };
-    let lo = Dense { init: &init[..n_out], segs: [hs, none()], n_segs: 1, n_out, relu: false };
-    k.one(&lo, out);
-    true
+    k.chain(&chain, out)
 }
 
 /// [`forward`] for a packet of [`PACKET`] queries at one prepared point: query `q`'s tail is
 /// `tails[q * tail_stride..][..n_tail]`, its `desc.output_len()` outputs go to `out[q * out_stride..]`.
 ///
-/// Each weight row is read once per packet. With [`Arithmetic::F32`] every query gets the same bits as
-/// [`forward`] on its own tail (see [`crate::kernels`], "Determinism").
-///
-/// With [`Arithmetic::SplitBf16`] or [`Arithmetic::SplitBf16x6`], `tiled` (the network's [`Tiled`]
-/// weights) runs the hidden layers on AMX tiles where they apply: the CPU has them, the layout was made
-/// for `n_tail` tail inputs, and the head folded into `partial` is the rest of the input; with
-/// [`Arithmetic::Bf16`] on AVX512-BF16 vectors, where the CPU has those, under the same conditions.
-/// Otherwise `tiled` is unused.
+/// Each weight row is read once per packet, and every query gets the same bits as [`forward`] on its
+/// own tail (see [`crate::kernels`], "Determinism").
 ///
 /// Panics when `tails` or `out` is too short for the packet.
 #[inline]
-#[allow(clippy::too_many_arguments)]
 pub fn forward_packet<W: Weight>(
-    math: Arithmetic,
-    tiled: Option<Tiled<'_>>,
     net: &Net<'_, W>,
     partial: &Partial,
     tails: &[f32],
@@ -536,17 +421,11 @@ pub fn forward_packet<W: Weight>(
     out: &mut [f32],
     out_stride: usize,
 ) {
-    if let (true, Some(tiled)) = (math.on_tiles(), tiled) {
-        let mut h = core::mem::MaybeUninit::<[f32; PACKET * MAX_WIDTH]>::uninit();
-        if let Some(h) = hidden_tiled(math, tiled, net, partial, tails, tail_stride, n_tail, &mut h) {
-            return output_layer::<W, PACKET>(net, h, out, out_stride);
-        }
-    }
     // Only the `PACKET × width` values a packet's activations use are zeroed (not the 32 KB of both
     // buffers, the size of an L1 whose blocks of weights they would evict).
     let n = PACKET * (net.desc.width as usize).min(MAX_WIDTH);
     let (mut h, mut t) = (core::mem::MaybeUninit::<[f32; PACKET * MAX_WIDTH]>::uninit(), core::mem::MaybeUninit::<[f32; PACKET * MAX_WIDTH]>::uninit());
-    run::<W, PACKET>(math, net, partial, tails, tail_stride, n_tail, out, out_stride, zeroed_prefix(&mut h, n), zeroed_prefix(&mut t, n));
+    run::<W, PACKET>(net, partial, tails, tail_stride, n_tail, out, out_stride, zeroed_prefix(&mut h, n), zeroed_prefix(&mut t, n));
 }
 
 /// The first `n` values of `buf` (at most its length), zeroed; the rest stays uninitialised.
@@ -558,89 +437,6 @@ fn zeroed_prefix<const N: usize>(buf: &mut core::mem::MaybeUninit<[f32; N]>, n: 
     unsafe {
         core::ptr::write_bytes(p, 0, n);
         core::slice::from_raw_parts_mut(p, n)
-    }
-}
-
-/// The hidden layers of a packet in a bf16 arithmetic (`math`: bf16x3 or bf16x6 on AMX tiles,
-/// [`crate::kernels`] "Split-bf16 arithmetic", or bf16 on vectors): the last activations (`PACKET × width`, written to the front of `h`), or
-/// `None` (nothing written) where the tiles do not apply (see [`forward_packet`]).
-#[allow(unused_variables, clippy::too_many_arguments)]
-fn hidden_tiled<'h, W: Weight>(
-    math: Arithmetic,
-    tiled: Tiled<'_>,
-    net: &Net<'_, W>,
-    partial: &Partial,
-    tails: &[f32],
-    tail_stride: usize,
-    n_tail: usize,
-    h: &'h mut core::mem::MaybeUninit<[f32; PACKET * MAX_WIDTH]>,
-) -> Option<&'h [f32]> {
-    #[cfg(all(target_arch = "x86_64", target_os = "linux", feature = "std"))]
-    {
-        use crate::kernels::amx;
-        let d = &net.desc;
-        let vectors = math == Arithmetic::Bf16;
-        let here = if vectors { crate::kernels::bf16_available() } else { crate::kernels::amx_available() };
-        if !(here && tiles_apply(tiled, net, partial, n_tail)) {
-            return None;
-        }
-        assert!(tails.len() >= (PACKET - 1) * tail_stride + n_tail, "tails too short for a packet");
-        let n = PACKET * d.width as usize;
-        let h = h.as_mut_ptr().cast::<f32>();
-        // SAFETY: the CPU (and for the tiles the OS) has what the arithmetic runs on; the layout fits `net` and `n_tail` (its length is
-        // `packed_len`, which is non-zero only where `fits`); the head is the rest of the input;
-        // the tails extent was checked; `h` has room for `PACKET × MAX_WIDTH` floats, and the kernels
-        // write the first `n` of them.
-        unsafe {
-            if vectors {
-                amx::hidden_vectors(net, tiled.values, partial, tails, tail_stride, n_tail, h);
-            } else {
-                amx::hidden(math == Arithmetic::SplitBf16x6, net, tiled.values, partial, tails, tail_stride, n_tail, h);
-            }
-            Some(core::slice::from_raw_parts(h, n))
-        }
-    }
-    #[cfg(not(all(target_arch = "x86_64", target_os = "linux", feature = "std")))]
-    {
-        None
-    }
-}
-
-/// Whether `tiled` is the bf16 copy of `net` for `n_tail` tail inputs after the head folded into
-/// `partial` (the CPU aside): what the kernels of [`hidden_tiled`] and [`hidden_one_tiled`] assume.
-#[cfg(all(target_arch = "x86_64", target_os = "linux", feature = "std"))]
-#[inline]
-fn tiles_apply<W: Weight>(tiled: Tiled<'_>, net: &Net<'_, W>, partial: &Partial, n_tail: usize) -> bool {
-    let d = &net.desc;
-    n_tail == tiled.n_tail
-        && partial.head_len + n_tail == d.n_in as usize
-        && !tiled.values.is_empty()
-        && crate::kernels::amx::copy_len(d, n_tail) == tiled.values.len()
-        && net.weights.len() == d.n_weights()
-}
-
-/// The hidden layers of one query (the tail `tail`) in [`Arithmetic::Bf16`] on AVX512-BF16 vectors:
-/// the last activations to the front of `h` and `true`, or `false` (nothing written) where the
-/// vectors or `tiled` do not apply.
-#[allow(unused_variables)]
-#[inline]
-fn hidden_one_tiled<W: Weight>(tiled: Tiled<'_>, net: &Net<'_, W>, partial: &Partial, tail: &[f32], h: &mut [f32; MAX_WIDTH]) -> bool {
-    #[cfg(all(target_arch = "x86_64", target_os = "linux", feature = "std"))]
-    {
-        let n_tail = tail.len().min(net.desc.n_in as usize - partial.head_len);
-        if !(crate::kernels::bf16_available() && tiles_apply(tiled, net, partial, n_tail)) {
-            return false;
-        }
-        let rows = &tiled.values[crate::kernels::amx::packed_len(&net.desc, n_tail)..];
-        // SAFETY: the CPU has AVX512-BF16 and AVX-512; the rows are `pack_rows`'s for `net` and
-        // `n_tail` (the copy's length checked; `packed_len` is non-zero only where `fits`); the head
-        // is the rest of the input; `tail` holds `n_tail` values and `h` `MAX_WIDTH ≥ width` floats.
-        unsafe { crate::kernels::bf16_rows::hidden_one(net, rows, partial, tail, n_tail, h.as_mut_ptr()) };
-        true
-    }
-    #[cfg(not(all(target_arch = "x86_64", target_os = "linux", feature = "std")))]
-    {
-        false
     }
 }
 
@@ -675,7 +471,7 @@ pub fn eval<W: Weight>(net: &Net<'_, W>, x: &[f32], out: &mut [f32]) {
 /// ```
 #[inline]
 pub fn eval_packet<W: Weight>(net: &Net<'_, W>, x: &[f32], stride: usize, n: usize, out: &mut [f32], out_stride: usize) {
-    forward_packet(Arithmetic::F32, None, net, &partial(net, &[]), x, stride, n, out, out_stride)
+    forward_packet(net, &partial(net, &[]), x, stride, n, out, out_stride)
 }
 
 /// The partials of [`PACKET`] points ([`partial_packet`]), point after point at the network's width:

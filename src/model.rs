@@ -6,9 +6,9 @@
 //! the direction network), and [`Model::eval`] adds the direction pair. Both run on stack arrays with no
 //! allocation. [`Model::eval_many`] evaluates many pairs at one point in packets, bit for bit as `eval`,
 //! and [`Model::prepare_many`] prepares many points of one model in packets, whose evaluations are
-//! `prepare`'s bit for bit;
-//! [`Model::eval_half`] and [`Model::eval_many_half`] trade ~0.15% of accuracy for speed on f16 models
-//! (half-precision arithmetic, where the CPU has AVX512-FP16; [`Model::to_f16`] makes the copy).
+//! `prepare`'s bit for bit. Evaluation has one arithmetic, f32: f16 weights are a storage format,
+//! widened to f32 once at load by [`ModelBuf`], or row by row as they are read by a [`Model`] over
+//! borrowed f16 bytes; both give the same bits.
 //!
 //! ```
 //! use nbrdf::file::{encode, ModelBuf, ModelHeader, ModelKind, PositionEncoding, Reciprocity};
@@ -29,7 +29,7 @@ use crate::angles::{rusinkiewicz_angles, theta_map, upper_hemisphere_pair};
 use crate::encoding::{encoded_len, positional_encoding};
 use crate::file::{ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity, Sections, MAX_NETS};
 use crate::math::sanitize;
-use crate::mlp::{Arithmetic, Net, NetDesc, Partial, Tiled, Weight, PACKET};
+use crate::mlp::{Net, NetDesc, Partial, Weight, PACKET};
 use crate::neural::{additive_separate, additive_shared, parametric_net, single_mlp};
 use crate::parametric::Parametric;
 use crate::{Error, Rgb, Vec3, BLACK};
@@ -40,57 +40,6 @@ pub const MAX_ANGLE_INPUT: usize = encoded_len(4, crate::file::MAX_FREQUENCIES a
 pub const MAX_POSITION_INPUT: usize = encoded_len(3, crate::file::MAX_FREQUENCIES as usize);
 /// Largest number of per-object parameters.
 pub const MAX_OBJECT: usize = 4;
-
-/// Pairs of one model in a row from which [`Model::eval_many`] on f16 weights widens the per-query
-/// network into the thread's copy (where the copy does not hold it already) instead of each packet
-/// widening the rows it uses (`std`): four packets. The copy of a paper-size Single MLP takes ~12 µs
-/// on the project's Zen 4 machine (written to L2, ~7 cycles per 16 values); at two packets both ways
-/// took the same time, at four the copy 0.92–0.96× (`docs/speed.md`).
-#[cfg(feature = "std")]
-const WIDEN_FROM: usize = 4 * PACKET;
-
-/// Whether f16 batches may use [`WIDENED`] ([`set_f16_batch_copy`]).
-#[cfg(feature = "std")]
-static F16_BATCH_COPY: core::sync::atomic::AtomicBool = core::sync::atomic::AtomicBool::new(true);
-
-/// Lets [`Model::eval_many`] on f16 weights keep an f32 copy of the per-query network in a buffer of
-/// the calling thread (`true`, the default), or keeps every evaluation free of allocation (`false`:
-/// each packet widens the rows it uses, ~1.15× the f32 time here instead of ~1.0×; the same bits
-/// either way). The buffer is allocated once a thread has evaluated four packets' worth of pairs
-/// (64) of one f16 model in a row and kept for its life, as large as the largest per-query network
-/// it evaluated (0.4 MB for the paper's Single MLP). Process-wide, like
-/// [`crate::kernels::set_level`]; returns the previous setting.
-///
-/// ```
-/// let before = nbrdf::model::set_f16_batch_copy(false); // a render loop that must not allocate
-/// assert!(before);
-/// nbrdf::model::set_f16_batch_copy(before);
-/// ```
-#[cfg(feature = "std")]
-pub fn set_f16_batch_copy(on: bool) -> bool {
-    F16_BATCH_COPY.swap(on, core::sync::atomic::Ordering::Relaxed)
-}
-
-/// A thread's f32 copy of an f16 model's per-query network, for [`Model::eval_many`].
-#[cfg(feature = "std")]
-struct Widened {
-    /// The copy; it grows to the largest network the thread evaluated, so a call allocates nothing
-    /// once the thread has seen its models.
-    lines: alloc::vec::Vec<CacheLine>,
-    /// The [`ModelBuf::id`] whose network the copy holds, 0 for none: later calls on that model
-    /// use the copy as it is, whatever their size.
-    id: usize,
-    /// The model the thread evaluated last without the copy, and how many pairs in a row: small
-    /// calls on one model make the copy once they add up to [`WIDEN_FROM`] pairs.
-    candidate: usize,
-    seen: usize,
-}
-
-#[cfg(feature = "std")]
-std::thread_local! {
-    /// Each thread's [`Widened`] copy.
-    static WIDENED: core::cell::RefCell<Widened> = const { core::cell::RefCell::new(Widened { lines: alloc::vec::Vec::new(), id: 0, candidate: 0, seen: 0 }) };
-}
 
 /// Borrowed network weights in their stored precision.
 #[derive(Clone, Copy, Debug)]
@@ -134,15 +83,6 @@ impl Prepared {
 pub struct Model<'a> {
     header: ModelHeader,
     weights: Weights<'a>,
-    /// A cache-line-aligned copy of the per-query (last) network's weights that replaces them in
-    /// evaluation, where the file's own cannot be aligned (see [`ModelBuf`]).
-    query: Option<Weights<'a>>,
-    /// The per-query network's hidden weights in bf16 parts, in AMX tile order ([`ModelBuf::enable_bf16`]).
-    tiles: Option<&'a [u16]>,
-    /// The [`ModelBuf`]'s identity (`ModelBuf::id`); 0 for borrowed bytes, whose content may change
-    /// between two views of the same address. Read only by the `std` copy of f16 batches.
-    #[cfg_attr(not(feature = "std"), allow(dead_code))]
-    id: usize,
     object: [f32; MAX_OBJECT],
     table: &'a [f32],
 }
@@ -237,7 +177,7 @@ impl<'a> Model<'a> {
         }
         // SAFETY: as above.
         let table = unsafe { cast_slice::<f32>(&bytes[s.table.0..s.table.1]) };
-        Ok(Model { header, weights, query: None, tiles: None, id: 0, object, table })
+        Ok(Model { header, weights, object, table })
     }
 
     #[cfg(not(target_endian = "little"))]
@@ -327,8 +267,8 @@ impl<'a> Model<'a> {
             _ => p,
         };
         match self.weights {
-            Weights::F32(w) => self.prepare_with(&self.nets_f32(w), pos, &mut prepared),
-            Weights::F16(w) => self.prepare_with(&self.nets_f16(w), pos, &mut prepared),
+            Weights::F32(w) => self.prepare_with(&self.nets(w), pos, &mut prepared),
+            Weights::F16(w) => self.prepare_with(&self.nets(w), pos, &mut prepared),
         }
         prepared.valid = true;
         prepared
@@ -401,8 +341,8 @@ impl<'a> Model<'a> {
             };
             let out = &mut out[first..first + PACKET];
             match self.weights {
-                Weights::F32(w) => self.prepare_packet_with(&self.nets_f32(w), pos, stride, n, out),
-                Weights::F16(w) => self.prepare_packet_with(&self.nets_f16(w), pos, stride, n, out),
+                Weights::F32(w) => self.prepare_packet_with(&self.nets(w), pos, stride, n, out),
+                Weights::F16(w) => self.prepare_packet_with(&self.nets(w), pos, stride, n, out),
             }
             start = first + PACKET;
         }
@@ -416,42 +356,6 @@ impl<'a> Model<'a> {
     /// model) `eval(p, wi, wo) == eval(p, wo, wi)` bit for bit.
     #[inline]
     pub fn eval(&self, prepared: &Prepared, wi: Vec3, wo: Vec3) -> Rgb {
-        self.eval_in(Arithmetic::F32, prepared, wi, wo)
-    }
-
-    /// [`Model::eval`] with half-precision arithmetic in the hidden layers where [`Model::half_math`]
-    /// says it applies; elsewhere exactly [`Model::eval`]. A single query streams its weight rows from
-    /// cache: half weights without widening halve those bytes (`docs/speed.md`). Rounding as in
-    /// [`Model::eval_many_half`], not bitwise equal to it (the one-query kernel sums in another order).
-    ///
-    /// ```
-    /// use nbrdf::file::{encode, ModelBuf, ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity};
-    /// use nbrdf::Vec3;
-    /// let pos = PositionEncoding::Intrinsic { k: 64 };
-    /// let mut h = ModelHeader::paper(ModelKind::AdditiveShared, false, Reciprocity::Exact, pos, 4);
-    /// h.precision = Precision::F16;
-    /// let w: Vec<f32> = (0..h.n_weights()).map(|i| ((i * 7919 % 1000) as f32 - 500.0) * 2e-4).collect();
-    /// let buf = ModelBuf::from_bytes(&encode(&h, &w, None).unwrap()).unwrap();
-    /// let (model, p) = (buf.model(), buf.model().prepare(&[0.1; 64]));
-    /// let (wi, wo) = (Vec3::new(0.3, 0.1, 0.9).normalize(), Vec3::new(-0.2, 0.4, 0.8).normalize());
-    /// let (exact, fast) = (model.eval(&p, wi, wo), model.eval_half(&p, wi, wo));
-    /// for c in 0..3 {
-    ///     assert!((exact[c] - fast[c]).abs() <= 0.02 * exact[c] + 1e-4);
-    /// }
-    /// ```
-    #[inline]
-    pub fn eval_half(&self, prepared: &Prepared, wi: Vec3, wo: Vec3) -> Rgb {
-        self.eval_in(Arithmetic::HalfHidden, prepared, wi, wo)
-    }
-
-    /// [`Model::eval`] (`math` = [`Arithmetic::F32`]) or [`Model::eval_half`]
-    /// ([`Arithmetic::HalfHidden`]), for callers that choose the arithmetic at run time; with
-    /// [`Arithmetic::Bf16`], where [`Model::bf16`] says it applies, the hidden layers in bf16 products
-    /// with the bits of the same pair in [`Model::eval_many_in`] (a single query streams half the
-    /// bytes of f32 weights: `docs/speed.md`). The split-bf16 arithmetics are [`Model::eval`] for one
-    /// query (a tile multiplies 16 queries at once).
-    #[inline(always)]
-    pub fn eval_in(&self, math: Arithmetic, prepared: &Prepared, wi: Vec3, wo: Vec3) -> Rgb {
         // 0.83x the time of an FMBRDF query in a loop of independent ones (see `load_pair`).
         let (wi, wo) = crate::math::load_pair(&wi, &wo);
         if !prepared.valid {
@@ -468,8 +372,8 @@ impl<'a> Model<'a> {
             return BLACK;
         };
         let f = match self.weights {
-            Weights::F32(w) => self.eval_with(math, &self.nets_f32(w), prepared, &enc[..n]),
-            Weights::F16(w) => self.eval_with(math, &self.nets_f16(w), prepared, &enc[..n]),
+            Weights::F32(w) => self.eval_with(&self.nets(w), prepared, &enc[..n]),
+            Weights::F16(w) => self.eval_with(&self.nets(w), prepared, &enc[..n]),
         };
         sanitize(f)
     }
@@ -501,120 +405,17 @@ impl<'a> Model<'a> {
     /// (Zen 4) to 1.5x (Intel Xeon) faster per pair than [`Model::eval`], where single queries are
     /// bound by streaming the weights from L2 and packets by the FMA rate (see `docs/speed.md`).
     ///
-    /// With f16 weights and the `std` feature, once a thread has evaluated four packets' worth (64
-    /// pairs) of one [`ModelBuf`] in a row, in one call or several, it widens the per-query network
-    /// to f32 in a buffer of its own (as large as the largest such network it evaluated: 0.4 MB for
-    /// the paper's Single MLP), and its calls on that model (or a clone) run over the copy at the
-    /// speed of f32 weights until another model takes it over the same way. Until then, for models
-    /// over borrowed bytes ([`Model::from_bytes`]: a copy for each call of 64 pairs or more, never
-    /// reused), without `std`, and where turned off ([`set_f16_batch_copy`]: evaluation then never
-    /// allocates), each packet widens the rows it uses. Every way gives the same bits.
+    /// f16 weights cost no more than f32 ones where a [`ModelBuf`] holds them (widened at load); a
+    /// [`Model`] over borrowed f16 bytes widens the rows each packet uses, allocating nothing. Both
+    /// give the same bits.
     pub fn eval_many(&self, prepared: &Prepared, wi: &[Vec3], wo: &[Vec3], out: &mut [Rgb]) {
         let n = out.len().min(wi.len()).min(wo.len());
-        self.eval_many_by(Arithmetic::F32, prepared, n, |i| (wi[i], wo[i]), |i, f| out[i] = f);
+        self.eval_many_by(prepared, n, |i| (wi[i], wo[i]), |i, f| out[i] = f);
     }
 
-    /// [`Model::eval_many`] with half-precision arithmetic in the hidden layers, where
-    /// [`Model::half_math`] says it applies (a model with f16 weights, a CPU with AVX512-FP16); there
-    /// about twice as fast per pair, elsewhere exactly [`Model::eval_many`].
-    ///
-    /// Every product and partial sum of a hidden layer is rounded to f16 (11 significant bits), and
-    /// the prepared accumulators and the encoded angles are rounded to f16 on the way in; the output
-    /// layer and the output map stay in f32. On a trained paper-size model the values move by a few
-    /// tenths of a percent (`docs/speed.md` measures it); a hidden sum beyond ±65504 would become
-    /// infinite and its pair 0. The results are no longer bit for bit those of [`Model::eval`], nor
-    /// exactly reciprocal; each pair's value still does not depend on the other pairs of the batch.
-    ///
-    /// ```
-    /// use nbrdf::file::{encode, ModelBuf, ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity};
-    /// use nbrdf::Vec3;
-    /// // The paper's Single MLP with f16 weights (the weights here made up).
-    /// let pos = PositionEncoding::Intrinsic { k: 64 };
-    /// let mut h = ModelHeader::paper(ModelKind::SingleMlp, false, Reciprocity::Exact, pos, 4);
-    /// h.precision = Precision::F16;
-    /// let w: Vec<f32> = (0..h.n_weights()).map(|i| ((i * 7919 % 1000) as f32 - 500.0) * 2e-4).collect();
-    /// let buf = ModelBuf::from_bytes(&encode(&h, &w, None).unwrap()).unwrap();
-    /// let model = buf.model();
-    /// let p = model.prepare(&[0.1; 64]);
-    /// let wi = [Vec3::new(0.3, 0.1, 0.9).normalize(); 32];
-    /// let wo = [Vec3::new(-0.2, 0.4, 0.8).normalize(); 32];
-    /// let (mut exact, mut fast) = ([[0.0; 3]; 32], [[0.0; 3]; 32]);
-    /// model.eval_many(&p, &wi, &wo, &mut exact);
-    /// model.eval_many_half(&p, &wi, &wo, &mut fast);
-    /// for (e, f) in exact.iter().zip(&fast) {
-    ///     for c in 0..3 {
-    ///         assert!((e[c] - f[c]).abs() <= 0.02 * e[c] + 1e-4);
-    ///     }
-    /// }
-    /// ```
-    pub fn eval_many_half(&self, prepared: &Prepared, wi: &[Vec3], wo: &[Vec3], out: &mut [Rgb]) {
-        let n = out.len().min(wi.len()).min(wo.len());
-        self.eval_many_by(Arithmetic::HalfHidden, prepared, n, |i| (wi[i], wo[i]), |i, f| out[i] = f);
-    }
-
-    /// [`Model::eval_many`] ([`Arithmetic::F32`]), [`Model::eval_many_half`] ([`Arithmetic::HalfHidden`])
-    /// or a bf16 arithmetic (split on AMX tiles: [`Arithmetic::SplitBf16`], [`Arithmetic::SplitBf16x6`];
-    /// on vectors: [`Arithmetic::Bf16`]), chosen at run time.
-    ///
-    /// With the split-bf16 arithmetic, where [`Model::amx`] says it applies (a [`ModelBuf`] after
-    /// [`ModelBuf::enable_bf16`], a CPU with AMX-BF16), each f32 product of the per-query network's
-    /// hidden layers is taken as three (`SplitBf16`) or six (`SplitBf16x6`) bf16 products with f32
-    /// sums (`crate::kernels`, "Split-bf16 arithmetic"): values move by a few 1e-6 relative with
-    /// three, by about what f32 sums in another order move them with six; not bit for bit those of
-    /// [`Model::eval`] nor exactly reciprocal; each pair's value still does not depend on the others
-    /// of the batch. With [`Arithmetic::Bf16`], where [`Model::bf16`] says it applies (the same copy, a
-    /// CPU with AVX512-BF16), each product is one bf16 product with f32 sums: ~1e-3 relative, twice
-    /// the multiply-adds per instruction of f32, and each pair's value that of [`Model::eval_in`] on
-    /// it alone. Elsewhere exactly [`Model::eval_many`].
-    ///
-    /// ```
-    /// use nbrdf::file::{encode, ModelBuf, ModelHeader, ModelKind, PositionEncoding, Reciprocity};
-    /// use nbrdf::mlp::Arithmetic;
-    /// use nbrdf::Vec3;
-    /// let h = ModelHeader::paper(ModelKind::SingleMlp, false, Reciprocity::Exact, PositionEncoding::Intrinsic { k: 64 }, 4);
-    /// let w: Vec<f32> = (0..h.n_weights()).map(|i| ((i * 7919 % 1000) as f32 - 500.0) * 2e-4).collect();
-    /// let mut buf = ModelBuf::from_bytes(&encode(&h, &w, None).unwrap()).unwrap();
-    /// let made = buf.enable_bf16(); // false without AMX and AVX512-BF16: then all three are F32
-    /// let model = buf.model();
-    /// assert_eq!(model.amx() || model.bf16(), made);
-    /// let p = model.prepare(&[0.1; 64]);
-    /// let wi = [Vec3::new(0.3, 0.1, 0.9).normalize(); 32];
-    /// let wo = [Vec3::new(-0.2, 0.4, 0.8).normalize(); 32];
-    /// let (mut exact, mut x3, mut x6, mut x1) = ([[0.0; 3]; 32], [[0.0; 3]; 32], [[0.0; 3]; 32], [[0.0; 3]; 32]);
-    /// model.eval_many(&p, &wi, &wo, &mut exact);
-    /// model.eval_many_in(Arithmetic::SplitBf16, &p, &wi, &wo, &mut x3);
-    /// model.eval_many_in(Arithmetic::SplitBf16x6, &p, &wi, &wo, &mut x6);
-    /// model.eval_many_in(Arithmetic::Bf16, &p, &wi, &wo, &mut x1);
-    /// for (((e, a), b), d) in exact.iter().zip(&x3).zip(&x6).zip(&x1) {
-    ///     for c in 0..3 {
-    ///         assert!((e[c] - a[c]).abs() <= 1e-4 * e[c] + 1e-6);
-    ///         assert!((e[c] - b[c]).abs() <= 2e-6 * e[c] + 1e-7);
-    ///         assert!((e[c] - d[c]).abs() <= 1e-2 * e[c] + 1e-4);
-    ///     }
-    /// }
-    /// ```
-    pub fn eval_many_in(&self, math: Arithmetic, prepared: &Prepared, wi: &[Vec3], wo: &[Vec3], out: &mut [Rgb]) {
-        let n = out.len().min(wi.len()).min(wo.len());
-        self.eval_many_by(math, prepared, n, |i| (wi[i], wo[i]), |i, f| out[i] = f);
-    }
-
-    /// Whether [`Arithmetic::SplitBf16`] and [`Arithmetic::SplitBf16x6`] run on AMX tiles for this model
-    /// here: its per-query network's tiles were made ([`ModelBuf::enable_bf16`]) and
-    /// [`crate::kernels::amx_available`].
-    pub fn amx(&self) -> bool {
-        self.tiles.is_some() && crate::kernels::amx_available()
-    }
-
-    /// Whether [`Arithmetic::Bf16`] runs in bf16 for this model here: its bf16 copy was made
-    /// ([`ModelBuf::enable_bf16`]) and [`crate::kernels::bf16_available`].
-    pub fn bf16(&self) -> bool {
-        self.tiles.is_some() && crate::kernels::bf16_available()
-    }
-
-    /// The model re-encoded with f16 network weights ([`Precision::F16`]: half the weight bytes, and
-    /// the half-precision arithmetic of [`Model::eval_half`] where the CPU has it), as the bytes of a
-    /// `.nbrdf` file. Object parameters and the position table stay f32, as the file format keeps
-    /// them; the header is unchanged apart from the precision. Feature `alloc`.
+    /// The model re-encoded with f16 network weights ([`Precision::F16`]: half the weight bytes), as
+    /// the bytes of a `.nbrdf` file. Object parameters and the position table stay f32, as the file
+    /// format keeps them; the header is unchanged apart from the precision. Feature `alloc`.
     ///
     /// Errors: [`Error::InvalidValue`] when the weights are f16 already; [`Error::NonFinite`] for a
     /// weight beyond ±65504 (it would round to infinity).
@@ -624,10 +425,9 @@ impl<'a> Model<'a> {
     /// let h = ModelHeader::paper(ModelKind::SingleMlp, false, Reciprocity::Exact, PositionEncoding::Uniform, 2);
     /// let f32_file = encode(&h, &vec![0.01; h.n_weights()], None).unwrap();
     /// let f16_file = ModelBuf::from_bytes(&f32_file).unwrap().model().to_f16().unwrap();
-    /// let half = ModelBuf::from_bytes(&f16_file).unwrap();
-    /// assert_eq!(half.header().precision, Precision::F16);
+    /// assert_eq!(ModelBuf::from_bytes(&f16_file).unwrap().file_precision(), Precision::F16);
     /// assert!(f16_file.len() < f32_file.len());
-    /// assert!(half.model().to_f16().is_err());
+    /// assert!(nbrdf::file::Model::from_bytes(&f16_file).unwrap().to_f16().is_err());
     /// ```
     #[cfg(feature = "alloc")]
     pub fn to_f16(&self) -> Result<alloc::vec::Vec<u8>, Error> {
@@ -644,12 +444,40 @@ impl<'a> Model<'a> {
         crate::file::encode(&header, &weights, (!table.is_empty()).then_some(table))
     }
 
-    /// Whether [`Model::eval_half`] and [`Model::eval_many_half`] compute in half precision for this model on this CPU: a
-    /// neural model with f16 weights, and [`crate::kernels::half_math_available`].
-    pub fn half_math(&self) -> bool {
-        matches!(self.weights, Weights::F16(_))
-            && !matches!(self.header.kind, ModelKind::Parametric(_))
-            && crate::kernels::half_math_available()
+    /// The model re-encoded with f32 network weights ([`Precision::F32`]), as the bytes of a `.nbrdf`
+    /// file: every f16 value is an f32, so the weights are the same values, and the header (kind,
+    /// shapes, proxy), object parameters and position table are unchanged apart from the precision.
+    /// What [`ModelBuf`] holds for an f16 file. Feature `alloc`.
+    ///
+    /// Errors: [`Error::InvalidValue`] when the weights are f32 already.
+    ///
+    /// ```
+    /// use nbrdf::file::{encode, Model, ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity, Weights};
+    /// let mut h = ModelHeader::paper(ModelKind::SingleMlp, false, Reciprocity::Exact, PositionEncoding::Uniform, 2);
+    /// h.precision = Precision::F16;
+    /// let f16_file = encode(&h, &vec![0.1; h.n_weights()], None).unwrap();
+    /// let f32_file = Model::from_bytes(&f16_file).unwrap().to_f32().unwrap();
+    /// let wide = Model::from_bytes(&f32_file).unwrap();
+    /// assert_eq!(wide.header().precision, Precision::F32);
+    /// let Weights::F32(w) = wide.weights() else { unreachable!() };
+    /// assert!(w.iter().all(|&v| v == half::f16::from_f32(0.1).to_f32()));
+    /// assert_eq!(wide.to_f16().unwrap(), f16_file); // and back, to the byte
+    /// # assert!(wide.to_f32().is_err());
+    /// ```
+    #[cfg(feature = "alloc")]
+    pub fn to_f32(&self) -> Result<alloc::vec::Vec<u8>, Error> {
+        let Weights::F16(net) = self.weights else {
+            return Err(Error::InvalidValue { what: "model precision", reason: "the weights are f32 already" });
+        };
+        let mut weights = alloc::vec![0.0f32; net.len()];
+        crate::kernels::widen_f16(net, &mut weights);
+        weights.extend_from_slice(self.object_parameters());
+        let mut header = self.header;
+        header.precision = Precision::F32;
+        // `encode` sets the vertex count from the table.
+        header.n_vertices = 0;
+        let table = self.position_table();
+        crate::file::encode(&header, &weights, (!table.is_empty()).then_some(table))
     }
 
     /// [`Model::eval_many`] over directions as structure of arrays: pair `i` is
@@ -659,7 +487,6 @@ impl<'a> Model<'a> {
         let n = wi.iter().chain(&wo).map(|s| s.len()).chain(out.iter().map(|s| s.len())).min().unwrap_or(0);
         let [r, g, b] = out;
         self.eval_many_by(
-            Arithmetic::F32,
             prepared,
             n,
             |i| (Vec3::new(wi[0][i], wi[1][i], wi[2][i]), Vec3::new(wo[0][i], wo[1][i], wo[2][i])),
@@ -676,7 +503,6 @@ impl<'a> Model<'a> {
     #[inline]
     fn eval_many_by(
         &self,
-        math: Arithmetic,
         prepared: &Prepared,
         n: usize,
         pair: impl Fn(usize) -> (Vec3, Vec3),
@@ -689,23 +515,9 @@ impl<'a> Model<'a> {
             }
             return;
         }
-        self.with_widened(math, n, |widened| self.eval_many_packets(math, widened, prepared, n, pair, put))
-    }
-
-    /// [`Model::eval_many_by`] for a valid neural model's packets, over `widened` weights where given.
-    #[inline]
-    fn eval_many_packets(
-        &self,
-        math: Arithmetic,
-        widened: Option<&[f32]>,
-        prepared: &Prepared,
-        n: usize,
-        pair: impl Fn(usize) -> (Vec3, Vec3),
-        mut put: impl FnMut(usize, Rgb),
-    ) {
         #[cfg(target_arch = "x86_64")]
         if crate::kernels::level() == crate::kernels::Level::Avx512 {
-            return self.eval_many_theta16(math, widened, prepared, n, pair, put);
+            return self.eval_many_theta16(prepared, n, pair, put);
         }
         let mut enc = [0.0f32; PACKET * MAX_ANGLE_INPUT];
         let mut index = [0usize; PACKET];
@@ -723,7 +535,7 @@ impl<'a> Model<'a> {
                 None => put(i, BLACK),
             }
             if filled == PACKET || (i + 1 == n && filled > 0) {
-                for (&i, f) in index[..filled].iter().zip(self.run_packet(math, widened, prepared, &enc, len)) {
+                for (&i, f) in index[..filled].iter().zip(self.run_packet(prepared, &enc, len)) {
                     put(i, sanitize(f));
                 }
                 filled = 0;
@@ -732,15 +544,12 @@ impl<'a> Model<'a> {
     }
 
     /// The [`PACKET`] pairs encoded in `enc` (`MAX_ANGLE_INPUT` apart, `len` values each) through the
-    /// model's networks in `math` ([`Model::eval_packet_with`] over its weights).
+    /// model's networks ([`Model::eval_packet_with`] over its weights).
     #[inline]
-    fn run_packet(&self, math: Arithmetic, widened: Option<&[f32]>, prepared: &Prepared, enc: &[f32], len: usize) -> [Rgb; PACKET] {
-        if let Some(q) = widened {
-            return self.eval_packet_with(math, &self.nets_widened(q), prepared, enc, len);
-        }
+    fn run_packet(&self, prepared: &Prepared, enc: &[f32], len: usize) -> [Rgb; PACKET] {
         match self.weights {
-            Weights::F32(w) => self.eval_packet_with(math, &self.nets_f32(w), prepared, enc, len),
-            Weights::F16(w) => self.eval_packet_with(math, &self.nets_f16(w), prepared, enc, len),
+            Weights::F32(w) => self.eval_packet_with(&self.nets(w), prepared, enc, len),
+            Weights::F16(w) => self.eval_packet_with(&self.nets(w), prepared, enc, len),
         }
     }
 
@@ -750,8 +559,6 @@ impl<'a> Model<'a> {
     #[cfg(target_arch = "x86_64")]
     fn eval_many_theta16(
         &self,
-        math: Arithmetic,
-        widened: Option<&[f32]>,
         prepared: &Prepared,
         n: usize,
         pair: impl Fn(usize) -> (Vec3, Vec3),
@@ -760,7 +567,7 @@ impl<'a> Model<'a> {
         let frequencies = self.header.angle_frequencies as usize;
         let exact = self.header.reciprocity == Reciprocity::Exact;
         let len = self.header.angle_input_len();
-        let run = |enc: &[f32]| self.run_packet(math, widened, prepared, enc, len);
+        let run = |enc: &[f32]| self.run_packet(prepared, enc, len);
         // 16 encoded rows, and the packet the valid ones are gathered into where some are not.
         let mut stage = [0.0f32; PACKET * MAX_ANGLE_INPUT];
         let mut enc = [0.0f32; PACKET * MAX_ANGLE_INPUT];
@@ -814,105 +621,17 @@ impl<'a> Model<'a> {
         }
     }
 
-    /// Views of the networks over the weights, in file order; the last over `query` where given.
+    /// Views of the networks over the weights, in file order.
     #[inline]
-    fn nets<W: Weight>(&self, w: &'a [W], query: Option<&'a [W]>) -> [Net<'a, W>; MAX_NETS] {
+    fn nets<W: Weight>(&self, w: &'a [W]) -> [Net<'a, W>; MAX_NETS] {
         let mut nets = [Net { desc: NetDesc::default(), weights: &w[..0] }; MAX_NETS];
         let mut off = 0;
-        let last = self.header.nets().len().saturating_sub(1);
-        for (i, (net, desc)) in nets.iter_mut().zip(self.header.nets()).enumerate() {
+        for (net, desc) in nets.iter_mut().zip(self.header.nets()) {
             let n = desc.n_weights();
-            let weights = match query {
-                Some(q) if i == last => &q[..n],
-                _ => &w[off..off + n],
-            };
-            *net = Net { desc: *desc, weights };
+            *net = Net { desc: *desc, weights: &w[off..off + n] };
             off += n;
         }
         nets
-    }
-
-    /// [`Model::nets`] of f32 weights.
-    #[inline]
-    fn nets_f32(&self, w: &'a [f32]) -> [Net<'a, f32>; MAX_NETS] {
-        self.nets(w, match self.query {
-            Some(Weights::F32(q)) => Some(q),
-            _ => None,
-        })
-    }
-
-    /// [`Model::nets`] of f16 weights.
-    #[inline]
-    fn nets_f16(&self, w: &'a [half::f16]) -> [Net<'a, half::f16>; MAX_NETS] {
-        self.nets(w, match self.query {
-            Some(Weights::F16(q)) => Some(q),
-            _ => None,
-        })
-    }
-
-    /// Views of the networks for packets whose per-query (last) network runs over `q`, its weights
-    /// widened to f32; the other networks are empty (packets read only the last one).
-    #[inline]
-    fn nets_widened<'b>(&self, q: &'b [f32]) -> [Net<'b, f32>; MAX_NETS] {
-        let mut nets = [Net { desc: NetDesc::default(), weights: &q[..0] }; MAX_NETS];
-        let descs = self.header.nets();
-        if let Some(last) = descs.len().checked_sub(1) {
-            nets[last] = Net { desc: descs[last], weights: &q[..descs[last].n_weights()] };
-        }
-        nets
-    }
-
-    /// Runs `f` over the per-query network's f16 weights widened to f32 where that pays (f16 weights,
-    /// f32 arithmetic, `std` for the per-thread copy [`WIDENED`], not turned off by
-    /// [`set_f16_batch_copy`]): the copy as it is where it holds this [`ModelBuf`]'s network, else
-    /// widened afresh once the thread has evaluated [`WIDEN_FROM`] pairs of this model in a row (in
-    /// this call, or for a `ModelBuf` over consecutive calls); otherwise `f(None)`, and each packet
-    /// widens the rows it uses. The widening is exact and the f16 kernels are the f32 ones over
-    /// widened rows, so every way gives the same bits.
-    #[inline]
-    fn with_widened<R>(&self, math: Arithmetic, n: usize, f: impl FnOnce(Option<&[f32]>) -> R) -> R {
-        #[cfg(feature = "std")]
-        if let (Weights::F16(w), Arithmetic::F32, true) =
-            (self.weights, math, F16_BATCH_COPY.load(core::sync::atomic::Ordering::Relaxed))
-        {
-            let q = self.nets_f16(w)[self.header.nets().len().saturating_sub(1)].weights;
-            let mut f = Some(f);
-            // `try_with`, `try_borrow_mut`: while the thread's storage is torn down, or (not done
-            // here) from inside a call, the packets widen their own rows instead.
-            let done = WIDENED.try_with(|cell| {
-                let mut copy = cell.try_borrow_mut().ok()?;
-                let held = self.id != 0 && copy.id == self.id;
-                if !held {
-                    // Pairs of this model in a row on this thread, this call included (borrowed
-                    // bytes, without identity, count one call at a time).
-                    let run = if self.id != 0 && copy.candidate == self.id { copy.seen.saturating_add(n) } else { n };
-                    (copy.candidate, copy.seen) = (self.id, run);
-                    if run < WIDEN_FROM {
-                        return None;
-                    }
-                }
-                let need = (q.len() * 4).div_ceil(64);
-                if copy.lines.len() < need {
-                    copy.lines.resize(need, CacheLine([0; 64]));
-                }
-                // SAFETY: the lines are initialised, 64-byte aligned and hold at least `q.len()` f32
-                // values; f32 accepts every bit pattern; `copy` stays borrowed while `dst` lives.
-                let dst = unsafe { core::slice::from_raw_parts_mut(copy.lines.as_mut_ptr().cast::<f32>(), q.len()) };
-                if !held {
-                    crate::kernels::widen_f16(q, dst);
-                    copy.id = self.id;
-                }
-                Some(f.take()?(Some(dst)))
-            });
-            match (done, f) {
-                (Ok(Some(r)), _) => return r,
-                (_, Some(f)) => return f(None),
-                // `f` is taken only where it returned.
-                (_, None) => unreachable!("the widened call returned"),
-            }
-        }
-        let _ = (math, n);
-        f(None)
     }
 
     #[inline]
@@ -965,44 +684,29 @@ impl<'a> Model<'a> {
     }
 
     #[inline]
-    fn eval_with<W: Weight>(&self, math: Arithmetic, nets: &[Net<'a, W>; MAX_NETS], p: &Prepared, angles: &[f32]) -> Rgb {
+    fn eval_with<W: Weight>(&self, nets: &[Net<'a, W>; MAX_NETS], p: &Prepared, angles: &[f32]) -> Rgb {
         let enhanced = self.header.enhanced;
-        let tiled = self.tiles.map(|values| Tiled { values, n_tail: self.header.angle_input_len() });
         match self.header.kind {
             ModelKind::Parametric(_) => BLACK,
-            ModelKind::SingleMlp => single_mlp::eval(math, tiled, &nets[self.header.n_nets as usize - 1], &p.partial, angles),
-            ModelKind::AdditiveSeparate => {
-                additive_separate::eval(math, tiled, &nets[1], p.diffuse, &p.partial, angles, enhanced)
-            }
-            ModelKind::AdditiveShared => additive_shared::eval(math, tiled, &nets[2], p.diffuse, &p.partial, angles, enhanced),
+            ModelKind::SingleMlp => single_mlp::eval(&nets[self.header.n_nets as usize - 1], &p.partial, angles),
+            ModelKind::AdditiveSeparate => additive_separate::eval(&nets[1], p.diffuse, &p.partial, angles, enhanced),
+            ModelKind::AdditiveShared => additive_shared::eval(&nets[2], p.diffuse, &p.partial, angles, enhanced),
         }
     }
 
     /// [`Model::eval_with`] for the [`PACKET`] queries encoded in `enc` (`MAX_ANGLE_INPUT` apart,
     /// `n` values each); lanes past the filled ones hold stale inputs whose results are discarded.
     #[inline]
-    fn eval_packet_with<W: Weight>(
-        &self,
-        math: Arithmetic,
-        nets: &[Net<'a, W>; MAX_NETS],
-        p: &Prepared,
-        enc: &[f32],
-        n: usize,
-    ) -> [Rgb; PACKET] {
+    fn eval_packet_with<W: Weight>(&self, nets: &[Net<'a, W>; MAX_NETS], p: &Prepared, enc: &[f32], n: usize) -> [Rgb; PACKET] {
         let enhanced = self.header.enhanced;
         let s = MAX_ANGLE_INPUT;
-        let tiled = self.tiles.map(|values| Tiled { values, n_tail: self.header.angle_input_len() });
         match self.header.kind {
             ModelKind::Parametric(_) => [BLACK; PACKET],
-            ModelKind::SingleMlp => {
-                single_mlp::eval_packet(math, tiled, &nets[self.header.n_nets as usize - 1], &p.partial, enc, s, n)
-            }
+            ModelKind::SingleMlp => single_mlp::eval_packet(&nets[self.header.n_nets as usize - 1], &p.partial, enc, s, n),
             ModelKind::AdditiveSeparate => {
-                additive_separate::eval_packet(math, tiled, &nets[1], p.diffuse, &p.partial, enc, s, n, enhanced)
+                additive_separate::eval_packet(&nets[1], p.diffuse, &p.partial, enc, s, n, enhanced)
             }
-            ModelKind::AdditiveShared => {
-                additive_shared::eval_packet(math, tiled, &nets[2], p.diffuse, &p.partial, enc, s, n, enhanced)
-            }
+            ModelKind::AdditiveShared => additive_shared::eval_packet(&nets[2], p.diffuse, &p.partial, enc, s, n, enhanced),
         }
     }
 }
@@ -1010,35 +714,42 @@ impl<'a> Model<'a> {
 /// A model that owns its bytes (feature `alloc`): the loader for files read from disk or buffers of
 /// unknown alignment.
 ///
+/// An f16 file is widened to the equivalent f32 file once, at load ([`Model::to_f32`]: the same
+/// values, header, object parameters and position table), so that its evaluations run over f32 rows
+/// at f32 speed, for twice the memory of the f16 weights. They give the bits of a [`Model`] over the
+/// f16 bytes themselves, whose kernels widen each row to f32 and sum in the same order. The buffer is
+/// then the f32 file's: [`ModelBuf::header`], [`ModelBuf::as_bytes`] and [`ModelBuf::model`] say
+/// [`Precision::F32`]; [`ModelBuf::file_precision`] says what was loaded, and [`Model::to_f16`] gives
+/// the f16 file back byte for byte.
+///
 /// The bytes are placed so that the weights of the network that runs per query (the last one: the
 /// Single MLP, the additive models' specular network or head) start on a 64-byte boundary (a cache
 /// line, one AVX-512 vector), whatever the file's own layout: the one-query kernels load whole rows of
 /// 128 weights as vectors, and a row that straddles cache lines costs each of its loads two lines (on
 /// this project's Zen 4 machine ~12% of a single Single MLP query). The file format only promises
 /// 4-byte alignment (`file` module docs); `Model::from_bytes` on a caller's buffer gets the same speed
-/// when the caller aligns the same offset ([`Model::query_weights_offset_of`]). An f16 network that
-/// starts at an odd element (after networks of odd size: the additive models) cannot sit on a line
-/// while the file's f32 sections stay 4-byte aligned; `ModelBuf` then evaluates an aligned copy of it
-/// (the same values; without it every vector load of that network spans two lines, and a single
-/// Additive Separate query took 1.2× the time).
+/// when the caller aligns the same offset ([`Model::query_weights_offset_of`]).
+///
+/// ```
+/// use nbrdf::file::{encode, ModelBuf, ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity};
+/// let mut h = ModelHeader::paper(ModelKind::SingleMlp, false, Reciprocity::Exact, PositionEncoding::Uniform, 2);
+/// h.precision = Precision::F16;
+/// let f16_file = encode(&h, &vec![0.01; h.n_weights()], None).unwrap();
+/// let buf = ModelBuf::from_bytes(&f16_file).unwrap();
+/// assert_eq!((buf.file_precision(), buf.header().precision), (Precision::F16, Precision::F32));
+/// assert_eq!(buf.model().to_f16().unwrap(), f16_file);
+/// ```
 #[cfg(feature = "alloc")]
 #[derive(Clone, Debug)]
 pub struct ModelBuf {
     lines: alloc::vec::Vec<CacheLine>,
-    /// The aligned copy of the per-query network's weights, where the file's cannot be aligned.
-    query: Option<alloc::vec::Vec<CacheLine>>,
-    /// The per-query network's hidden weights in AMX tile order and their number of bf16 values
-    /// ([`ModelBuf::enable_bf16`]).
-    tiles: Option<(alloc::vec::Vec<CacheLine>, usize)>,
-    /// Identifies these bytes for the per-thread f32 copy of f16 batches ([`Model::eval_many`]):
-    /// unique per `from_bytes` (never reused: the bytes cannot change, and the copy of one buffer
-    /// never serves another), shared by clones, whose bytes are the same.
-    id: usize,
     /// Where the file starts in `lines`, in bytes (a multiple of 4, below 64).
     shift: usize,
     len: usize,
     header: ModelHeader,
     sections: Sections,
+    /// The precision of the file loaded (`header` is the f32 one held).
+    file_precision: Precision,
 }
 
 /// 64 bytes aligned to 64: the storage unit of a [`ModelBuf`], so that its allocation (and every
@@ -1067,29 +778,28 @@ impl CacheLine {
     }
 }
 
-/// The next [`ModelBuf`] identity: 1, 2, … and then 0 (no identity, never a repeated one) once
-/// `usize` runs out.
-#[cfg(feature = "alloc")]
-fn next_model_id() -> usize {
-    static NEXT: core::sync::atomic::AtomicUsize = core::sync::atomic::AtomicUsize::new(1);
-    let relaxed = core::sync::atomic::Ordering::Relaxed;
-    NEXT.fetch_update(relaxed, relaxed, |v| v.checked_add(1)).unwrap_or(0)
-}
-
 #[cfg(feature = "alloc")]
 impl ModelBuf {
     /// Copies `bytes` into storage whose per-query network starts on a 64-byte boundary, and validates
-    /// them as a model file.
+    /// them as a model file; an f16 file is stored widened to f32 (see [`ModelBuf`]).
     pub fn from_bytes(bytes: &[u8]) -> Result<Self, Error> {
         let (header, sections) = crate::file::parse(bytes)?;
+        if header.precision == Precision::F32 {
+            return Self::placed(bytes, header, sections);
+        }
+        let wide = Self::placed(bytes, header, sections)?.model().to_f32()?;
+        let (header, sections) = crate::file::parse(&wide)?;
+        Ok(ModelBuf { file_precision: Precision::F16, ..Self::placed(&wide, header, sections)? })
+    }
+
+    /// The validated file `bytes` (of `header` and `sections`) copied so that its per-query network
+    /// starts on a 64-byte boundary (f32; an f16 one may start mid-word, 2 bytes short of a line).
+    fn placed(bytes: &[u8], header: ModelHeader, sections: Sections) -> Result<Self, Error> {
         let shift = (64 - Model::query_weights_offset(&header, &sections) % 64) % 64;
-        // Shifts are whole words, keeping the 4-byte alignment that `Model` needs for every section
-        // (an f16 network that starts mid-word ends up 2 bytes short of a line).
+        // Shifts are whole words, keeping the 4-byte alignment that `Model` needs for every section.
         let shift = shift & !3;
         let lines = CacheLine::copy_of(bytes, shift);
-        let q = Model::query_weights_range(&header, &sections);
-        let query = (!(q.start + shift).is_multiple_of(64)).then(|| CacheLine::copy_of(&bytes[q], 0));
-        let buf = ModelBuf { lines, query, tiles: None, id: next_model_id(), shift, len: bytes.len(), header, sections };
+        let buf = ModelBuf { lines, shift, len: bytes.len(), header, sections, file_precision: header.precision };
         // Surface host-dependent failures (byte order) here rather than at every `model()` call.
         Model::from_parsed(buf.bytes(), header, &sections)?;
         Ok(buf)
@@ -1105,76 +815,28 @@ impl ModelBuf {
         &CacheLine::bytes(&self.lines)[self.shift..self.shift + self.len]
     }
 
-    /// The file bytes, e.g. to write them elsewhere.
+    /// The bytes of the file held, e.g. to write them elsewhere: those loaded, or for an f16 file
+    /// the f32 file it was widened to ([`Model::to_f16`] gives the f16 one back).
     pub fn as_bytes(&self) -> &[u8] {
         self.bytes()
     }
 
-    /// The header.
+    /// The header of the file held ([`Precision::F32`] for a widened f16 file).
     pub fn header(&self) -> &ModelHeader {
         &self.header
     }
 
+    /// The precision of the file loaded: [`Precision::F16`] for an f16 file, held widened to f32.
+    pub fn file_precision(&self) -> Precision {
+        self.file_precision
+    }
+
     /// The evaluator over this buffer (no re-validation; cheap).
     pub fn model(&self) -> Model<'_> {
-        let mut model = match Model::from_parsed(self.bytes(), self.header, &self.sections) {
+        match Model::from_parsed(self.bytes(), self.header, &self.sections) {
             Ok(m) => m,
             // `from_bytes` ran the same conversion on the same bytes and header successfully.
             Err(_) => unreachable!("ModelBuf was validated at construction"),
-        };
-        model.id = self.id;
-        if let Some(copy) = &self.query {
-            let n = Model::query_weights_range(&self.header, &self.sections).len();
-            // SAFETY: the copy holds the network's weights from a 64-byte boundary (`from_bytes`).
-            model.query = Some(unsafe { weights_of(self.header.precision, &CacheLine::bytes(copy)[..n]) });
-        }
-        if let Some((lines, n)) = &self.tiles {
-            // SAFETY: the lines are 64-byte aligned and hold `n` u16 values (`enable_bf16`).
-            model.tiles = Some(unsafe { &cast_slice::<u16>(CacheLine::bytes(lines))[..*n] });
-        }
-        model
-    }
-
-    /// Makes the bf16 copy of the per-query network that [`Arithmetic::SplitBf16`] and
-    /// [`Arithmetic::SplitBf16x6`] evaluate on AMX tiles and [`Arithmetic::Bf16`] on AVX512-BF16
-    /// vectors ([`Model::eval_many_in`]); `true` where it now serves one of them: a neural model whose
-    /// per-query network has a hidden width of a multiple of 32 (the paper's 128), on a CPU (and OS)
-    /// with AMX-BF16 ([`crate::kernels::amx_available`]) or AVX512-BF16
-    /// ([`crate::kernels::bf16_available`]; built with `std`, Linux). The copy holds three bf16 parts
-    /// of each hidden weight in tile order, then the first part again in rows of one input each for
-    /// single queries in [`Arithmetic::Bf16`] ([`Model::eval_in`]): 2× the bytes of the f32 network
-    /// (4× those of an f16 one).
-    pub fn enable_bf16(&mut self) -> bool {
-        #[cfg(all(target_arch = "x86_64", target_os = "linux", feature = "std"))]
-        {
-            use crate::kernels::amx;
-            let here = crate::kernels::amx_available() || crate::kernels::bf16_available();
-            if self.tiles.is_some() {
-                return here;
-            }
-            if !here || matches!(self.header.kind, ModelKind::Parametric(_)) {
-                return false;
-            }
-            let n_tail = self.header.angle_input_len();
-            let model = self.model();
-            let last = self.header.nets().len() - 1;
-            let len = amx::copy_len(&self.header.nets()[last], n_tail);
-            if len == 0 {
-                return false;
-            }
-            let mut lines = alloc::vec![CacheLine([0; 64]); (2 * len).div_ceil(64)];
-            // SAFETY: the lines are 64-byte aligned, `2 * len` bytes fit, and every bit pattern is a u16.
-            let values = unsafe { core::slice::from_raw_parts_mut(lines.as_mut_ptr().cast::<u16>(), len) };
-            match model.weights {
-                Weights::F32(w) => amx::make_copy(&model.nets_f32(w)[last], n_tail, values),
-                Weights::F16(w) => amx::make_copy(&model.nets_f16(w)[last], n_tail, values),
-            }
-            self.tiles = Some((lines, len));
-            true
-        }
-        #[cfg(not(all(target_arch = "x86_64", target_os = "linux", feature = "std")))]
-        {
-            false
         }
     }
 }
@@ -1184,8 +846,8 @@ mod tests {
     use super::*;
     use crate::file::{encode, ModelKind, PositionEncoding, Reciprocity};
 
-    /// The per-query network's weights start on a cache line in every `ModelBuf`: the file's own
-    /// where they can (f32; an f16 network at an even element), else an aligned copy.
+    /// The per-query network's weights start on a cache line in every `ModelBuf`, f16 files (held
+    /// widened to f32) included.
     #[test]
     fn model_buf_puts_the_per_query_network_on_a_cache_line() {
         for kind in [ModelKind::SingleMlp, ModelKind::AdditiveSeparate, ModelKind::AdditiveShared] {
@@ -1193,19 +855,11 @@ mod tests {
                 let mut h = ModelHeader::paper(kind, false, Reciprocity::Exact, PositionEncoding::Intrinsic { k: 64 }, 4);
                 h.precision = precision;
                 let buf = ModelBuf::from_bytes(&encode(&h, &alloc::vec![0.01; h.n_weights()], None).unwrap()).unwrap();
+                assert_eq!(buf.file_precision(), precision);
                 let model = buf.model();
-                let nets = match model.weights {
-                    Weights::F32(w) => model.nets_f32(w).map(|n| n.weights.as_ptr() as usize),
-                    Weights::F16(w) => model.nets_f16(w).map(|n| n.weights.as_ptr() as usize),
-                };
+                let Weights::F32(w) = model.weights else { panic!("{kind:?} {precision:?}: a ModelBuf holds f32 weights") };
                 let last = h.nets().len() - 1;
-                assert_eq!(nets[last] % 64, 0, "{kind:?} {precision:?}");
-                // A copy only where the file's own weights are off the line.
-                let in_file = match model.weights {
-                    Weights::F32(w) => w.as_ptr() as usize + 4 * h.nets()[..last].iter().map(NetDesc::n_weights).sum::<usize>(),
-                    Weights::F16(w) => w.as_ptr() as usize + 2 * h.nets()[..last].iter().map(NetDesc::n_weights).sum::<usize>(),
-                };
-                assert_eq!(model.query.is_some(), in_file % 64 != 0, "{kind:?} {precision:?}");
+                assert_eq!(model.nets(w)[last].weights.as_ptr() as usize % 64, 0, "{kind:?} {precision:?}");
             }
         }
     }

@@ -13,7 +13,7 @@ use std::f32::consts::{FRAC_PI_2, PI};
 
 use nbrdf::angles::unit;
 use nbrdf::builtin::Builtin;
-use nbrdf::file::{encode, ModelBuf, ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity};
+use nbrdf::file::{encode, Model, ModelBuf, ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity};
 use nbrdf::measured::{Lookup, MerlTable, NbrdfNetwork};
 use nbrdf::parametric::{
     Disney, FresnelMicrofacet, Lambert, Parametric, ParametricKind, Phong, TorranceSparrow, MAX_RAW,
@@ -455,7 +455,10 @@ fn neural_models_of_every_kind_and_precision_with_extreme_weights() {
                     Err(e) => panic!("{name}: encode failed: {e}"),
                 };
                 let buf = ModelBuf::from_bytes(&bytes).unwrap_or_else(|e| panic!("{name}: {e}"));
-                let model = buf.model();
+                // The file borrowed in place: an f16 one runs the f16 kernels (a `ModelBuf` holds it
+                // widened to f32, whose batches are checked against these below).
+                let words = words(&bytes);
+                let model = Model::from_bytes(&as_bytes(&words)[..bytes.len()]).unwrap_or_else(|e| panic!("{name}: {e}"));
                 let reciprocal = if h.reciprocity == Reciprocity::Exact || matches!(h.kind, ModelKind::Parametric(_)) {
                     Reciprocal::Bitwise
                 } else {
@@ -474,6 +477,11 @@ fn neural_models_of_every_kind_and_precision_with_extreme_weights() {
                         let one = model.eval(&prepared, wi[k], wo[k]);
                         assert_eq!(f.map(f32::to_bits), one.map(f32::to_bits), "{name}: batch f({}, {}) at {p:?}", wi[k], wo[k]);
                     }
+                    let mut held = vec![[f32::NAN; 3]; pairs.len()];
+                    buf.model().eval_many(&buf.model().try_prepare(&p).unwrap(), &wi, &wo, &mut held);
+                    for (k, (a, b)) in held.iter().zip(&batch).enumerate() {
+                        assert_eq!(a.map(f32::to_bits), b.map(f32::to_bits), "{name}: ModelBuf batch f({}, {}) at {p:?}", wi[k], wo[k]);
+                    }
                 }
                 // A point of the wrong length evaluates to 0 everywhere (documented), never garbage.
                 let wrong = vec![0.5; h.position.input_len() + 1];
@@ -483,50 +491,6 @@ fn neural_models_of_every_kind_and_precision_with_extreme_weights() {
         }
     }
     assert!(n > 100_000, "{n} evaluations");
-}
-
-/// The opt-in arithmetics keep the contract with extreme weights: half precision (f16 sums that
-/// overflow to inf at 65504) and split bf16 on AMX tiles, bf16x3 and bf16x6 (inf activations split
-/// into inf and NaN parts), and bf16 give finite, non-negative values, exactly 0 off the upper
-/// hemisphere, in batches and single queries of every pair of the edge grid. On a CPU without AVX512-FP16 or AMX these are the f32 paths, checked alike.
-#[test]
-fn half_and_split_bf16_arithmetic_with_extreme_weights() {
-    use nbrdf::mlp::Arithmetic;
-    let pairs = edge_pairs();
-    let (wi, wo): (Vec<Vec3>, Vec<Vec3>) = pairs.iter().copied().unzip();
-    let mut n = 0;
-    for kind in [ModelKind::SingleMlp, ModelKind::AdditiveSeparate, ModelKind::AdditiveShared] {
-        for precision in [Precision::F32, Precision::F16] {
-            // The most angle inputs a tile row holds: Θ with 16 octaves (132, padded to 160).
-            let h = ModelHeader::paper(kind, kind.is_additive(), Reciprocity::Exact, PositionEncoding::Intrinsic { k: 5 }, nbrdf::file::MAX_FREQUENCIES);
-            let h = ModelHeader { precision, ..h };
-            for (what, w) in weight_sets(h.n_weights(), precision, 3) {
-                let name = format!("{kind:?} {precision:?} {what}");
-                let mut buf = ModelBuf::from_bytes(&encode(&h, &w, None).unwrap()).unwrap_or_else(|e| panic!("{name}: {e}"));
-                assert_eq!(buf.enable_bf16(), nbrdf::kernels::amx_available() || nbrdf::kernels::bf16_available(), "{name}");
-                let model = buf.model();
-                for p in points(h.position) {
-                    let prepared = model.try_prepare(&p).unwrap();
-                    for math in [Arithmetic::HalfHidden, Arithmetic::SplitBf16, Arithmetic::SplitBf16x6, Arithmetic::Bf16] {
-                        let mut out = vec![[f32::NAN; 3]; pairs.len()];
-                        model.eval_many_in(math, &prepared, &wi, &wo, &mut out);
-                        for (&(a, b), f) in pairs.iter().zip(&out) {
-                            // Single queries too: bf16 has its own one-query kernel (`bf16_rows`).
-                            let one = model.eval_in(math, &prepared, a, b);
-                            for f in [f, &one] {
-                                assert!(f.iter().all(|c| c.is_finite() && *c >= 0.0), "{name} {math:?}: f({a}, {b}) = {f:?}");
-                                if !(above(a) && above(b)) {
-                                    assert_eq!(*f, BLACK, "{name} {math:?}: f({a}, {b}) must be 0");
-                                }
-                            }
-                        }
-                        n += pairs.len();
-                    }
-                }
-            }
-        }
-    }
-    assert!(n > 50_000, "{n} evaluations");
 }
 
 #[test]
@@ -542,7 +506,7 @@ fn f16_weights_that_round_to_infinity_are_rejected_at_encode() {
 }
 
 /// `Model::to_f16` of an f32 model with a weight f16 cannot hold names it, like the export, and of
-/// an f16 model says so; the f32 model stays as it was.
+/// an f16 model says so; the f32 model stays as it was. `Model::to_f32` of an f32 model says so too.
 #[test]
 fn to_f16_rejects_weights_beyond_the_f16_range_and_f16_models() {
     let h = ModelHeader::paper(ModelKind::SingleMlp, false, Reciprocity::Exact, PositionEncoding::Uniform, 2);
@@ -554,8 +518,10 @@ fn to_f16_rejects_weights_beyond_the_f16_range_and_f16_models() {
     assert_eq!(buf.as_bytes(), &bytes[..]);
     w[17] = 0.5;
     let half = nbrdf::file::ModelBuf::from_bytes(&encode(&h, &w, None).unwrap()).unwrap().model().to_f16().unwrap();
-    let half = nbrdf::file::ModelBuf::from_bytes(&half).unwrap();
-    assert!(matches!(half.model().to_f16(), Err(nbrdf::Error::InvalidValue { what: "model precision", .. })));
+    let words = words(&half);
+    let half = Model::from_bytes(&as_bytes(&words)[..half.len()]).unwrap();
+    assert!(matches!(half.to_f16(), Err(nbrdf::Error::InvalidValue { what: "model precision", .. })));
+    assert!(matches!(buf.model().to_f32(), Err(nbrdf::Error::InvalidValue { what: "model precision", .. })));
 }
 
 // -------------------------------------------------------------------------------------------------
@@ -636,4 +602,22 @@ fn overflowing_diffuse_network_reads_as_zero_not_nan() {
         let f = model.eval(&p, Vec3::new(0.2, 0.1, 0.9), Vec3::new(-0.3, 0.0, 0.8));
         assert!(f.iter().all(|c| c.is_finite() && *c >= 0.0), "seed {seed}: {f:?}");
     }
+}
+
+/// `bytes` in 4-byte aligned storage, as `Model::from_bytes` needs (the tail zero-padded).
+fn words(bytes: &[u8]) -> Vec<u32> {
+    bytes
+        .chunks(4)
+        .map(|c| {
+            let mut w = [0u8; 4];
+            w[..c.len()].copy_from_slice(c);
+            u32::from_ne_bytes(w)
+        })
+        .collect()
+}
+
+/// The bytes of `words`.
+fn as_bytes(words: &[u32]) -> &[u8] {
+    // SAFETY: u8 has no alignment requirement and every byte of a u32 slice is initialised.
+    unsafe { std::slice::from_raw_parts(words.as_ptr().cast::<u8>(), words.len() * 4) }
 }

@@ -1,10 +1,10 @@
 //! The tiny-network kernels (`nbrdf::kernels::TinyNet`, the NBRDF-json evaluator) against a plain
 //! scalar f64 reference on random networks and inputs, at every kernel level this CPU has, including
 //! pre-activations that are exactly zero at the ReLU; and single queries against packets, bit for bit.
-//! Batches of `.nbrdf` models with f16 weights, over the thread's f32 copy or widened per packet,
-//! against the f32 model of the same values, bit for bit, at every level.
+//! `.nbrdf` models with f16 weights, widened at load (`ModelBuf`) or row by row as they are read
+//! (`Model::from_bytes`), against the f32 model of the same values, bit for bit, at every level.
 
-use nbrdf::file::{encode, ModelBuf, ModelHeader, ModelKind, PositionEncoding, Reciprocity};
+use nbrdf::file::{encode, ModelBuf, ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity};
 use nbrdf::model::Model;
 use nbrdf::kernels::{set_level, Level, TinyLayer, TinyNet, TINY_INPUTS, TINY_PACKET};
 use nbrdf::Vec3;
@@ -105,75 +105,71 @@ fn tiny_networks_match_a_scalar_reference_and_packets_match_single_queries() {
     }
 }
 
-/// `Model::eval_many` on f16 weights widens the per-query network into a per-thread f32 copy once the
-/// thread has evaluated four packets' worth of one `ModelBuf` in a row (`std`), later calls on it use
-/// that copy whatever their size, and other calls widen each packet's rows. Every way a pair gets
-/// the bits of the f32 model whose weights are the f16 values (the widening is exact and the kernels
-/// are the f32 ones), at every level, whichever model the thread's copy held before (a large network, then a
-/// smaller one, then another large one), on several threads at once, and with the copy turned off.
+/// An f16 file evaluates alike however it is held: a `ModelBuf` widens it to f32 once at load, a
+/// `Model` over the borrowed f16 bytes widens each row as its kernels read it (one query, dense and
+/// sparse packets, the chain kernel), and both give every pair the bits of the f32 model whose
+/// weights are the f16 values (the widening is exact and the f16 kernels sum in the f32 ones'
+/// order): single queries, batches in one call and in calls of 40 pairs, `prepare` and
+/// `prepare_many`, at every level, on several threads at once.
 #[test]
-fn f16_batches_widened_per_call_or_per_packet_give_the_bits_of_f32_weights() {
+fn f16_files_widened_at_load_or_row_by_row_give_the_bits_of_f32_weights() {
     let _level = LEVEL.lock().unwrap_or_else(|e| e.into_inner());
     let mut rng = Rng(0x9e3779b97f4a7c15);
     let pos = PositionEncoding::Intrinsic { k: 6 };
-    let models: Vec<(ModelKind, ModelBuf, ModelBuf)> = [ModelKind::SingleMlp, ModelKind::AdditiveShared, ModelKind::SingleMlp, ModelKind::AdditiveSeparate]
+    // (kind, the f32 model of the f16 values, the f16 file, its ModelBuf)
+    let models: Vec<(ModelKind, ModelBuf, Vec<u32>, usize, ModelBuf)> = [ModelKind::SingleMlp, ModelKind::AdditiveShared, ModelKind::AdditiveSeparate]
         .into_iter()
         .map(|kind| {
             let h = ModelHeader::paper(kind, kind.is_additive(), Reciprocity::Exact, pos, 4);
             let w: Vec<f32> = (0..h.n_weights()).map(|_| half::f16::from_f32(rng.next() * 0.3).to_f32()).collect();
             let f32_buf = ModelBuf::from_bytes(&encode(&h, &w, None).unwrap()).unwrap();
-            let f16_buf = ModelBuf::from_bytes(&f32_buf.model().to_f16().unwrap()).unwrap();
-            (kind, f32_buf, f16_buf)
+            let f16_file = f32_buf.model().to_f16().unwrap();
+            let f16_buf = ModelBuf::from_bytes(&f16_file).unwrap();
+            assert_eq!((f16_buf.file_precision(), f16_buf.header().precision), (Precision::F16, Precision::F32));
+            assert_eq!(f16_buf.as_bytes(), f32_buf.as_bytes(), "{kind:?}: the widened file is the f32 one");
+            (kind, f32_buf, words(&f16_file), f16_file.len(), f16_buf)
         })
         .collect();
-    let n = 200; // over four packets, and not a multiple of one
+    let n = 200; // over several packets, and not a multiple of one
     let mut dir = || {
         let v = Vec3::new(rng.next(), rng.next(), rng.next() + 0.3);
         v.normalize_or_zero()
     };
     let (wi, wo): (Vec<Vec3>, Vec<Vec3>) = (0..n).map(|_| (dir(), dir())).unzip();
-    let point = [0.1, 0.5, -0.3, 0.2, 0.0, 0.9];
+    let points: Vec<f32> = (0..20 * 6).map(|i| ((i * 37 % 23) as f32 - 11.0) * 0.1).collect();
     for level in Level::usable() {
         set_level(Some(level));
         let check = || {
-            for (kind, f32_buf, f16_buf) in &models {
-                let (m32, m16) = (f32_buf.model(), f16_buf.model());
-                let (p32, p16) = (m32.prepare(&point), m16.prepare(&point));
-                let mut want = vec![[f32::NAN; 3]; n];
-                m32.eval_many(&p32, &wi, &wo, &mut want);
-                let chunked = || {
-                    let mut out = vec![[f32::NAN; 3]; n];
-                    for (k, out) in out.chunks_mut(40).enumerate() {
-                        m16.eval_many(&p16, &wi[k * 40..], &wo[k * 40..], out);
+            for (kind, f32_buf, f16_words, len, f16_buf) in models.iter() {
+                let borrowed = Model::from_bytes(&bytes(f16_words)[..*len]).unwrap();
+                assert_eq!(borrowed.header().precision, Precision::F16);
+                let m32 = f32_buf.model();
+                let mut want_prepared = vec![m32.prepare(&[]); 20];
+                m32.prepare_many(&points, &mut want_prepared).unwrap();
+                for (name, m) in [("ModelBuf", f16_buf.model()), ("borrowed f16", borrowed)] {
+                    let mut prepared = vec![m.prepare(&[]); 20];
+                    m.prepare_many(&points, &mut prepared).unwrap();
+                    for (q, (p, p32)) in prepared.iter().zip(&want_prepared).enumerate().step_by(7) {
+                        let mut want = vec![[f32::NAN; 3]; n];
+                        m32.eval_many(p32, &wi, &wo, &mut want);
+                        let nonzero = want.iter().filter(|f| **f != [0.0; 3]).count();
+                        assert!(nonzero > n / 2, "{kind:?}: most pairs are valid ({nonzero})");
+                        let one = m.prepare(&points[q * 6..(q + 1) * 6]);
+                        let mut whole = vec![[f32::NAN; 3]; n];
+                        m.eval_many(p, &wi, &wo, &mut whole);
+                        let mut chunked = vec![[f32::NAN; 3]; n];
+                        for (k, out) in chunked.chunks_mut(40).enumerate() {
+                            m.eval_many(&one, &wi[k * 40..], &wo[k * 40..], out);
+                        }
+                        for i in 0..n {
+                            let bits = want[i].map(f32::to_bits);
+                            assert_eq!(whole[i].map(f32::to_bits), bits, "{level:?} {kind:?} {name} point {q} pair {i}: batch");
+                            assert_eq!(chunked[i].map(f32::to_bits), bits, "{level:?} {kind:?} {name} point {q} pair {i}: calls of 40");
+                            assert_eq!(m.eval(&one, wi[i], wo[i]).map(f32::to_bits), bits, "{level:?} {kind:?} {name} point {q} pair {i}: single");
+                        }
                     }
-                    out
-                };
-                // Small calls while the thread's copy holds another model (or none): per packet,
-                // until this model's pairs in a row reach four packets (the second call).
-                let before = chunked();
-                let mut whole = vec![[f32::NAN; 3]; n];
-                m16.eval_many(&p16, &wi, &wo, &mut whole);
-                // Small calls on the model the copy holds: over the copy.
-                let after = chunked();
-                let nonzero = want.iter().filter(|f| **f != [0.0; 3]).count();
-                assert!(nonzero > n / 2, "{kind:?}: most pairs are valid ({nonzero})");
-                for i in 0..n {
-                    let bits = want[i].map(f32::to_bits);
-                    assert_eq!(before[i].map(f32::to_bits), bits, "{level:?} {kind:?} pair {i}: widened per packet");
-                    assert_eq!(whole[i].map(f32::to_bits), bits, "{level:?} {kind:?} pair {i}: widened for the call");
-                    assert_eq!(after[i].map(f32::to_bits), bits, "{level:?} {kind:?} pair {i}: the thread's copy");
                 }
             }
-            // Views of borrowed bytes have no identity: after a large call on one, a small call on
-            // another (a second Single MLP of the same shape) widens its own rows.
-            let (a, b) = (Model::from_bytes(models[0].2.as_bytes()).unwrap(), Model::from_bytes(models[2].2.as_bytes()).unwrap());
-            let b32 = models[2].1.model();
-            let mut big = vec![[0.0f32; 3]; n];
-            a.eval_many(&a.prepare(&point), &wi, &wo, &mut big);
-            let (mut small, mut want) = (vec![[f32::NAN; 3]; 40], vec![[f32::NAN; 3]; 40]);
-            b.eval_many(&b.prepare(&point), &wi[..40], &wo[..40], &mut small);
-            b32.eval_many(&b32.prepare(&point), &wi[..40], &wo[..40], &mut want);
-            assert_eq!(small, want, "{level:?}: a borrowed model after another");
         };
         check();
         std::thread::scope(|s| {
@@ -181,12 +177,26 @@ fn f16_batches_widened_per_call_or_per_packet_give_the_bits_of_f32_weights() {
                 s.spawn(check);
             }
         });
-        // With the per-thread copy turned off every call widens per packet: the same bits.
-        assert!(nbrdf::model::set_f16_batch_copy(false));
-        check();
-        assert!(!nbrdf::model::set_f16_batch_copy(true));
     }
     set_level(None);
+}
+
+/// `bytes` in 4-byte aligned storage, as `Model::from_bytes` needs (the tail zero-padded).
+fn words(bytes: &[u8]) -> Vec<u32> {
+    bytes
+        .chunks(4)
+        .map(|c| {
+            let mut w = [0u8; 4];
+            w[..c.len()].copy_from_slice(c);
+            u32::from_ne_bytes(w)
+        })
+        .collect()
+}
+
+/// The bytes of `words`.
+fn bytes(words: &[u32]) -> &[u8] {
+    // SAFETY: u8 has no alignment requirement and every byte of a u32 slice is initialised.
+    unsafe { std::slice::from_raw_parts(words.as_ptr().cast::<u8>(), words.len() * 4) }
 }
 
 /// `Model::prepare_many` runs the position networks 16 points at a time through the packet kernels:
@@ -211,10 +221,11 @@ fn prepare_many_gives_each_point_the_evaluations_of_prepare() {
         headers.push(ModelHeader::paper(ModelKind::SingleMlp, false, Reciprocity::None, pos, 2).with_direction_layers(2));
         for h in headers {
             let w: Vec<f32> = (0..h.n_weights()).map(|_| rng.next() * 0.3).collect();
-            let f32_buf = ModelBuf::from_bytes(&encode(&h, &w, None).unwrap()).unwrap();
-            let f16_buf = ModelBuf::from_bytes(&f32_buf.model().to_f16().unwrap()).unwrap();
-            models.push(f32_buf);
-            models.push(f16_buf);
+            // Borrowed, so that the f16 file's rows are f16 (a `ModelBuf` would widen them).
+            let f32_file = encode(&h, &w, None).unwrap();
+            let f16_file = ModelBuf::from_bytes(&f32_file).unwrap().model().to_f16().unwrap();
+            models.push((words(&f32_file), f32_file.len()));
+            models.push((words(&f16_file), f16_file.len()));
         }
     }
     let pairs: Vec<(Vec3, Vec3)> = (0..6)
@@ -222,8 +233,8 @@ fn prepare_many_gives_each_point_the_evaluations_of_prepare() {
         .collect();
     for level in Level::usable() {
         set_level(Some(level));
-        for buf in &models {
-            let m = buf.model();
+        for (w, len) in &models {
+            let m = Model::from_bytes(&bytes(w)[..*len]).unwrap();
             let k = m.position_len();
             let name = format!("{level:?} {:?} {:?} {:?}", m.header().kind, m.header().position, m.header().precision);
             for n in [0, 5, 16, 37] {

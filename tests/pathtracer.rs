@@ -222,38 +222,3 @@ fn proxy_sampling_has_far_lower_variance_on_a_specular_material() {
         assert!(va < 0.2 * vb, "channel {c}: variance proxy {va} vs cosine {vb}");
     }
 }
-
-/// A neural model rendered with `Material::with_half_math`: on an AVX512-FP16 CPU the image of its f16
-/// copy in half arithmetic stays within half a percent of the same copy in f32 arithmetic (the same
-/// paths, slightly different weights); elsewhere it is the same image, bit for bit.
-#[test]
-fn half_arithmetic_renders_within_half_a_percent() {
-    use nbrdf::file::{encode, ModelBuf, ModelHeader, ModelKind, PositionEncoding, Reciprocity};
-    let h = ModelHeader::paper(ModelKind::SingleMlp, false, Reciprocity::Exact, PositionEncoding::Uniform, 3);
-    let w: Vec<f32> = (0..h.n_weights()).map(|i| ((i * 7919) % 1000) as f32 * 2e-4 - 0.1).collect();
-    let f32_model = ModelBuf::from_bytes(&encode(&h, &w, None).unwrap()).unwrap();
-    let f16_bytes = f32_model.model().to_f16().unwrap();
-    let material = |half: bool| {
-        Material::new(Brdf::Model(ModelBuf::from_bytes(&f16_bytes).unwrap())).unwrap().with_half_math(half)
-    };
-    let (exact, fast) = (material(false), material(true));
-    assert!(!exact.half_math());
-    assert_eq!(fast.half_math(), nbrdf::kernels::half_math_available());
-    let sphere = flat_sphere();
-    let (env, cam) = (sky(), camera(16));
-    let light = [DirectionalLight::new(Vec3::new(0.5, 0.8, 0.6), [3.0, 3.0, 3.0]).unwrap()];
-    let options = Options { spp: 4, seed: 3, max_depth: 3, ..Options::default() };
-    let image = |m: &Material| {
-        render(&Scene { geometry: &sphere, material: m, lights: &light, env: Some(&env), camera: &cam }, &options, &|_| {})
-    };
-    let (a, b) = (image(&exact), image(&fast));
-    if !fast.half_math() {
-        assert_eq!(a.image, b.image);
-        return;
-    }
-    for c in 0..3 {
-        let (ma, mb) = (mean_and_se(&a, c).0, mean_and_se(&b, c).0);
-        assert!(ma > 0.0 && ((mb - ma) / ma).abs() < 5e-3, "channel {c}: {ma} against {mb}");
-    }
-    assert_ne!(a.image, b.image, "half arithmetic ran");
-}

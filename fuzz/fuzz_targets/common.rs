@@ -21,9 +21,9 @@ use nbrdf::parametric::ParametricKind;
 pub const N_SHAPES: usize = 12;
 
 /// A valid header of every model kind with small networks (width 4, so a whole file is a few hundred
-/// bytes and a fuzzer can reach every field; width 32, the smallest the AMX tiles take, where
-/// `variant & 0x80`): shape `i` picks the kind; `variant` the precision, the reciprocity, the position
-/// encoding, the angle octaves and the width.
+/// bytes and a fuzzer can reach every field; width 32, two AVX-512 vectors, where `variant & 0x80`):
+/// shape `i` picks the kind; `variant` the precision, the reciprocity, the position encoding, the
+/// angle octaves and the width.
 pub fn small_header(i: usize, variant: u8) -> ModelHeader {
     let kind = match i % N_SHAPES {
         k @ 0..=4 => ModelKind::Parametric(ParametricKind::ALL[k]),

@@ -23,41 +23,12 @@
 //! the ReLU (`max(acc, 0)` returns `+0`) and by every output map.
 //! Levels differ from each other by rounding only (FMA versus multiply-then-add).
 //!
-//! # Half-precision arithmetic
-//! [`packet_half_math`], [`one_half_math`] and [`chain_half_math`] run layers of half weights with f16
-//! multiply-adds (x86-64 AVX512-FP16, `half_math.rs`), where [`half_math_available`]: twice the work
-//! per instruction, every sum rounded to f16. They are outside the promise above (they give other
-//! bits than the f32 kernels, and the packet kernel other bits than the one-query ones); each query's
-//! result still depends on that query alone. Callers opt in ([`crate::model::Model::eval_half`]).
-//!
-//! # Split-bf16 arithmetic on AMX tiles
-//! `amx.rs` runs a packet's hidden layers on AMX-BF16 tiles (Sapphire Rapids and later, Linux), each
-//! f32 product as three bf16 products (~16 significant bits, f32 sums) or six (~24 bits), over
-//! weights re-laid once in tile order ([`crate::model::ModelBuf::enable_bf16`]), where [`amx_available`]. Outside the
-//! determinism promise too (other bits than the f32 kernels); each query still depends on itself only.
-//!
-//! # bf16 arithmetic on vectors
-//! The same file runs a packet's hidden layers with one bf16 product per f32 product (`vdpbf16ps`,
-//! AVX512-BF16: AMD Zen 4 and later, Intel Cooper Lake, Sapphire Rapids and later), reading the first
-//! bf16 part of the same copy, where [`bf16_available`]: twice the multiply-adds per instruction of
-//! an f32 FMA, ~1e-3 relative ([`crate::mlp::Arithmetic::Bf16`]). Outside the promise as above.
-//! One query in that arithmetic runs in `bf16_rows.rs` instead: f32 FMAs over rows of the same bf16
-//! weights, one input a row, skipping the zero inputs (what bounds a single query is the bytes it
-//! streams from L2, and a `vdpbf16ps` vector interleaves two input rows). A product of bf16 values
-//! is exact in f32, so both paths round the same sums in the same order and give the same bits.
-//!
 //! # Angles for 16 pairs
 //! `theta16.rs` maps 16 direction pairs through Θ (or the plain Rusinkiewicz angles) and the
 //! positional encoding at once for the batches (AVX-512): libm's `atanf`/`atan2f` and the rest of the
 //! map with lanes for pairs, every lane the bits of the one-pair functions, so `Model::eval_many`
 //! keeps `Model::eval`'s bits.
 
-#[cfg(all(target_arch = "x86_64", target_os = "linux", feature = "std"))]
-pub(crate) mod amx;
-#[cfg(all(target_arch = "x86_64", target_os = "linux", feature = "std"))]
-pub(crate) mod bf16_rows;
-#[cfg(target_arch = "x86_64")]
-mod half_math;
 mod output_map;
 mod lanes;
 #[cfg(target_arch = "aarch64")]
@@ -528,47 +499,14 @@ impl<W: 'static> Kernels<W> {
 
 /// A weight type with kernels: `f32` and `half::f16`.
 pub trait KernelWeight: Sized + 'static {
-    /// Whether the half-precision kernels take this weight type (half weights).
-    #[doc(hidden)]
-    const HALF: bool;
-
     /// The kernels of `level`, which must be at most [`detected`] (lower levels are always safe).
     #[doc(hidden)]
     fn table(level: Level) -> &'static Kernels<Self>;
-
-    /// [`packet_half_math`] for this weight type: `false` (nothing run) but for half weights.
-    #[doc(hidden)]
-    fn packet_half_math(layer: &Dense<'_, Self>, out: &mut [f32], out_stride: usize) -> bool;
-
-    /// [`one_half_math`] for this weight type: `false` (nothing run) but for half weights.
-    #[doc(hidden)]
-    fn one_half_math(layer: &Dense<'_, Self>, out: &mut [f32]) -> bool;
-
-    /// [`chain_half_math`] for this weight type: `false` (nothing run) but for half weights.
-    #[doc(hidden)]
-    fn chain_half_math(chain: &Chain<'_, Self>, out: &mut [f32]) -> bool;
 }
 
 macro_rules! tables {
-    ($w:ty, $avx2:ident, $avx512:ident, $is_half:expr, $half:expr, $half_one:expr, $half_chain:expr) => {
+    ($w:ty, $avx2:ident, $avx512:ident) => {
         impl KernelWeight for $w {
-            const HALF: bool = $is_half;
-
-            #[inline]
-            fn packet_half_math(layer: &Dense<'_, $w>, out: &mut [f32], out_stride: usize) -> bool {
-                $half(layer, out, out_stride)
-            }
-
-            #[inline]
-            fn one_half_math(layer: &Dense<'_, $w>, out: &mut [f32]) -> bool {
-                $half_one(layer, out)
-            }
-
-            #[inline]
-            fn chain_half_math(chain: &Chain<'_, $w>, out: &mut [f32]) -> bool {
-                $half_chain(chain, out)
-            }
-
             #[inline]
             fn table(level: Level) -> &'static Kernels<$w> {
                 static PORTABLE: Kernels<$w> =
@@ -595,121 +533,8 @@ macro_rules! tables {
         }
     };
 }
-tables!(
-    f32,
-    avx2_f32,
-    avx512_f32,
-    false,
-    |_: &Dense<'_, f32>, _: &mut [f32], _: usize| false,
-    |_: &Dense<'_, f32>, _: &mut [f32]| false,
-    |_: &Chain<'_, f32>, _: &mut [f32]| false
-);
-tables!(half::f16, avx2_f16, avx512_f16, true, packet_half_math, one_half_math, chain_half_math);
-
-/// Whether [`packet_half_math`], [`one_half_math`] and [`chain_half_math`] run here: the CPU has AVX512-FP16 (x86-64: Sapphire Rapids and
-/// later Intel cores; detected at run time with `std`) and [`level`] is AVX-512.
-#[inline]
-pub fn half_math_available() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        level() == Level::Avx512 && half_math::available()
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
-    }
-}
-
-/// Whether the split-bf16 arithmetics ([`crate::mlp::Arithmetic::SplitBf16`], [`crate::mlp::Arithmetic::SplitBf16x6`]) run here: the CPU has
-/// AMX-BF16 and AVX512-BF16 (Sapphire Rapids and later Intel cores), the OS lets the process use the
-/// tiles (Linux: asked for once through `arch_prctl`, on the first call), [`level`] is AVX-512, and
-/// the crate was built with `std`.
-#[inline]
-pub fn amx_available() -> bool {
-    #[cfg(all(target_arch = "x86_64", target_os = "linux", feature = "std"))]
-    {
-        level() == Level::Avx512 && amx::available()
-    }
-    #[cfg(not(all(target_arch = "x86_64", target_os = "linux", feature = "std")))]
-    {
-        false
-    }
-}
-
-/// Whether the bf16 arithmetic on vectors ([`crate::mlp::Arithmetic::Bf16`]) runs here: the CPU has
-/// AVX512-BF16 (AMD Zen 4 and later, Intel Cooper Lake and Sapphire Rapids and later), [`level`] is
-/// AVX-512, and the crate was built with `std` for Linux (as the tiles, whose weight layout it reads).
-#[inline]
-pub fn bf16_available() -> bool {
-    #[cfg(all(target_arch = "x86_64", target_os = "linux", feature = "std"))]
-    {
-        level() == Level::Avx512 && amx::vectors_available()
-    }
-    #[cfg(not(all(target_arch = "x86_64", target_os = "linux", feature = "std")))]
-    {
-        false
-    }
-}
-
-/// Runs a layer of half weights for [`PACKET`] queries (as [`Kernels::packet`]) with every
-/// multiply-add in half precision, where [`half_math_available`]; returns `false` and writes nothing
-/// elsewhere. Twice the multiply-adds per instruction of the f32 kernels, each product and partial
-/// sum rounded to f16 (11 significant bits; beyond ±65504 a sum becomes infinite): see
-/// `half_math.rs` and [`crate::model::Model::eval_many_half`]. Not bitwise equal to [`Kernels::packet`].
-#[inline]
-pub fn packet_half_math(layer: &Dense<'_, half::f16>, out: &mut [f32], out_stride: usize) -> bool {
-    if !half_math_available() {
-        return false;
-    }
-    layer.check(PACKET, out.len(), out_stride);
-    #[cfg(target_arch = "x86_64")]
-    // SAFETY: `half_math_available` checked the CPU features; `check` verified every extent.
-    unsafe {
-        half_math::packet(layer, out.as_mut_ptr(), out_stride);
-    }
-    true
-}
-
-/// Runs one query through the hidden layers of a [`Chain`] of half weights (which must have no
-/// output layer: `out: None`) with every multiply-add in half precision, where
-/// [`half_math_available`]; writes the last hidden layer's [`CHAIN_WIDTH`] activations to `out` and
-/// returns `true`, or returns `false` and writes nothing elsewhere. The activations stay in registers
-/// between the layers, as in [`Kernels::chain`]; the same bits as its hidden layers run one by one
-/// through [`one_half_math`].
-///
-/// Panics where the chain has an output layer.
-#[inline]
-pub fn chain_half_math(chain: &Chain<'_, half::f16>, out: &mut [f32]) -> bool {
-    if !half_math_available() {
-        return false;
-    }
-    assert!(chain.out.is_none(), "the half chain runs the hidden layers only");
-    chain.check(out.len());
-    #[cfg(target_arch = "x86_64")]
-    // SAFETY: `half_math_available` checked the CPU features; `check` verified every extent.
-    unsafe {
-        half_math::chain(chain, out.as_mut_ptr());
-    }
-    true
-}
-
-/// Runs a layer of half weights for one query (as [`Kernels::one`]) with every multiply-add in half
-/// precision, where [`half_math_available`]; returns `false` and writes nothing elsewhere. Half the
-/// bytes a single query streams from cache, without the f16-to-f32 widening; rounding as
-/// [`packet_half_math`] (not bitwise equal to it: rows alternate between two sets of accumulators).
-#[inline]
-pub fn one_half_math(layer: &Dense<'_, half::f16>, out: &mut [f32]) -> bool {
-    if !half_math_available() {
-        return false;
-    }
-    layer.check(1, out.len(), 0);
-    #[cfg(target_arch = "x86_64")]
-    // SAFETY: `half_math_available` checked the CPU features; `check` verified every extent.
-    unsafe {
-        half_math::one(layer, out.as_mut_ptr());
-    }
-    true
-}
+tables!(f32, avx2_f32, avx512_f32);
+tables!(half::f16, avx2_f16, avx512_f16);
 
 /// The kernels of the active [`level`] for weights `W`.
 #[inline]
@@ -828,74 +653,6 @@ pub(crate) mod tests {
         check_shapes::<f32>(&w[..]);
         let h: [half::f16; N] = core::array::from_fn(|i| half::f16::from_f32(w[i]));
         check_shapes::<half::f16>(&h[..]);
-    }
-
-    /// The half-precision packet kernel against the f64 reference, within the classic bound of a
-    /// sum of `n` products in a precision of unit roundoff `u = 2^-11`: `|ŷ - y| ≤ γ (|init| +
-    /// Σ |x_i w_i|)` with `γ = (n + 2) u / (1 - (n + 2) u)` (the inputs and `init` rounded once more;
-    /// Higham, "Accuracy and Stability of Numerical Algorithms", Sec. 3.1), for packets and for single
-    /// queries: wide and narrow layers, two segments, a layer of more than 256 inputs (two passes).
-    #[test]
-    fn half_math_kernels_are_within_the_f16_error_bound_of_the_exact_sums() {
-        if !half_math_available() {
-            std::eprintln!("skipped: this CPU has no AVX512-FP16 (half-precision packets fall back to f32)");
-            return;
-        }
-        let w = values(N, 17, 0);
-        let h: [half::f16; N] = core::array::from_fn(|i| half::f16::from_f32(w[i]));
-        let u = 2f64.powi(-11);
-        for &(n_out, n1, n2, relu) in &[(32, 6, 0, true), (17, 9, 5, true), (128, 64, 36, true), (130, 12, 3, false), (40, 250, 9, true), (17, 300, 20, true), (200, 70, 0, true)] {
-            let (x1, x2, init) = layer_inputs(n_out, n1);
-            let layer = test_layer(&h[..], (n_out, n1, n2, relu), &x1, &x2, &init);
-            let os = n_out + 3;
-            let mut out = [f32::NAN; PACKET * 260];
-            assert!(packet_half_math(&layer, &mut out, os));
-            let gamma = (n1 + n2 + 2) as f64 * u / (1.0 - (n1 + n2 + 2) as f64 * u);
-            let mut worst = 0.0f64;
-            for q in 0..PACKET {
-                let want = reference(&layer, q);
-                // The same query alone, through the one-query kernel.
-                let mut single = [f32::NAN; 260];
-                assert!(one_half_math(&alone(&layer, q), &mut single));
-                for o in 0..n_out {
-                    let mut mag = (init[o] as f64).abs();
-                    for s in &layer.segs[..layer.n_segs] {
-                        for i in 0..s.n {
-                            mag += (s.x[q * s.stride + i] as f64 * s.rows[i * n_out + o].to_f64()).abs();
-                        }
-                    }
-                    let got = out[q * os + o] as f64;
-                    assert!((got - want[o]).abs() <= gamma * mag, "n_out {n_out} q {q} o {o}: {got} vs {}", want[o]);
-                    worst = worst.max((got - want[o]).abs() / mag);
-                    let got = single[o] as f64;
-                    assert!((got - want[o]).abs() <= gamma * mag, "one query: n_out {n_out} q {q} o {o}: {got} vs {}", want[o]);
-                }
-                assert!(out[q * os + n_out].is_nan() && single[n_out].is_nan(), "nothing written past the outputs");
-            }
-            // The arithmetic is half precision: errors far above f32 rounding.
-            assert!(worst > 1e-5, "n_out {n_out}: worst relative error {worst}");
-        }
-    }
-
-    /// Half-precision sums round as f16 does: 2048 + 1 is 2048 (the halves near 2048 are 2 apart,
-    /// and the tie goes to the even significand), where an f32 kernel gives 2049.
-    #[test]
-    fn half_math_rounds_each_sum_to_f16() {
-        if !half_math_available() {
-            std::eprintln!("skipped: this CPU has no AVX512-FP16");
-            return;
-        }
-        let one = [half::f16::ONE; 32];
-        let x = [1.0f32; PACKET];
-        let init = [2048.0f32; 32];
-        let seg = Segment { x: &x[..], stride: 1, n: 1, rows: &one[..] };
-        let layer = Dense { init: &init[..], segs: [seg, seg], n_segs: 1, n_out: 32, relu: true };
-        let mut half = [0.0f32; PACKET * 32];
-        assert!(packet_half_math(&layer, &mut half, 32));
-        assert!(half.iter().all(|&v| v == 2048.0));
-        let mut full = [0.0f32; PACKET * 32];
-        kernels::<half::f16>().packet(&layer, &mut full, 32);
-        assert!(full.iter().all(|&v| v == 2049.0));
     }
 
     /// Overlapping windows of test weights, a different one per matrix.
@@ -1096,35 +853,6 @@ pub(crate) mod tests {
         check_chain::<f32>(&w[..]);
         let h: [half::f16; N] = core::array::from_fn(|i| half::f16::from_f32(w[i]));
         check_chain::<half::f16>(&h[..]);
-    }
-
-    /// The half chain against its layers run one by one through `one_half_math`: the same bits
-    /// (the same roundings in the same order), with and without a skip layer, every tail length.
-    #[test]
-    fn a_half_chain_gives_the_bits_of_its_half_layers_run_one_by_one() {
-        if !half_math_available() {
-            std::eprintln!("skipped: this CPU has no AVX512-FP16");
-            return;
-        }
-        const C: usize = CHAIN_WIDTH;
-        let w = values(N, 23, 0);
-        let w: [half::f16; N] = core::array::from_fn(|i| half::f16::from_f32(w[i]));
-        let f32_init = values(C, 3, 0);
-        let skip_init = values(C, 4, 0);
-        for &(n_tail, n_hidden, skip) in &CHAIN_SHAPES {
-            let tail = values(n_tail, 7 + n_tail as u32, 3);
-            let (first_rows, layers) = chain_layers(&mut Windows { w: &w[..], at: 0 }, n_tail, skip, &skip_init);
-            let hidden = &layers[..n_hidden];
-            let chain = Chain { tail: &tail[..n_tail], first_init: &f32_init[..C], first_rows, hidden, out: None };
-            let mut got = [f32::NAN; C + 1];
-            assert!(chain_half_math(&chain, &mut got));
-            let one = |l: &Dense<'_, half::f16>, out: &mut [f32]| assert!(one_half_math(l, out));
-            let want = layer_by_layer(one, &tail[..n_tail], &f32_init, first_rows, hidden);
-            for o in 0..C {
-                assert_eq!(got[o].to_bits(), want[o].to_bits(), "tail {n_tail} hidden {n_hidden} skip {skip:?}: output {o}");
-            }
-            assert!(got[C].is_nan(), "nothing written past the outputs");
-        }
     }
 
     #[test]

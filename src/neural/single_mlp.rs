@@ -3,7 +3,7 @@
 //! trunk runs first and the angles join the trunk's features.
 
 use crate::kernels::softplus_slice;
-use crate::mlp::{self, forward_packet, forward_with, partial, partial_packet, Arithmetic, Net, Partial, PartialPacket, Tiled, Weight, MAX_WIDTH, PACKET};
+use crate::mlp::{self, forward, forward_packet, partial, partial_packet, Net, Partial, PartialPacket, Weight, MAX_WIDTH, PACKET};
 use crate::Rgb;
 
 /// Position-only work: the position rows of the network (one network), or the trunk and the head's
@@ -36,30 +36,20 @@ pub fn prepare_packet<W: Weight>(nets: &[Net<'_, W>], pos: &[f32], stride: usize
     }
 }
 
-/// `softplus` of the network output for the encoded angles, the hidden layers in `math` (`tiled`: the
-/// network's tiles, see [`forward_with`]).
+/// `softplus` of the network output for the encoded angles.
 #[inline]
-pub fn eval<W: Weight>(math: Arithmetic, tiled: Option<Tiled<'_>>, net: &Net<'_, W>, prepared: &Partial, angles: &[f32]) -> Rgb {
+pub fn eval<W: Weight>(net: &Net<'_, W>, prepared: &Partial, angles: &[f32]) -> Rgb {
     let mut out = [0.0f32; MAX_WIDTH];
-    forward_with(math, tiled, net, prepared, angles, &mut out);
+    forward(net, prepared, angles, &mut out);
     softplus_slice(&mut out[..3]);
     [out[0], out[1], out[2]]
 }
 
-/// [`eval`] for [`PACKET`] queries: query `q`'s encoded angles at `angles[q * stride..][..n]`, the
-/// hidden layers in `math` (`tiled`: the network's tiles, see [`forward_packet`]).
+/// [`eval`] for [`PACKET`] queries: query `q`'s encoded angles at `angles[q * stride..][..n]`.
 #[inline]
-pub fn eval_packet<W: Weight>(
-    math: Arithmetic,
-    tiled: Option<Tiled<'_>>,
-    net: &Net<'_, W>,
-    prepared: &Partial,
-    angles: &[f32],
-    stride: usize,
-    n: usize,
-) -> [Rgb; PACKET] {
+pub fn eval_packet<W: Weight>(net: &Net<'_, W>, prepared: &Partial, angles: &[f32], stride: usize, n: usize) -> [Rgb; PACKET] {
     let mut out = [0.0f32; PACKET * OUT_STRIDE];
-    forward_packet(math, tiled, net, prepared, angles, stride, n, &mut out, OUT_STRIDE);
+    forward_packet(net, prepared, angles, stride, n, &mut out, OUT_STRIDE);
     // The whole buffer, the unused lanes too: 8 vectors instead of 16 gathers of 3.
     softplus_slice(&mut out);
     core::array::from_fn(|q| {

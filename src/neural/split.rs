@@ -2,7 +2,7 @@
 
 use crate::kernels::{map_outputs, sigmoid_slice};
 use crate::math::{sanitize, INV_PI};
-use crate::mlp::{forward_packet, forward_with, Arithmetic, Net, Partial, Tiled, Weight, MAX_WIDTH, PACKET};
+use crate::mlp::{forward, forward_packet, Net, Partial, Weight, MAX_WIDTH, PACKET};
 use crate::Rgb;
 
 /// Lambertian diffuse term from the diffuse network's raw outputs: `σ(d) / π` (Sec. 4.1.2), so the
@@ -67,31 +67,18 @@ fn mix(f_d: Rgb, m: &[f32], enhanced: bool) -> Rgb {
 }
 
 /// The specular network of an additive model on the encoded angles, combined with `f_d` by
-/// [`combine`]: `f_d + f_s`, or Eq. 8 when `enhanced`. Shared by both additive architectures. The
-/// hidden layers in `math` (`tiled`: the specular network's tiles, see [`forward_with`]).
+/// [`combine`]: `f_d + f_s`, or Eq. 8 when `enhanced`. Shared by both additive architectures.
 #[inline]
-pub fn eval<W: Weight>(
-    math: Arithmetic,
-    tiled: Option<Tiled<'_>>,
-    specular: &Net<'_, W>,
-    f_d: Rgb,
-    prepared: &Partial,
-    angles: &[f32],
-    enhanced: bool,
-) -> Rgb {
+pub fn eval<W: Weight>(specular: &Net<'_, W>, f_d: Rgb, prepared: &Partial, angles: &[f32], enhanced: bool) -> Rgb {
     let mut s = [0.0f32; MAX_WIDTH];
-    forward_with(math, tiled, specular, prepared, angles, &mut s);
+    forward(specular, prepared, angles, &mut s);
     map_split(&mut s[..8], enhanced);
     mix(f_d, &s, enhanced)
 }
 
-/// [`eval`] for [`PACKET`] queries: query `q`'s encoded angles at `angles[q * stride..][..n]`, the
-/// hidden layers in `math` (`tiled`: the specular network's tiles, see [`forward_packet`]).
+/// [`eval`] for [`PACKET`] queries: query `q`'s encoded angles at `angles[q * stride..][..n]`.
 #[inline]
-#[allow(clippy::too_many_arguments)]
 pub fn eval_packet<W: Weight>(
-    math: Arithmetic,
-    tiled: Option<Tiled<'_>>,
     specular: &Net<'_, W>,
     f_d: Rgb,
     prepared: &Partial,
@@ -102,7 +89,7 @@ pub fn eval_packet<W: Weight>(
 ) -> [Rgb; PACKET] {
     const S: usize = super::single_mlp::OUT_STRIDE;
     let mut s = [0.0f32; PACKET * S];
-    forward_packet(math, tiled, specular, prepared, angles, stride, n, &mut s, S);
+    forward_packet(specular, prepared, angles, stride, n, &mut s, S);
     map_split(&mut s, enhanced);
     core::array::from_fn(|q| mix(f_d, &s[q * S..(q + 1) * S], enhanced))
 }

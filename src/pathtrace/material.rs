@@ -14,7 +14,6 @@ use std::string::String;
 use crate::builtin::Builtin;
 use crate::file::{ModelBuf, PositionEncoding};
 use crate::measured::{MerlTable, NbrdfNetwork};
-use crate::mlp::Arithmetic;
 use crate::model::Prepared;
 use crate::parametric::Parametric;
 use crate::sampling::{BsdfSample, Proxy};
@@ -54,8 +53,6 @@ pub struct Material {
     sampling: Sampling,
     /// The prepared state of a spatially uniform `.nbrdf` model, computed once instead of per hit.
     uniform: Option<Prepared>,
-    /// The arithmetic a `.nbrdf` model is evaluated in ([`crate::model::Model::eval_in`]).
-    math: Arithmetic,
 }
 
 /// What a material needs to know about a surface point: the prepared state of a `.nbrdf` model.
@@ -88,27 +85,13 @@ impl Material {
             Brdf::Model(m) if m.header().position == PositionEncoding::Uniform => Some(m.model().prepare(&[])),
             _ => None,
         };
-        Ok(Material { brdf, proxy, sampling: Sampling::Native, uniform, math: Arithmetic::F32 })
+        Ok(Material { brdf, proxy, sampling: Sampling::Native, uniform })
     }
 
     /// The same material sampled with `sampling`.
     pub fn with_sampling(mut self, sampling: Sampling) -> Self {
         self.sampling = sampling;
         self
-    }
-
-    /// The same material with a `.nbrdf` model evaluated in half-precision arithmetic
-    /// ([`crate::model::Model::eval_half`]: f16 weights on a CPU with AVX512-FP16, where it is faster
-    /// at ~0.15% value error; elsewhere the same values as without). Other BRDFs are unaffected.
-    pub fn with_half_math(mut self, half: bool) -> Self {
-        self.math = if half { Arithmetic::HalfHidden } else { Arithmetic::F32 };
-        self
-    }
-
-    /// Whether [`Material::eval`] runs half-precision arithmetic here (asked for with
-    /// [`with_half_math`](Self::with_half_math), and [`crate::model::Model::half_math`]).
-    pub fn half_math(&self) -> bool {
-        self.math == Arithmetic::HalfHidden && matches!(&self.brdf, Brdf::Model(m) if m.model().half_math())
     }
 
     /// The BRDF.
@@ -144,7 +127,6 @@ impl Material {
                 ),
             },
         };
-        let what = if self.half_math() { what + ", half arithmetic" } else { what };
         match self.sampling {
             Sampling::Native => std::format!("{what}, sampled by {native}"),
             Sampling::Cosine => std::format!("{what}, sampled by cosine (forced)"),
@@ -185,7 +167,7 @@ impl Material {
             Brdf::Merl(t) => t.eval(wi, wo),
             Brdf::NbrdfJson(n) => n.eval(wi, wo),
             Brdf::Model(m) => match &pt.prepared {
-                Some(p) => m.model().eval_in(self.math, p, wi, wo),
+                Some(p) => m.model().eval(p, wi, wo),
                 None => [0.0; 3],
             },
         }
@@ -201,10 +183,6 @@ impl Material {
             Brdf::Parametric(p) => p.sample(u, wo),
             Brdf::Builtin(b) => b.sample(u, wo),
             Brdf::Merl(_) | Brdf::NbrdfJson(_) => self.proxy.sample(u, wo, |wi, wo| self.eval(pt, wi, wo)),
-            // A neural model's sample weight is an evaluation: in the arithmetic asked for.
-            Brdf::Model(_) if self.math == Arithmetic::HalfHidden && pt.prepared.as_ref()?.parameters().is_none() => {
-                self.proxy.sample(u, wo, |wi, wo| self.eval(pt, wi, wo))
-            }
             Brdf::Model(m) => m.model().sample(pt.prepared.as_ref()?, u, wo),
         }
     }

@@ -5,19 +5,17 @@
 //! - the rendered BRDF values are compared with the stored raw ground-truth ones in cube-root RMSE, on
 //!   lit pixels within the angle limit of [`brdf_rmse::keep`];
 //! - reciprocity RMSE and the energy analysis use points and directions of the test samples;
-//! - the evaluation cost is timed in-process on the reciprocity pairs: one query at a time (`eval_in`),
-//!   and in batches of many directions at one point (`eval_many_in`).
+//! - the evaluation cost is timed in-process on the reciprocity pairs: one query at a time (`eval`),
+//!   and in batches of many directions at one point (`eval_many`).
 //!
-//! With the split-bf16 arithmetics ([`Arithmetic::SplitBf16`], [`Arithmetic::SplitBf16x6`]; batches
-//! only: their single queries keep f32) every value is taken from a batch: a pair's value does not
-//! depend on the batch it is in, so a batch of one gives the value any batch would. With
-//! [`Arithmetic::Bf16`] a single query has its batch value's bits, and is timed as itself.
+//! An f32 file is evaluated through a [`ModelBuf`]; an f16 file borrowed in place ([`Held`]), so that
+//! the timings are those of its f16 rows (a `ModelBuf` widens an f16 file at load: the same values,
+//! at the f32 rows' speed).
 
 use std::time::Instant;
 
-use nbrdf::file::ModelBuf;
+use nbrdf::file::{ModelBuf, Precision};
 use nbrdf::image::{read_exr, RgbImage};
-use nbrdf::mlp::Arithmetic;
 use nbrdf::model::{Model, Prepared};
 use nbrdf::scene::render::{render_view, RenderOptions, SurfaceSample};
 use nbrdf::{Rgb, Vec3};
@@ -40,12 +38,7 @@ pub struct Evaluation {
     pub energy: EnergySummary,
     /// Mean nanoseconds per `eval` (one direction pair, point already prepared), single thread.
     pub eval_ns_per_query: f64,
-    /// Whether `eval_ns_per_query` timed single queries in the arithmetic under test: false for the
-    /// split-bf16 arithmetics (their single queries are f32) and in bf16 evaluations written before
-    /// bf16 single queries ran in bf16 (the field is absent there).
-    #[serde(default)]
-    pub single_in_arithmetic: bool,
-    /// Mean nanoseconds per direction pair of `eval_many_in` (batches of [`BATCH`] pairs at one
+    /// Mean nanoseconds per direction pair of `eval_many` (batches of [`BATCH`] pairs at one
     /// prepared point), single thread; absent in results written before it was measured.
     #[serde(default)]
     pub eval_batch_ns_per_query: Option<f64>,
@@ -83,34 +76,68 @@ fn prepare_at(model: &Model<'_>, ds: &Dataset, s: &SurfaceSample) -> Prepared {
     model.prepare(&point_input(model, ds, s.hit.triangle, s.hit.b1, s.hit.b2, s.position))
 }
 
+/// A model file as the study evaluates it: an f32 file in a [`ModelBuf`]; an f16 file borrowed in
+/// place ([`Model::from_bytes`], whose kernels widen the f16 rows as they read them), in words so that
+/// it is 4-byte aligned, placed as `ModelBuf` places a file (the per-query network on a cache line, to
+/// the 4 bytes the format's alignment allows).
+struct Held {
+    buf: Option<ModelBuf>,
+    words: Vec<u32>,
+    start: usize,
+    len: usize,
+}
+
+impl Held {
+    /// Reads and validates the model file at `path`.
+    fn load(path: &std::path::Path) -> Result<Held> {
+        Held::from_bytes(&nbrdf::io::read(path).map_err(Error::Core)?)
+    }
+
+    /// Validates the model file `bytes` and holds it.
+    fn from_bytes(bytes: &[u8]) -> Result<Held> {
+        let buf = ModelBuf::from_bytes(bytes).map_err(Error::Core)?;
+        if buf.file_precision() == Precision::F32 {
+            return Ok(Held { buf: Some(buf), words: Vec::new(), start: 0, len: 0 });
+        }
+        let at = Model::query_weights_offset_of(bytes).map_err(Error::Core)?;
+        let mut words = vec![0u32; bytes.len().div_ceil(4) + 16];
+        let start = (64 - (words.as_ptr() as usize + at) % 64) % 64 / 4;
+        for (w, c) in words[start..].iter_mut().zip(bytes.chunks(4)) {
+            let mut b = [0u8; 4];
+            b[..c.len()].copy_from_slice(c);
+            *w = u32::from_ne_bytes(b);
+        }
+        let held = Held { buf: None, words, start, len: bytes.len() };
+        held.try_model()?;
+        Ok(held)
+    }
+
+    fn try_model(&self) -> Result<Model<'_>> {
+        if let Some(buf) = &self.buf {
+            return Ok(buf.model());
+        }
+        // SAFETY: u8 has no alignment requirement and every byte of a u32 slice is initialised.
+        let bytes = unsafe { std::slice::from_raw_parts(self.words.as_ptr().cast::<u8>(), self.words.len() * 4) };
+        Model::from_bytes(&bytes[4 * self.start..4 * self.start + self.len]).map_err(Error::Core)
+    }
+
+    /// The evaluator over the held file.
+    fn model(&self) -> Model<'_> {
+        // `from_bytes` validated the same bytes in the same place.
+        self.try_model().expect("validated at load")
+    }
+}
+
 /// Evaluates the model file `model_path` on the test split of `ds` (see the module docs).
 pub fn evaluate(
     ds: &Dataset,
     model_path: &std::path::Path,
     lpips: &std::result::Result<Lpips, String>,
     config: &super::StudyConfig,
-    math: Arithmetic,
 ) -> Result<Evaluation> {
-    let mut buf = ModelBuf::load(model_path).map_err(Error::Core)?;
-    if math.on_tiles() {
-        buf.enable_bf16();
-    }
-    let batches_only = math.on_tiles() && math != Arithmetic::Bf16;
-    let model = buf.model();
-    let runs = if math == Arithmetic::Bf16 { model.bf16() } else { model.amx() };
-    if math.on_tiles() && !runs {
-        return Err(Error::Invalid(format!("{}: {math:?} does not run here (no AMX or AVX512-BF16, or not a neural model)", model_path.display())));
-    }
-    // Every query of the evaluation, in the arithmetic under test.
-    let eval = |p: &Prepared, wi: Vec3, wo: Vec3| {
-        if batches_only {
-            let mut f = [[0.0; 3]];
-            model.eval_many_in(math, p, &[wi], &[wo], &mut f);
-            f[0]
-        } else {
-            model.eval_in(math, p, wi, wo)
-        }
-    };
+    let held = Held::load(model_path)?;
+    let model = held.model();
+    let eval = |p: &Prepared, wi: Vec3, wo: Vec3| model.eval(p, wi, wo);
     let mut image_metrics = Vec::new();
     let (mut pred_brdf, mut ref_brdf, mut keep) = (Vec::<Rgb>::new(), Vec::<Rgb>::new(), Vec::new());
     for view in ds.views.iter().filter(|v| v.split == Split::Test) {
@@ -176,9 +203,8 @@ pub fn evaluate(
         brdf_rmse_cbrt: brdf_rmse::cube_root_rmse(&pred_brdf, &ref_brdf, &keep),
         reciprocity_rmse: reciprocity,
         energy,
-        eval_ns_per_query: time_eval(&|p: &Prepared, wi, wo| model.eval_in(math, p, wi, wo), &recip_prepared, &pairs),
-        single_in_arithmetic: !batches_only,
-        eval_batch_ns_per_query: Some(time_batches(&model, math, &recip_prepared, &pairs)),
+        eval_ns_per_query: time_eval(&eval, &recip_prepared, &pairs),
+        eval_batch_ns_per_query: Some(time_batches(&model, &recip_prepared, &pairs)),
         prepare_ns_per_point,
         prepare_many_ns_per_point,
     })
@@ -215,20 +241,20 @@ fn time_prepare(model: &Model<'_>, points: &[f32]) -> (Option<f64>, Option<f64>)
     (Some(single), Some(many))
 }
 
-/// Mean ns per pair of `eval_many_in(math, ..)` over batches of [`BATCH`] of the pairs' directions,
-/// each batch at the next prepared point, repeated to at least ~200k queries.
-fn time_batches(model: &Model<'_>, math: Arithmetic, prepared: &[Prepared], pairs: &[DirectionPair]) -> f64 {
+/// Mean ns per pair of `eval_many` over batches of [`BATCH`] of the pairs' directions, each batch at
+/// the next prepared point, repeated to at least ~200k queries.
+fn time_batches(model: &Model<'_>, prepared: &[Prepared], pairs: &[DirectionPair]) -> f64 {
     if pairs.is_empty() || prepared.is_empty() {
         return f64::NAN;
     }
     let (wi, wo): (Vec<Vec3>, Vec<Vec3>) = (0..BATCH).map(|i| (pairs[i % pairs.len()].wi, pairs[i % pairs.len()].wo)).unzip();
     let mut out = vec![[0.0f32; 3]; BATCH];
-    model.eval_many_in(math, &prepared[0], &wi, &wo, &mut out);
+    model.eval_many(&prepared[0], &wi, &wo, &mut out);
     let rounds = (200_000 / BATCH).max(1);
     let mut sink = 0.0f32;
     let t = Instant::now();
     for r in 0..rounds {
-        model.eval_many_in(math, &prepared[r % prepared.len()], std::hint::black_box(&wi), &wo, &mut out);
+        model.eval_many(&prepared[r % prepared.len()], std::hint::black_box(&wi), &wo, &mut out);
         sink += out[r % BATCH][1];
     }
     let ns = t.elapsed().as_nanos() as f64 / (rounds * BATCH) as f64;
@@ -308,10 +334,13 @@ mod tests {
         let weights: Vec<f32> = (0..h.n_weights()).map(|i| ((i * 7919) % 200) as f32 * 1e-3 - 0.1).collect();
         let table: Vec<f32> = (0..5 * k as usize).map(|i| (i as f32 * 0.37).sin()).collect();
         let buf = ModelBuf::from_bytes(&encode(&h, &weights, Some(&table)).unwrap()).unwrap();
-        let b16 = ModelBuf::from_bytes(&to_f16(&buf).unwrap()).unwrap();
-        assert_eq!(b16.header().precision, Precision::F16);
-        assert!(b16.as_bytes().len() < buf.as_bytes().len());
+        let f16_file = to_f16(&buf).unwrap();
+        assert!(f16_file.len() < buf.as_bytes().len());
+        // Held as the study evaluates it: in place, f16 rows.
+        let b16 = Held::from_bytes(&f16_file).unwrap();
+        assert!(b16.buf.is_none());
         let (m32, m16) = (buf.model(), b16.model());
+        assert_eq!(m16.header().precision, Precision::F16);
         let mut f32_feat = vec![0.0; k as usize];
         let mut f16_feat = vec![0.0; k as usize];
         m32.position_features([0, 1, 2], [0.2, 0.3, 0.5], &mut f32_feat).unwrap();
@@ -322,7 +351,11 @@ mod tests {
         for c in 0..3 {
             assert!((a[c] - b[c]).abs() <= 1e-2 * a[c].abs().max(1e-2), "{a:?} vs {b:?}");
         }
-        // Converting twice is refused rather than silently doing nothing.
-        assert!(to_f16(&b16).is_err());
+        // A ModelBuf of the f16 file (widened at load) gives the in-place bits, and converts back to
+        // the same file.
+        let wide = ModelBuf::from_bytes(&f16_file).unwrap();
+        let mw = wide.model();
+        assert_eq!(mw.eval(&mw.prepare(&f16_feat), wi, wo).map(f32::to_bits), b.map(f32::to_bits));
+        assert_eq!(to_f16(&wide).unwrap(), f16_file);
     }
 }

@@ -18,7 +18,6 @@ pub mod report;
 
 use std::path::{Path, PathBuf};
 
-use nbrdf::mlp::Arithmetic;
 use serde::{Deserialize, Serialize};
 
 pub use config::{ModelSpec, SceneConfig, StudyConfig};
@@ -51,21 +50,6 @@ pub struct JobResult {
     pub eval_f16: Option<Evaluation>,
     #[serde(default)]
     pub size_bytes_f16: Option<u64>,
-    /// The f16 copy evaluated in half-precision arithmetic (`Model::eval_half`), where the machine
-    /// has it (AVX512-FP16).
-    #[serde(default)]
-    pub eval_f16_half: Option<Evaluation>,
-    /// The f32 model in split-bf16 arithmetic on AMX tiles (`Arithmetic::SplitBf16`: batches only),
-    /// where the machine has it.
-    #[serde(default)]
-    pub eval_split_bf16: Option<Evaluation>,
-    /// The same in six products (`Arithmetic::SplitBf16x6`).
-    #[serde(default)]
-    pub eval_split_bf16x6: Option<Evaluation>,
-    /// The f32 model in bf16 products on AVX512-BF16 vectors (`Arithmetic::Bf16`: batches only), where
-    /// the machine has them.
-    #[serde(default)]
-    pub eval_bf16: Option<Evaluation>,
 }
 
 /// Which jobs this process runs: job `j` (in scene-major order) belongs to shard `j % count`.
@@ -224,27 +208,18 @@ pub fn run(config: &StudyConfig, out: &Path, shard: Option<Shard>, progress: boo
             let log = fit::run(model_config, t.obs.clone(), &opts, &jdir, false, false, t.position_table.as_deref())?;
             bar.doing(format!("{} / {name}: evaluating", scene.id()));
             let model_path = fit::Outputs::in_dir(&jdir, &model_config).model;
-            let eval = evaluate::evaluate(&ds, &model_path, &lpips, config, Arithmetic::F32)?;
+            let eval = evaluate::evaluate(&ds, &model_path, &lpips, config)?;
             let size_bytes = std::fs::metadata(&model_path).map_err(|e| Error::io(&model_path, e))?.len();
-            let (eval_f16, size_bytes_f16, eval_f16_half) = if config::is_parametric(&spec.model) {
-                (None, None, None)
+            let (eval_f16, size_bytes_f16) = if config::is_parametric(&spec.model) {
+                (None, None)
             } else {
                 let buf = nbrdf::file::ModelBuf::load(&model_path).map_err(Error::Core)?;
                 let path16 = model_path.with_extension("f16.nbrdf");
                 let bytes = evaluate::to_f16(&buf)?;
                 crate::train::write_atomic(&path16, &bytes)?;
-                let f16 = evaluate::evaluate(&ds, &path16, &lpips, config, Arithmetic::F32)?;
-                // The copy has f16 weights and a neural model: `Model::half_math` is the CPU's answer.
-                let half = nbrdf::kernels::half_math_available()
-                    .then(|| evaluate::evaluate(&ds, &path16, &lpips, config, Arithmetic::HalfHidden))
-                    .transpose()?;
-                (Some(f16), Some(bytes.len() as u64), half)
+                let f16 = evaluate::evaluate(&ds, &path16, &lpips, config)?;
+                (Some(f16), Some(bytes.len() as u64))
             };
-            let amx = !config::is_parametric(&spec.model) && nbrdf::kernels::amx_available();
-            let split = |math| amx.then(|| evaluate::evaluate(&ds, &model_path, &lpips, config, math)).transpose();
-            let (eval_split_bf16, eval_split_bf16x6) = (split(Arithmetic::SplitBf16)?, split(Arithmetic::SplitBf16x6)?);
-            let bf16 = !config::is_parametric(&spec.model) && nbrdf::kernels::bf16_available();
-            let eval_bf16 = bf16.then(|| evaluate::evaluate(&ds, &model_path, &lpips, config, Arithmetic::Bf16)).transpose()?;
             let r = JobResult {
                 scene: scene.id(),
                 model: name.clone(),
@@ -257,10 +232,6 @@ pub fn run(config: &StudyConfig, out: &Path, shard: Option<Shard>, progress: boo
                 eval,
                 eval_f16,
                 size_bytes_f16,
-                eval_f16_half,
-                eval_split_bf16,
-                eval_split_bf16x6,
-                eval_bf16,
             };
             let json = serde_json::to_vec_pretty(&r).map_err(|e| Error::io(&result_path, e))?;
             crate::train::write_atomic(&result_path, &json)?;

@@ -40,18 +40,9 @@ pub struct ModelSummary {
     pub size_bytes: u64,
     /// The f16-weight copies (purely neural models; `None` when some object has none).
     pub f16: Option<F16Summary>,
-    /// The f16-weight copies in half-precision arithmetic (`None` unless every object has it).
-    pub f16_half: Option<F16Summary>,
-    /// The f32 model in split-bf16 arithmetic on AMX tiles (`None` unless every object has it).
-    pub split_bf16: Option<F16Summary>,
-    /// The same in six products (bf16x6).
-    pub split_bf16x6: Option<F16Summary>,
-    /// The f32 model in bf16 products on vectors (`None` unless every object has it).
-    pub bf16: Option<F16Summary>,
 }
 
-/// Means over the objects of one more evaluation of a model: its f16-weight copy, or another
-/// arithmetic.
+/// Means over the objects of the f16-weight copies of a model.
 #[derive(Clone, Debug, Serialize)]
 pub struct F16Summary {
     pub psnr: f64,
@@ -61,8 +52,6 @@ pub struct F16Summary {
     pub prepare_ns_per_point: Option<f64>,
     pub prepare_many_ns_per_point: Option<f64>,
     pub size_bytes: u64,
-    /// Whether every object's single-query time is of this arithmetic (`Evaluation::single_in_arithmetic`).
-    pub single_in_arithmetic: bool,
 }
 
 fn mean(v: impl Iterator<Item = f64>) -> f64 {
@@ -103,43 +92,9 @@ pub fn summarize(results: &[JobResult]) -> Vec<ModelSummary> {
                 n_weights: rs[0].n_weights,
                 size_bytes: rs[0].size_bytes,
                 f16: f16_summary(rs.iter().map(|r| r.eval_f16.as_ref().zip(r.size_bytes_f16))),
-                f16_half: f16_summary(rs.iter().map(|r| r.eval_f16_half.as_ref().zip(r.size_bytes_f16))),
-                split_bf16: f16_summary(rs.iter().map(|r| r.eval_split_bf16.as_ref().map(|e| (e, r.size_bytes)))),
-                split_bf16x6: f16_summary(rs.iter().map(|r| r.eval_split_bf16x6.as_ref().map(|e| (e, r.size_bytes)))),
-                bf16: f16_summary(rs.iter().map(|r| r.eval_bf16.as_ref().map(|e| (e, r.size_bytes)))),
             }
         })
         .collect()
-}
-
-/// One further evaluation of a model (the rows under it in the accuracy-versus-cost table).
-struct Alternative<'a> {
-    /// Label suffix in the Pareto plots.
-    suffix: &'static str,
-    /// The table's "weights" column.
-    weights: &'static str,
-    summary: Option<&'a F16Summary>,
-    /// Whether its single-query cost is its own (the split-bf16 arithmetics run single queries in
-    /// f32; bf16 results written before its single queries ran in bf16 timed f32 ones).
-    single: bool,
-}
-
-/// Number of [`alternatives`].
-const ALTERNATIVES: usize = 5;
-
-/// The further evaluations of a model, in table order: its f16 copy, that copy in half arithmetic, the
-/// f32 model in bf16x3, in bf16x6 and in bf16.
-fn alternatives(m: &ModelSummary) -> [Alternative<'_>; ALTERNATIVES] {
-    fn a<'a>(suffix: &'static str, weights: &'static str, summary: Option<&'a F16Summary>, single: bool) -> Alternative<'a> {
-        Alternative { suffix, weights, summary, single }
-    }
-    [
-        a("f16", "f16", m.f16.as_ref(), true),
-        a("f16 half", "f16, half arithmetic", m.f16_half.as_ref(), true),
-        a("bf16x3", "f32, bf16x3 (AMX)", m.split_bf16.as_ref(), false),
-        a("bf16x6", "f32, bf16x6 (AMX)", m.split_bf16x6.as_ref(), false),
-        a("bf16", "f32, bf16 (AVX512-BF16)", m.bf16.as_ref(), m.bf16.as_ref().is_some_and(|f| f.single_in_arithmetic)),
-    ]
 }
 
 /// Means over the objects of f16 evaluations, `None` unless every object has one.
@@ -148,7 +103,6 @@ fn f16_summary<'a>(v: impl Iterator<Item = Option<(&'a Evaluation, u64)>>) -> Op
         psnr: mean(v.iter().map(|(e, _)| e.image.psnr)),
         brdf_rmse_cbrt: mean(v.iter().map(|(e, _)| e.brdf_rmse_cbrt.value)),
         eval_ns_per_query: mean(v.iter().map(|(e, _)| e.eval_ns_per_query)),
-        single_in_arithmetic: v.iter().all(|(e, _)| e.single_in_arithmetic),
         eval_batch_ns_per_query: mean_all(v.iter().map(|(e, _)| e.eval_batch_ns_per_query)),
         prepare_ns_per_point: mean_all(v.iter().map(|(e, _)| e.prepare_ns_per_point)),
         prepare_many_ns_per_point: mean_all(v.iter().map(|(e, _)| e.prepare_many_ns_per_point)),
@@ -306,25 +260,20 @@ pub fn pareto_plots(out: &Path, config: &StudyConfig, results: &[JobResult]) -> 
     let full: Vec<&ModelSummary> = s.iter().filter(|m| m.objects == all).collect();
     let train: Vec<CostPoint> =
         full.iter().map(|m| CostPoint { label: short_label(&m.model, config), cost: m.train_wall_s, accuracy: m.psnr }).collect();
-    // Each model's point, then those of its further evaluations that have the cost, one evaluation
-    // after the other.
-    let points = |cost: fn(&ModelSummary) -> Option<f64>, alt_cost: fn(&Alternative) -> Option<f64>| {
+    // Each model's point, then those of the f16 copies that have the cost.
+    let points = |cost: fn(&ModelSummary) -> Option<f64>, f16_cost: fn(&F16Summary) -> Option<f64>| {
         let mut pts: Vec<CostPoint> = full
             .iter()
             .filter_map(|m| Some(CostPoint { label: short_label(&m.model, config), cost: cost(m)?, accuracy: m.psnr }))
             .collect();
-        for i in 0..ALTERNATIVES {
-            pts.extend(full.iter().filter_map(|m| {
-                let a = &alternatives(m)[i];
-                let f = a.summary?;
-                Some(CostPoint { label: format!("{} {}", short_label(&m.model, config), a.suffix), cost: alt_cost(a)?, accuracy: f.psnr })
-            }));
-        }
+        pts.extend(full.iter().filter_map(|m| {
+            let f = m.f16.as_ref()?;
+            Some(CostPoint { label: format!("{} f16", short_label(&m.model, config)), cost: f16_cost(f)?, accuracy: f.psnr })
+        }));
         pts
     };
-    // Single queries: the split-bf16 arithmetics run in batches only (their single queries are f32).
-    let eval = points(|m| Some(m.eval_ns_per_query), |a| a.summary.filter(|_| a.single).map(|f| f.eval_ns_per_query));
-    let batch = points(|m| m.eval_batch_ns_per_query, |a| a.summary?.eval_batch_ns_per_query);
+    let eval = points(|m| Some(m.eval_ns_per_query), |f| Some(f.eval_ns_per_query));
+    let batch = points(|m| m.eval_batch_ns_per_query, |f| f.eval_batch_ns_per_query);
     let mut plots = vec![
         ("PSNR against training wall time", "figures/pareto-train.png", "training wall time (s, log)", train),
         ("PSNR against evaluation cost", "figures/pareto-eval.png", "core eval ns per query (log)", eval),
@@ -493,12 +442,9 @@ pub fn markdown(
         md,
         "Every variant. Training wall time on this machine (CPU, shared), core evaluation ns per query (one thread, point \
          prepared), model file size; `f16` rows are the same fit re-encoded with f16 network weights (no retraining), \
-         evaluated the same way; `f16, half arithmetic` rows evaluate that copy with `Model::eval_half` (f16 multiply-adds, \
-         on CPUs with AVX512-FP16 only); `f32, bf16x3 (AMX)` and `f32, bf16x6 (AMX)` rows evaluate the f32 model with \
-         `Model::eval_many_in(Arithmetic::SplitBf16 | SplitBf16x6, ..)` (each product as three or six bf16 products on AMX tiles, on CPUs with \
-         AMX-BF16 only; batches only, single queries stay f32, marked `(f32)`); `f32, bf16 (AVX512-BF16)` rows with \
-         `Arithmetic::Bf16` (each product one bf16 product with f32 sums, on CPUs with AVX512-BF16; single queries too). \
-         Batched: ns per pair of `eval_many_in` over batches of {} \
+         evaluated the same way over the f16 file borrowed in place (`Model::from_bytes`, whose kernels widen the f16 rows \
+         as they read them; a `ModelBuf` widens an f16 file to f32 at load and runs at the f32 rows' speed, with the same \
+         values). Batched: ns per pair of `eval_many` over batches of {} \
          directions at one point. Prepare: ns per shading point of `Model::prepare` one point at a time and of \
          `Model::prepare_many` over the evaluation's sample points at once (the per-point work every evaluation at a point \
          adds to: for the parametric models their whole network). Means over the objects column.\n",
@@ -522,17 +468,14 @@ pub fn markdown(
             m.psnr,
             m.brdf_rmse_cbrt * 100.0
         );
-        for a in alternatives(m) {
-            let Some(f) = a.summary else { continue };
+        if let Some(f) = &m.f16 {
             let _ = writeln!(
                 md,
-                "| {} | {} | {} | {:.1} | {} | {} | {} | {} | {:.1} | {:.2} | {:.2} |",
+                "| {} | f16 | {} | {:.1} | {:.0} | {} | {} | {} | {:.1} | {:.2} | {:.2} |",
                 m.model,
-                a.weights,
                 m.objects,
                 m.train_wall_s,
-                // A single query that ran in f32 is marked so: it is not this row's arithmetic.
-                if a.single { format!("{:.0}", f.eval_ns_per_query) } else { format!("{:.0} (f32)", f.eval_ns_per_query) },
+                f.eval_ns_per_query,
                 opt(f.eval_batch_ns_per_query, 1.0, 0),
                 prepare(f.prepare_ns_per_point, f.prepare_many_ns_per_point),
                 m.n_weights,
@@ -591,23 +534,16 @@ pub fn csv(results: &[JobResult]) -> String {
     let mut out = String::from(
         "scene,model,psnr,dssim,lpips,flip,brdf_rmse_cbrt,brdf_samples,reciprocity_rmse,energy_share_above_one,\
          energy_median_above_one,energy_mean_albedo,train_wall_s,eval_ns_per_query,n_weights,size_bytes,steps,final_loss,\
-         psnr_f16,brdf_rmse_cbrt_f16,eval_ns_per_query_f16,size_bytes_f16,psnr_f16_half,brdf_rmse_cbrt_f16_half,\
-         eval_ns_per_query_f16_half,eval_batch_ns_per_query,eval_batch_ns_per_query_f16,eval_batch_ns_per_query_f16_half,\
-         psnr_split_bf16,brdf_rmse_cbrt_split_bf16,eval_batch_ns_per_query_split_bf16,\
-         psnr_split_bf16x6,brdf_rmse_cbrt_split_bf16x6,eval_batch_ns_per_query_split_bf16x6,\
-         psnr_bf16,brdf_rmse_cbrt_bf16,eval_batch_ns_per_query_bf16,prepare_ns_per_point,prepare_many_ns_per_point\n",
+         psnr_f16,brdf_rmse_cbrt_f16,eval_ns_per_query_f16,size_bytes_f16,eval_batch_ns_per_query,\
+         eval_batch_ns_per_query_f16,prepare_ns_per_point,prepare_many_ns_per_point\n",
     );
     let o = |v: Option<f64>| v.map_or(String::new(), |x| x.to_string());
     for r in results {
         let e = &r.eval;
         let f16 = r.eval_f16.as_ref();
-        let half = r.eval_f16_half.as_ref();
-        let split = r.eval_split_bf16.as_ref();
-        let split6 = r.eval_split_bf16x6.as_ref();
-        let bf16 = r.eval_bf16.as_ref();
         let _ = writeln!(
             out,
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             r.scene,
             r.model,
             e.image.psnr,
@@ -630,21 +566,8 @@ pub fn csv(results: &[JobResult]) -> String {
             o(f16.map(|e| e.brdf_rmse_cbrt.value)),
             o(f16.map(|e| e.eval_ns_per_query)),
             r.size_bytes_f16.map_or(String::new(), |b| b.to_string()),
-            o(half.map(|e| e.image.psnr)),
-            o(half.map(|e| e.brdf_rmse_cbrt.value)),
-            o(half.map(|e| e.eval_ns_per_query)),
             o(e.eval_batch_ns_per_query),
             o(f16.and_then(|e| e.eval_batch_ns_per_query)),
-            o(half.and_then(|e| e.eval_batch_ns_per_query)),
-            o(split.map(|e| e.image.psnr)),
-            o(split.map(|e| e.brdf_rmse_cbrt.value)),
-            o(split.and_then(|e| e.eval_batch_ns_per_query)),
-            o(split6.map(|e| e.image.psnr)),
-            o(split6.map(|e| e.brdf_rmse_cbrt.value)),
-            o(split6.and_then(|e| e.eval_batch_ns_per_query)),
-            o(bf16.map(|e| e.image.psnr)),
-            o(bf16.map(|e| e.brdf_rmse_cbrt.value)),
-            o(bf16.and_then(|e| e.eval_batch_ns_per_query)),
             o(e.prepare_ns_per_point),
             o(e.prepare_many_ns_per_point),
         );
