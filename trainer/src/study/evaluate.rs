@@ -222,21 +222,17 @@ fn time_prepare(model: &Model<'_>, points: &[f32]) -> (Option<f64>, Option<f64>)
     let rounds = (16_384 / n).max(1);
     let mut out = vec![model.prepare(&points[..k]); n];
     let mut sink = 0.0f32;
-    let t = Instant::now();
-    for _ in 0..rounds {
+    let single = ns_per_round(rounds, |_| {
         for (i, o) in out.iter_mut().enumerate() {
             *o = model.prepare(std::hint::black_box(&points[i * k..(i + 1) * k]));
         }
         sink += out[n / 2].diffuse()[0];
-    }
-    let single = t.elapsed().as_nanos() as f64 / (rounds * n) as f64;
-    let t = Instant::now();
-    for _ in 0..rounds {
+    }) / n as f64;
+    let many = ns_per_round(rounds, |_| {
         // The length is right by construction; an error would leave `out` as it was.
         model.prepare_many(std::hint::black_box(&points[..n * k]), &mut out).ok();
         sink += out[n / 2].diffuse()[0];
-    }
-    let many = t.elapsed().as_nanos() as f64 / (rounds * n) as f64;
+    }) / n as f64;
     std::hint::black_box(sink);
     (Some(single), Some(many))
 }
@@ -252,12 +248,10 @@ fn time_batches(model: &Model<'_>, prepared: &[Prepared], pairs: &[DirectionPair
     model.eval_many(&prepared[0], &wi, &wo, &mut out);
     let rounds = (200_000 / BATCH).max(1);
     let mut sink = 0.0f32;
-    let t = Instant::now();
-    for r in 0..rounds {
+    let ns = ns_per_round(rounds, |r| {
         model.eval_many(&prepared[r % prepared.len()], std::hint::black_box(&wi), &wo, &mut out);
         sink += out[r % BATCH][1];
-    }
-    let ns = t.elapsed().as_nanos() as f64 / (rounds * BATCH) as f64;
+    }) / BATCH as f64;
     std::hint::black_box(sink);
     ns
 }
@@ -273,15 +267,32 @@ fn time_eval(eval: &impl Fn(&Prepared, Vec3, Vec3) -> Rgb, prepared: &[Prepared]
     for p in pairs.iter().take(1000) {
         sink += eval(&prepared[p.point], p.wi, p.wo)[0];
     }
-    let t = Instant::now();
-    for _ in 0..rounds {
+    let ns = ns_per_round(rounds, |_| {
         for p in pairs {
             sink += eval(&prepared[p.point], std::hint::black_box(p.wi), p.wo)[1];
         }
-    }
-    let ns = t.elapsed().as_nanos() as f64 / (rounds * pairs.len()) as f64;
+    }) / pairs.len() as f64;
     std::hint::black_box(sink);
     ns
+}
+
+/// Longest a timing loop runs: enough for ~200k queries at the SIMD levels (~0.3 s for the slowest
+/// model), and a bound at the portable level, where the same count takes 10-20× as long.
+const TIMING_BUDGET: std::time::Duration = std::time::Duration::from_millis(400);
+
+/// Mean ns per call of `round(r)` over `rounds` calls, or over the calls made until
+/// [`TIMING_BUDGET`] ran out (at least one).
+fn ns_per_round(rounds: usize, mut round: impl FnMut(usize)) -> f64 {
+    let t = Instant::now();
+    let mut done = 0;
+    while done < rounds.max(1) {
+        round(done);
+        done += 1;
+        if t.elapsed() >= TIMING_BUDGET {
+            break;
+        }
+    }
+    t.elapsed().as_nanos() as f64 / done as f64
 }
 
 /// The first image of the first test view: reference, the model's rendering (Eq. 9, as in
