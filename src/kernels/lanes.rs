@@ -39,6 +39,8 @@ pub(super) unsafe trait Lanes {
 
 /// A weight type as the generic kernels read it: f32 rows as they are, f16 rows widened.
 pub(super) trait Row: Copy {
+    /// The value as f32.
+    fn to_f32(self) -> f32;
     /// The slice itself where it already holds f32 values.
     fn as_f32(s: &[Self]) -> Option<&[f32]>;
     /// `dst[i] = src[i]` as f32 over the common length.
@@ -46,6 +48,11 @@ pub(super) trait Row: Copy {
 }
 
 impl Row for f32 {
+    #[inline(always)]
+    fn to_f32(self) -> f32 {
+        self
+    }
+
     #[inline(always)]
     fn as_f32(s: &[f32]) -> Option<&[f32]> {
         Some(s)
@@ -59,6 +66,11 @@ impl Row for f32 {
 }
 
 impl Row for half::f16 {
+    #[inline(always)]
+    fn to_f32(self) -> f32 {
+        half::f16::to_f32(self)
+    }
+
     #[inline(always)]
     fn as_f32(_: &[half::f16]) -> Option<&[f32]> {
         None
@@ -126,6 +138,32 @@ unsafe fn axpy<L: Lanes>(x: f32, row: *const f32, acc: *mut f32, w: usize) {
     }
 }
 
+/// [`axpy`] over a row of any weight type, each vector of weights widened as it is loaded (a
+/// single query reads each row once, so widening a whole tile first would only add a round trip).
+///
+/// # Safety
+/// As [`axpy`] for `acc`; `row` holds `w` weights.
+#[inline(always)]
+unsafe fn axpy_row<L: Lanes, W: Row>(x: f32, row: &[W], acc: *mut f32, w: usize) {
+    if let Some(f) = W::as_f32(row) {
+        if w % L::N == 0 {
+            // SAFETY: `w` values, whole vectors.
+            return unsafe { axpy::<L>(x, f.as_ptr(), acc, w) };
+        }
+    }
+    let xv = L::splat(x);
+    let mut v = 0;
+    while v < w {
+        let mut t = [0.0f32; 16];
+        for (t, r) in t.iter_mut().zip(&row[v..w.min(v + L::N)]) {
+            *t = r.to_f32();
+        }
+        // SAFETY: `t` holds 16 ≥ N values; `acc` as in the contract.
+        unsafe { L::store(acc.add(v), L::mul_add(xv, L::load(t.as_ptr()), L::load(acc.add(v)))) };
+        v += L::N;
+    }
+}
+
 /// `out[..w] = relu?(acc[..w])`.
 ///
 /// # Safety
@@ -168,7 +206,6 @@ fn row_tile<W: Row>(rows: &[W], i: usize, n: usize, t0: usize, w: usize, buf: &m
 pub(super) unsafe fn one<L: Lanes, W: Row>(layer: &Dense<'_, W>, out: *mut f32) {
     let n = layer.n_out;
     let mut acc = [0.0f32; TILE];
-    let mut buf = [0.0f32; TILE];
     for t0 in (0..n).step_by(TILE) {
         let w = (n - t0).min(TILE);
         acc[..w].copy_from_slice(&layer.init[t0..t0 + w]);
@@ -177,9 +214,8 @@ pub(super) unsafe fn one<L: Lanes, W: Row>(layer: &Dense<'_, W>, out: *mut f32) 
                 if *xi == 0.0 {
                     continue;
                 }
-                let r = row_tile(s.rows, i, n, t0, w, &mut buf);
-                // SAFETY: `acc` and the row tile hold `TILE ≥ w` rounded up to `N` values.
-                unsafe { axpy::<L>(*xi, r, acc.as_mut_ptr(), w) };
+                // SAFETY: `acc` holds `TILE ≥ w` rounded up to `N` values.
+                unsafe { axpy_row::<L, W>(*xi, &s.rows[i * n + t0..i * n + t0 + w], acc.as_mut_ptr(), w) };
             }
         }
         // SAFETY: `check` verified that `out` holds `n_out` values.
