@@ -146,7 +146,7 @@ unsafe fn axpy<L: Lanes>(x: f32, row: *const f32, acc: *mut f32, w: usize) {
 #[inline(always)]
 unsafe fn axpy_row<L: Lanes, W: Row>(x: f32, row: &[W], acc: *mut f32, w: usize) {
     if let Some(f) = W::as_f32(row) {
-        if w % L::N == 0 {
+        if w.is_multiple_of(L::N) {
             // SAFETY: `w` values, whole vectors.
             return unsafe { axpy::<L>(x, f.as_ptr(), acc, w) };
         }
