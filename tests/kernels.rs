@@ -287,3 +287,56 @@ fn the_level_nbrdf_kernel_asks_for_is_the_one_in_use() {
     assert!(Level::ALL.contains(&nbrdf::kernels::detected()) && nbrdf::kernels::detected() <= cpu);
     println!("kernel level {} (CPU {cpu})", nbrdf::kernels::detected());
 }
+
+/// Every level a host runs gives every model kind the values of the portable level within the
+/// cross-level bound (README, "CPUs and kernel levels"): the levels differ only in fusing each
+/// multiply-add, so a layer's sum of K terms moves by at most K·u of its terms' magnitudes and a
+/// paper-size network's output by ~1e-6 relative. Single queries and batches, f32 and f16 rows.
+#[test]
+fn every_level_agrees_with_the_portable_one_within_the_rounding_bound() {
+    let _level = LEVEL.lock().unwrap_or_else(|e| e.into_inner());
+    let mut rng = Rng(0x5851f42d4c957f2d);
+    let pos = PositionEncoding::Intrinsic { k: 6 };
+    let mut files = Vec::new();
+    let mut headers: Vec<ModelHeader> =
+        nbrdf::parametric::ParametricKind::ALL.iter().map(|&k| ModelHeader::paper(ModelKind::Parametric(k), false, Reciprocity::None, pos, 0)).collect();
+    for kind in [ModelKind::SingleMlp, ModelKind::AdditiveSeparate, ModelKind::AdditiveShared] {
+        headers.push(ModelHeader::paper(kind, kind.is_additive(), Reciprocity::Exact, pos, 4));
+    }
+    for h in headers {
+        let w: Vec<f32> = (0..h.n_weights()).map(|_| rng.next() * 0.3).collect();
+        let f32_file = encode(&h, &w, None).unwrap();
+        let f16_file = ModelBuf::from_bytes(&f32_file).unwrap().model().to_f16().unwrap();
+        files.push((words(&f32_file), f32_file.len()));
+        files.push((words(&f16_file), f16_file.len()));
+    }
+    let point: Vec<f32> = (0..6).map(|_| rng.next()).collect();
+    let n = 100;
+    let mut dir = || Vec3::new(rng.next(), rng.next(), rng.next() + 0.6).normalize();
+    let (wi, wo): (Vec<Vec3>, Vec<Vec3>) = (0..n).map(|_| (dir(), dir())).unzip();
+    let run = |m: &Model<'_>| {
+        let p = m.prepare(&point[..m.position_len()]);
+        let single: Vec<[f32; 3]> = wi.iter().zip(&wo).map(|(a, b)| m.eval(&p, *a, *b)).collect();
+        let mut batch = vec![[0.0f32; 3]; n];
+        m.eval_many(&p, &wi, &wo, &mut batch);
+        (single, batch)
+    };
+    let mut worst = 0.0f32;
+    for (w, len) in &files {
+        let m = Model::from_bytes(&bytes(w)[..*len]).unwrap();
+        set_level(Some(Level::Portable));
+        let (want, _) = run(&m);
+        let scale = want.iter().flatten().fold(0.0f32, |a, v| a.max(v.abs())).max(1e-30);
+        for level in Level::usable() {
+            set_level(Some(level));
+            let (single, batch) = run(&m);
+            for (got, what) in [(&single, "single"), (&batch, "batch")] {
+                let err = got.iter().flatten().zip(want.iter().flatten()).fold(0.0f32, |a, (g, e)| a.max((g - e).abs())) / scale;
+                assert!(err <= 1e-5, "{level} {what} {:?} {:?}: {err:e} from the portable level", m.header().kind, m.header().precision);
+                worst = worst.max(err);
+            }
+        }
+    }
+    set_level(None);
+    println!("largest difference from the portable level, relative to the largest value: {worst:e}");
+}
