@@ -554,7 +554,7 @@ impl<'a> Model<'a> {
     }
 
     /// [`Model::eval_many_by`] on AVX-512: the pairs mapped (Θ, or the Rusinkiewicz angles) and
-    /// encoded 16 at a time (`kernels::theta16`, the bits of [`Model::encode_pair`] in every lane; the
+    /// encoded 16 at a time (`angles::theta16`, the bits of [`Model::encode_pair`] in every lane; the
     /// pairs it leaves to the scalar code encoded by that), the valid ones gathered into packets as there.
     #[cfg(target_arch = "x86_64")]
     fn eval_many_theta16(
@@ -582,7 +582,7 @@ impl<'a> Model<'a> {
             }
             // SAFETY: the level is AVX-512 (checked by the caller); `m ≤ 16`; at most `MAX_FREQUENCIES`
             // octaves, so a row's `len` values fit the `MAX_ANGLE_INPUT` between rows.
-            let (valid, scalar) = unsafe { crate::kernels::theta16::encode16(&wi, &wo, m, exact, frequencies, &mut stage, MAX_ANGLE_INPUT) };
+            let (valid, scalar) = unsafe { crate::angles::theta16::encode16(&wi, &wo, m, exact, frequencies, &mut stage, MAX_ANGLE_INPUT) };
             if filled == 0 && valid == 0xffff {
                 // A whole packet of valid pairs: straight from the rows.
                 for (q, f) in run(&stage).into_iter().enumerate() {

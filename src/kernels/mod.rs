@@ -22,22 +22,14 @@
 //! for finite weights, except that `-0 + 0 = +0`, and the sign of a zero pre-activation is erased by
 //! the ReLU (`max(acc, 0)` returns `+0`) and by every output map.
 //! Levels differ from each other by rounding only (FMA versus multiply-then-add).
-//!
-//! # Angles for 16 pairs
-//! `theta16.rs` maps 16 direction pairs through Θ (or the plain Rusinkiewicz angles) and the
-//! positional encoding at once for the batches (AVX-512): libm's `atanf`/`atan2f` and the rest of the
-//! map with lanes for pairs, every lane the bits of the one-pair functions, so `Model::eval_many`
-//! keeps `Model::eval`'s bits.
 
 mod output_map;
 mod lanes;
 #[cfg(target_arch = "aarch64")]
 mod neon;
-mod sincos;
+pub(crate) mod sincos;
 mod tiny;
 mod widen;
-#[cfg(target_arch = "x86_64")]
-pub(crate) mod theta16;
 #[cfg(target_arch = "x86_64")]
 mod x86;
 
@@ -46,6 +38,8 @@ use core::sync::atomic::{AtomicU8, Ordering};
 pub use output_map::{map_outputs, sigmoid_slice, softplus_slice};
 pub use sincos::{sincos16, sincos_octaves};
 pub use widen::widen_f16;
+#[cfg(target_arch = "x86_64")]
+pub(crate) use x86::{mask16, transpose16};
 pub use tiny::{half_diff_packet, TinyLayer, TinyNet, TINY_INPUTS, TINY_MAX_WIDTH, TINY_PACKET};
 
 /// Queries per packet of the batched kernels: 16, so that one weight vector (one f16 conversion)

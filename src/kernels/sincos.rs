@@ -170,7 +170,7 @@ unsafe fn avx512_vector(v: core::arch::x86_64::__m512) -> ([f32; 16], [f32; 16],
 #[inline]
 #[target_feature(enable = "avx512f,avx2,fma")]
 #[allow(clippy::excessive_precision)] // The constants as Cephes prints them, so they can be checked there.
-pub(super) unsafe fn sincos_vector(v: core::arch::x86_64::__m512) -> (core::arch::x86_64::__m512, core::arch::x86_64::__m512, u16) {
+pub(crate) unsafe fn sincos_vector(v: core::arch::x86_64::__m512) -> (core::arch::x86_64::__m512, core::arch::x86_64::__m512, u16) {
     use core::arch::x86_64::*;
     let c = |f: f32| _mm512_set1_ps(f);
     // Ordered comparison: false for NaN, so NaN lanes go to libm as well.
