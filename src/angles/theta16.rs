@@ -15,9 +15,9 @@
 //! operations in the same order as the scalar code: [`super::unit`] (twice, as
 //! `upper_hemisphere_pair` and then `half_frame` normalise), the half frame with glam's sums in
 //! glam's order, libm's `atanf`/`atan2f` (FreeBSD `s_atanf.c`, `e_atan2f.c`; their branches as
-//! masks, no fused multiply-adds), and the encoding's one sine-cosine body
-//! (`sincos_vector`, the kernels' `sincos.rs`; lanes it does not reduce go to `libm::sincosf` as there). Pairs
-//! whose vectors need `unit`'s rescaled path (squared length outside `[1e-30, 1e30]`, zero, not
+//! masks, no fused multiply-adds), and the encoding's one sine-cosine body ([`crate::encoding`]'s
+//! `sincos_vector`, `encoding/sincos.rs`; lanes it does not reduce go to `libm::sincosf` as there).
+//! Pairs whose vectors need `unit`'s rescaled path (squared length outside `[1e-30, 1e30]`, zero, not
 //! finite) are left to the caller's scalar code.
 
 use core::arch::x86_64::*;
@@ -278,7 +278,7 @@ pub(crate) unsafe fn encode16(wi: &[Vec3; 16], wo: &[Vec3; 16], n: usize, exact:
             // 2^k from its exponent bits, times the value: the product `octave_args` forms.
             let arg = _mm512_mul_ps(_mm512_castsi512_ps(_mm512_set1_epi32((k as i32 + 127) << 23)), v);
             // SAFETY: AVX-512F.
-            let (mut sin, mut cos, done) = unsafe { crate::kernels::sincos::sincos_vector(arg) };
+            let (mut sin, mut cos, done) = unsafe { crate::encoding::sincos_vector(arg) };
             let redo = !done & valid;
             if redo != 0 {
                 let (mut xs, mut ss, mut cs) = ([0.0f32; 16], [0.0f32; 16], [0.0f32; 16]);

@@ -27,7 +27,6 @@ mod output_map;
 mod lanes;
 #[cfg(target_arch = "aarch64")]
 mod neon;
-pub(crate) mod sincos;
 mod tiny;
 mod widen;
 #[cfg(target_arch = "x86_64")]
@@ -36,7 +35,6 @@ mod x86;
 use core::sync::atomic::{AtomicU8, Ordering};
 
 pub use output_map::{map_outputs, sigmoid_slice, softplus_slice};
-pub use sincos::{sincos16, sincos_octaves};
 pub use widen::widen_f16;
 #[cfg(target_arch = "x86_64")]
 pub(crate) use x86::{mask16, transpose16};
