@@ -23,7 +23,6 @@
 //! the ReLU (`max(acc, 0)` returns `+0`) and by every output map.
 //! Levels differ from each other by rounding only (FMA versus multiply-then-add).
 
-mod output_map;
 mod lanes;
 #[cfg(target_arch = "aarch64")]
 mod neon;
@@ -34,7 +33,6 @@ mod x86;
 
 use core::sync::atomic::{AtomicU8, Ordering};
 
-pub use output_map::{map_outputs, sigmoid_slice, softplus_slice};
 pub use widen::widen_f16;
 #[cfg(target_arch = "x86_64")]
 pub(crate) use x86::{mask16, transpose16};
