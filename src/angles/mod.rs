@@ -75,7 +75,7 @@ pub const UNIT_FAST_MAX: f32 = 1e30;
 ///   inputs normalise without underflow or overflow.
 ///
 /// The result is within 2e-7 (relative, per component) of the exact normalisation.
-/// `crate::kernels::half_diff_packet` repeats the first two rules in the same order on 16 vectors.
+/// `measured::nbrdf_json::half_diff_packet` repeats the first two rules in the same order on 16 vectors.
 ///
 /// ```
 /// use nbrdf::{angles::unit, Vec3};

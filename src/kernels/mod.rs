@@ -26,7 +26,6 @@
 mod lanes;
 #[cfg(target_arch = "aarch64")]
 mod neon;
-mod tiny;
 mod widen;
 #[cfg(target_arch = "x86_64")]
 mod x86;
@@ -36,7 +35,6 @@ use core::sync::atomic::{AtomicU8, Ordering};
 pub use widen::widen_f16;
 #[cfg(target_arch = "x86_64")]
 pub(crate) use x86::{mask16, transpose16};
-pub use tiny::{half_diff_packet, TinyLayer, TinyNet, TINY_INPUTS, TINY_MAX_WIDTH, TINY_PACKET};
 
 /// Queries per packet of the batched kernels: 16, so that one weight vector (one f16 conversion)
 /// serves 16 FMAs in the AVX-512 kernel (8 left f16 17% slower than f32; 16: within 2%).
