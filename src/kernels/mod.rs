@@ -485,48 +485,99 @@ impl<W: 'static> Kernels<W> {
     }
 }
 
-/// A weight type with kernels: `f32` and `half::f16`.
-pub trait KernelWeight: Sized + 'static {
+/// A weight element: `f32`, or `half::f16` for half-size model files (widened to f32 as it is read).
+///
+/// The one weight trait of the crate: how the kernels read a weight type (in place, or widened) and
+/// their table of kernels for it. The networks take it as [`crate::mlp::Weight`].
+pub trait Weight: Copy + Send + Sync + 'static {
+    /// The value as `f32`.
+    fn to_f32(self) -> f32;
+
+    /// The slice itself where it already holds f32 values (read in place rather than widened).
+    fn as_f32(s: &[Self]) -> Option<&[f32]>;
+
+    /// `dst[i] = src[i].to_f32()` over the common length, as fast as the CPU allows.
+    fn widen(src: &[Self], dst: &mut [f32]);
+
     /// The kernels of `level`, which must be at most [`detected`] (lower levels are always safe).
     #[doc(hidden)]
     fn table(level: Level) -> &'static Kernels<Self>;
 }
 
-macro_rules! tables {
+/// The body of [`Weight::table`] for weight type `$w`: its kernels at each level of this target.
+macro_rules! table {
     ($w:ty, $avx2:ident, $avx512:ident) => {
-        impl KernelWeight for $w {
-            #[inline]
-            fn table(level: Level) -> &'static Kernels<$w> {
-                static PORTABLE: Kernels<$w> =
-                    Kernels { one: lanes::portable::one::<$w>, packet: lanes::portable::packet::<$w>, chain: None };
+        #[inline]
+        fn table(level: Level) -> &'static Kernels<$w> {
+            static PORTABLE: Kernels<$w> =
+                Kernels { one: lanes::portable::one::<$w>, packet: lanes::portable::packet::<$w>, chain: None };
+            #[cfg(target_arch = "aarch64")]
+            static NEON: Kernels<$w> = Kernels { one: neon::one::<$w>, packet: neon::packet::<$w>, chain: None };
+            #[cfg(target_arch = "x86_64")]
+            static AVX2: Kernels<$w> = Kernels { one: x86::$avx2::one, packet: x86::$avx2::packet, chain: None };
+            #[cfg(target_arch = "x86_64")]
+            static AVX512: Kernels<$w> =
+                Kernels { one: x86::$avx512::one, packet: x86::$avx512::packet, chain: Some(x86::$avx512::chain) };
+            // Never hand out a level above the detected one, whatever the caller asked for.
+            match level.min(detected()) {
+                Level::Portable => &PORTABLE,
+                #[cfg(target_arch = "x86_64")]
+                Level::Avx2 => &AVX2,
+                #[cfg(target_arch = "x86_64")]
+                Level::Avx512 => &AVX512,
                 #[cfg(target_arch = "aarch64")]
-                static NEON: Kernels<$w> = Kernels { one: neon::one::<$w>, packet: neon::packet::<$w>, chain: None };
-                #[cfg(target_arch = "x86_64")]
-                static AVX2: Kernels<$w> = Kernels { one: x86::$avx2::one, packet: x86::$avx2::packet, chain: None };
-                #[cfg(target_arch = "x86_64")]
-                static AVX512: Kernels<$w> =
-                    Kernels { one: x86::$avx512::one, packet: x86::$avx512::packet, chain: Some(x86::$avx512::chain) };
-                // Never hand out a level above the detected one, whatever the caller asked for.
-                match level.min(detected()) {
-                    Level::Portable => &PORTABLE,
-                    #[cfg(target_arch = "x86_64")]
-                    Level::Avx2 => &AVX2,
-                    #[cfg(target_arch = "x86_64")]
-                    Level::Avx512 => &AVX512,
-                    #[cfg(target_arch = "aarch64")]
-                    Level::Neon => &NEON,
-                    _ => &PORTABLE,
-                }
+                Level::Neon => &NEON,
+                _ => &PORTABLE,
             }
         }
     };
 }
-tables!(f32, avx2_f32, avx512_f32);
-tables!(half::f16, avx2_f16, avx512_f16);
+
+impl Weight for f32 {
+    #[inline(always)]
+    fn to_f32(self) -> f32 {
+        self
+    }
+
+    #[inline(always)]
+    fn as_f32(s: &[f32]) -> Option<&[f32]> {
+        Some(s)
+    }
+
+    #[inline(always)]
+    fn widen(src: &[f32], dst: &mut [f32]) {
+        let n = src.len().min(dst.len());
+        dst[..n].copy_from_slice(&src[..n]);
+    }
+
+    table!(f32, avx2_f32, avx512_f32);
+}
+
+impl Weight for half::f16 {
+    #[inline(always)]
+    fn to_f32(self) -> f32 {
+        half::f16::to_f32(self)
+    }
+
+    #[inline(always)]
+    fn as_f32(_: &[half::f16]) -> Option<&[f32]> {
+        None
+    }
+
+    /// Through [`widen_f16`]: one level check per slice and 16 values per `vcvtph2ps`. Per element
+    /// (`to_f32` in a loop: an out-of-line call with its own feature check each) the biases of a
+    /// paper-size network took a quarter of an f16 single query.
+    #[inline(always)]
+    fn widen(src: &[half::f16], dst: &mut [f32]) {
+        widen_f16(src, dst);
+    }
+
+    table!(half::f16, avx2_f16, avx512_f16);
+}
 
 /// The kernels of the active [`level`] for weights `W`.
 #[inline]
-pub fn kernels<W: KernelWeight>() -> &'static Kernels<W> {
+pub fn kernels<W: Weight>() -> &'static Kernels<W> {
     W::table(level())
 }
 
@@ -559,7 +610,7 @@ pub(crate) mod tests {
     }
 
     /// f64 reference of one query of a layer.
-    fn reference<W: crate::mlp::Weight>(l: &Dense<'_, W>, q: usize) -> [f64; 256] {
+    fn reference<W: Weight>(l: &Dense<'_, W>, q: usize) -> [f64; 256] {
         let mut y = [0.0f64; 256];
         for (o, y) in y.iter_mut().enumerate().take(l.n_out) {
             let mut a = l.init[o] as f64;
@@ -604,7 +655,7 @@ pub(crate) mod tests {
         l
     }
 
-    fn check_shapes<W: crate::mlp::Weight>(w: &[W]) {
+    fn check_shapes<W: Weight>(w: &[W]) {
         for &(n_out, n1, n2, relu) in
             &[(3, 20, 0, false), (6, 31, 0, false), (17, 9, 5, true), (21, 21, 0, true), (32, 6, 0, true), (64, 20, 0, false), (128, 40, 0, true), (128, 64, 7, true), (130, 12, 3, true), (200, 3, 0, true), (48, 5, 5, false), (17, 300, 20, true), (40, 250, 9, false)]
         {
@@ -677,7 +728,7 @@ pub(crate) mod tests {
 
     /// The hidden layers of a chain run one by one through `one` (a one-query kernel); the last
     /// layer's activations.
-    fn layer_by_layer<W: crate::mlp::Weight>(
+    fn layer_by_layer<W: Weight>(
         one: impl Fn(&Dense<'_, W>, &mut [f32]),
         tail: &[f32],
         first_init: &[f32],
@@ -713,7 +764,7 @@ pub(crate) mod tests {
     /// A chain against the same layers run one by one through `Kernels::one`: every tail length
     /// (none, below and above the dense-layer threshold, near the longest encoding), with and without a
     /// skip layer, every output-layer shape.
-    fn check_chain<W: crate::mlp::Weight>(w: &[W]) {
+    fn check_chain<W: Weight>(w: &[W]) {
         let k = W::table(detected());
         if !k.has_chain() {
             return;
@@ -758,7 +809,7 @@ pub(crate) mod tests {
     /// query alone uses, pairs of queries walked together with rows only one of them uses, f32 and
     /// f16 weights.
     #[cfg(target_arch = "x86_64")]
-    fn check_sparse<W: crate::mlp::Weight>(w: &[W], sparse: unsafe fn(&Dense<'_, W>, *mut f32, usize), dense: unsafe fn(&Dense<'_, W>, *mut f32, usize)) {
+    fn check_sparse<W: Weight>(w: &[W], sparse: unsafe fn(&Dense<'_, W>, *mut f32, usize), dense: unsafe fn(&Dense<'_, W>, *mut f32, usize)) {
         for (case, &(n1, n2, zero_every)) in [(128, 0, 2), (128, 36, 2), (40, 0, 3), (150, 70, 2), (64, 1, 5), (0, 36, 2), (0, 0, 2), (100, 12, 1), (128, 0, 1), (128, 0, 2)].iter().enumerate() {
             let (mut x1, mut x2, init) = layer_inputs(128, n1);
             // Fewer zeros than `values` leaves where `zero_every` is 1 (then every input is zero).
@@ -845,7 +896,7 @@ pub(crate) mod tests {
 
     #[test]
     fn a_chain_with_a_tail_beyond_its_capacity_is_rejected() {
-        let k = <f32 as KernelWeight>::table(detected());
+        let k = <f32 as Weight>::table(detected());
         if !k.has_chain() {
             return;
         }

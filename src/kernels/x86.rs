@@ -569,7 +569,7 @@ macro_rules! avx512 {
                         for _ in 0..piece.n {
                             let xv = _mm512_loadu_ps(x);
                             for (o, a) in acc.iter_mut().enumerate() {
-                                *a = _mm512_fmadd_ps(xv, _mm512_set1_ps(crate::mlp::Weight::to_f32(*r.add(o))), *a);
+                                *a = _mm512_fmadd_ps(xv, _mm512_set1_ps(crate::kernels::Weight::to_f32(*r.add(o))), *a);
                             }
                             x = x.add(PACKET);
                             r = r.add(N);
