@@ -5,8 +5,8 @@
 //! `.nbrdf` models with f16 weights, widened at load (`ModelBuf`) or row by row as they are read
 //! (`Model::from_bytes`), against the f32 model of the same values, bit for bit, at every level.
 
-use nbrdf::file::{encode, ModelBuf, ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity};
-use nbrdf::model::Model;
+use nbrdf::file::{encode, ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity};
+use nbrdf::{Model, ModelBuf};
 use nbrdf::kernels::{set_level, Level};
 use nbrdf::measured::nbrdf_json::{TinyLayer, TinyNet, TINY_INPUTS, TINY_PACKET};
 use nbrdf::Vec3;

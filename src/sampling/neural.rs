@@ -17,7 +17,8 @@ impl Model<'_> {
     /// Samples `wi` for the view `wo` at a prepared point; `u` is three uniform numbers in [0, 1).
     ///
     /// ```
-    /// use nbrdf::file::{encode, ModelBuf, ModelHeader, ModelKind, PositionEncoding, Reciprocity};
+    /// use nbrdf::file::{encode, ModelHeader, ModelKind, PositionEncoding, Reciprocity};
+    /// use nbrdf::ModelBuf;
     /// use nbrdf::Vec3;
     /// let h = ModelHeader::paper(ModelKind::SingleMlp, false, Reciprocity::Exact, PositionEncoding::Uniform, 2);
     /// let w: Vec<f32> = (0..h.n_weights()).map(|i| ((i * 7919) % 200) as f32 * 1e-3 - 0.1).collect();
