@@ -25,6 +25,11 @@
 //! assert!(f.iter().all(|c| c.is_finite() && *c >= 0.0));
 //! assert_eq!(f, model.eval(&point, wo, wi)); // exact reciprocity, bit for bit
 //! ```
+//!
+//! Importance sampling of a model ([`Model::sample`], [`Model::pdf`], [`Model::fit_proxy`]) is in
+//! `sampling.rs`, over the proxies of [`crate::sampling`].
+
+mod sampling;
 
 use crate::angles::{rusinkiewicz_angles, theta_map, upper_hemisphere_pair};
 use crate::encoding::positional_encoding;

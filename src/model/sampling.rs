@@ -2,9 +2,12 @@
 //! parameters its network predicted at the point; a neural model samples the [`Proxy`] stored in its
 //! file header (pure cosine sampling if the file has none) and evaluates the network for the weight.
 //! Either way the pdf is the density actually sampled, so `weight = f cos θi / pdf` is unbiased.
+//!
+//! These methods live with the model rather than in [`crate::sampling`], which they use: the samplers
+//! and the proxy sit below the model file and its evaluator, and import neither.
 
-use super::{fit_proxy, BsdfSample, Proxy};
-use crate::model::{Model, Prepared};
+use super::{Model, Prepared};
+use crate::sampling::{fit_proxy, BsdfSample, Proxy};
 use crate::{Rgb, Vec3};
 
 impl Model<'_> {
