@@ -1,4 +1,14 @@
-//! Dense-layer kernels of the neural evaluator, selected by the CPU at run time.
+//! Dense-layer kernels of the neural evaluator, selected by the CPU at run time: the bottom layer of
+//! the crate, importing nothing from the modules above it (`tests/layers.rs` holds that).
+//!
+//! What is here: the layer description ([`Dense`], [`Chain`]) and its table of kernels per weight type
+//! ([`Weight`], [`Kernels`], [`kernels`]); the levels, their detection and `NBRDF_KERNEL`
+//! ([`Level`], [`detected`], [`level`], [`set_level`]); `lanes.rs`, the portable and NEON kernels
+//! written once over a small lane trait; `x86.rs`, the hand-tiled AVX2 and AVX-512 kernels;
+//! `neon.rs`, the aarch64 lanes; `widen.rs`, the f16-to-f32 conversion of weight slices
+//! ([`widen_f16`]). Vectorised code that is not a dense layer lives with what it computes and
+//! dispatches on [`level`]: Θ for 16 pairs in `angles`, the vector sin/cos in `encoding`, the output
+//! maps in `math`, the tiny NBRDF-json network kernel in `measured::nbrdf_json`.
 //!
 //! One kernel computes one layer `y_o = init_o + Σ_s Σ_i x_s[i] M_s[i][o]` (then ReLU for hidden layers)
 //! for either one query ([`Kernels::one`]) or a packet of [`PACKET`] queries ([`Kernels::packet`]).
@@ -7,10 +17,10 @@
 //! [`Kernels::chain`] runs one query through a whole 128-wide network in one call (AVX-512).
 //!
 //! Levels: [`Level::Avx512`] and [`Level::Avx2`] (x86-64, with FMA and F16C: half weights are widened
-//! by `vcvtph2ps` as they are loaded) and [`Level::Portable`] (plain Rust, every target). With the
-//! `std` feature the level is detected once at run time (`is_x86_feature_detected!`), so a default
-//! release build uses AVX-512 where the CPU has it; without `std` the level is what the compile-time
-//! target features allow (`-C target-cpu=…`).
+//! by `vcvtph2ps` as they are loaded), [`Level::Neon`] (aarch64) and [`Level::Portable`] (plain Rust,
+//! every target). With the `std` feature the level is detected once at run time
+//! (`is_x86_feature_detected!`), so a default release build uses AVX-512 where the CPU has it; without
+//! `std` the level is what the compile-time target features allow (`-C target-cpu=…`).
 //!
 //! # Determinism
 //! Every query's accumulator sees the same operations in the same order whatever the kernel shape:
