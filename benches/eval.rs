@@ -19,7 +19,8 @@ use criterion::measurement::{Measurement, ValueFormatter, WallTime};
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use nbrdf::kernels::{detected, set_level, Level};
 use nbrdf::measured::NbrdfNetwork;
-use nbrdf::file::{encode, Model, ModelBuf, ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity};
+use nbrdf::file::{encode, ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity};
+use nbrdf::{Model, ModelBuf};
 use nbrdf::parametric::ParametricKind;
 use nbrdf::{Rgb, Vec3};
 

@@ -17,7 +17,7 @@ use clap::Parser;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use nbrdf::builtin::Builtin;
-use nbrdf::file::ModelBuf;
+use nbrdf::ModelBuf;
 use nbrdf::measured::{MerlTable, NbrdfNetwork};
 use nbrdf::parametric::{Lambert, Parametric, ParametricKind, Phong, TorranceSparrow};
 use nbrdf::pathtrace::{render, Brdf, Environment, Material, Options, Sampling, Scene};

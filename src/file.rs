@@ -12,12 +12,17 @@
 //! | … | optional per-vertex position table, `f32` LE, `n_vertices × k` row-major (intrinsic encoding) |
 //! | last 4 | CRC-32 (IEEE) of every preceding byte, `u32` LE |
 //!
-//! Every section starts 4-byte aligned, so [`Model::from_bytes`] borrows the weights in place when the
-//! buffer is 4-byte aligned on a little-endian machine; [`ModelBuf`] (feature `alloc`) copies into
+//! Every section starts 4-byte aligned, so [`Model::from_bytes`](crate::Model::from_bytes) borrows the
+//! weights in place when the buffer is 4-byte aligned on a little-endian machine;
+//! [`ModelBuf`](crate::ModelBuf) (feature `alloc`) copies into
 //! aligned storage otherwise. Loading validates everything a renderer relies on — magic, version, header
 //! consistency (every network's shape against the model kind and input encodings), exact file size,
 //! checksum, finite weights — and reports the first problem as an [`Error`] value. Nothing panics on a
 //! malformed file; the fuzz target `model_file` holds that.
+//!
+//! This module is the format alone and imports nothing from its evaluator ([`crate::model`], which
+//! reads files through it); the evaluator's types are at the crate root ([`crate::Model`],
+//! [`crate::ModelBuf`], [`crate::Prepared`], [`crate::Weights`]).
 
 use serde::{Deserialize, Serialize};
 
@@ -25,10 +30,6 @@ use crate::encoding::encoded_len;
 use crate::mlp::{NetDesc, MAX_WIDTH};
 use crate::parametric::ParametricKind;
 use crate::Error;
-
-pub use crate::model::{Model, Prepared, Weights};
-#[cfg(feature = "alloc")]
-pub use crate::model::ModelBuf;
 
 /// File magic.
 pub const MAGIC: [u8; 8] = *b"NBRDFMDL";
@@ -40,6 +41,10 @@ pub const MAX_NETS: usize = 3;
 pub const MAX_FREQUENCIES: u8 = 16;
 /// Largest intrinsic encoding size `k`.
 pub const MAX_INTRINSIC: u16 = 4096;
+/// Largest encoded angle input: Θ (4 values) with 16 octaves.
+pub const MAX_ANGLE_INPUT: usize = encoded_len(4, MAX_FREQUENCIES as usize);
+/// Largest extrinsic position encoding: xyz with 16 octaves.
+pub const MAX_POSITION_INPUT: usize = encoded_len(3, MAX_FREQUENCIES as usize);
 
 /// Reciprocity strategy of a purely neural model (Sec. 4.3, Tab. 3).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -81,7 +86,7 @@ pub enum PositionEncoding {
 }
 
 impl PositionEncoding {
-    /// Number of values the caller passes to [`Model::prepare`]: 0, `k`, or 3.
+    /// Number of values the caller passes to [`Model::prepare`](crate::Model::prepare): 0, `k`, or 3.
     #[inline]
     pub const fn input_len(self) -> usize {
         match self {
@@ -406,8 +411,8 @@ impl ModelHeader {
             _ => Err(Error::InvalidValue { what: "network count", reason: "does not match the model kind" }),
         }?;
         // Both the position and the angle part must fit the evaluator's stack buffers.
-        if a > crate::model::MAX_ANGLE_INPUT {
-            return Err(Error::TooLarge { what: "angle input", found: a, max: crate::model::MAX_ANGLE_INPUT });
+        if a > MAX_ANGLE_INPUT {
+            return Err(Error::TooLarge { what: "angle input", found: a, max: MAX_ANGLE_INPUT });
         }
         const { assert!(MAX_WIDTH >= 6) };
         Ok(())
@@ -549,10 +554,10 @@ fn check_finite(bytes: &[u8], header: &ModelHeader, s: &Sections) -> Result<(), 
 /// position table (`n_vertices × k`, intrinsic only) is optional and sets `n_vertices`.
 ///
 /// ```
-/// use nbrdf::file::{encode, Model, ModelHeader, ModelKind, PositionEncoding, Reciprocity};
+/// use nbrdf::file::{encode, ModelHeader, ModelKind, PositionEncoding, Reciprocity};
 /// let h = ModelHeader::paper(ModelKind::SingleMlp, false, Reciprocity::Exact, PositionEncoding::Uniform, 2);
 /// let bytes = encode(&h, &vec![0.01; h.n_weights()], None).unwrap();
-/// let model = nbrdf::file::ModelBuf::from_bytes(&bytes).unwrap();
+/// let model = nbrdf::ModelBuf::from_bytes(&bytes).unwrap();
 /// assert_eq!(model.header(), &h);
 /// ```
 #[cfg(feature = "alloc")]

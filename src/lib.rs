@@ -6,8 +6,8 @@
 //! data (MERL tables, NBRDF-json networks), `std` adds files, scenes and images.
 //!
 //! Evaluation has one arithmetic, f32. f16 model files are a storage format (half the weight bytes):
-//! [`file::ModelBuf`] (`alloc`) widens their weights to f32 once at load and evaluates those, while a
-//! [`model::Model`] over borrowed f16 bytes (`no_std`) widens each row as it reads it; both give the
+//! [`ModelBuf`] (`alloc`) widens their weights to f32 once at load and evaluates those, while a
+//! [`Model`] over borrowed f16 bytes (`no_std`) widens each row as it reads it; both give the
 //! same bits.
 //!
 //! Conventions (see `DESIGN.md`): directions are unit vectors in the local shading frame (normal = +z)
@@ -55,6 +55,9 @@ pub mod scene;
 
 pub use error::Error;
 pub use glam::Vec3;
+#[cfg(feature = "alloc")]
+pub use model::ModelBuf;
+pub use model::{Model, Prepared, Weights};
 
 /// Linear RGB triple, the value type of every BRDF (1/sr).
 pub type Rgb = [f32; 3];

@@ -16,52 +16,15 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::kernels::{kernels, Chain, ChainLayer, Dense, Init, KernelWeight, Segment, CHAIN_OUT_MAX, CHAIN_TAIL_MAX, CHAIN_WIDTH};
+use crate::kernels::{kernels, Chain, ChainLayer, Dense, Init, Segment, CHAIN_OUT_MAX, CHAIN_TAIL_MAX, CHAIN_WIDTH};
 use crate::Error;
 
-pub use crate::kernels::PACKET;
+pub use crate::kernels::{Weight, PACKET};
 
 /// Largest hidden width (and output count) the stack arrays hold.
 pub const MAX_WIDTH: usize = 256;
 /// Largest number of hidden layers of one network.
 pub const MAX_HIDDEN: usize = 16;
-
-/// A weight element: `f32`, or `half::f16` for half-size model files.
-pub trait Weight: Copy + Send + Sync + 'static + KernelWeight {
-    /// The value as `f32`.
-    fn to_f32(self) -> f32;
-
-    /// `dst[i] = src[i].to_f32()` over the common length, as fast as the CPU allows.
-    fn widen(src: &[Self], dst: &mut [f32]);
-}
-
-impl Weight for f32 {
-    #[inline(always)]
-    fn to_f32(self) -> f32 {
-        self
-    }
-
-    #[inline(always)]
-    fn widen(src: &[f32], dst: &mut [f32]) {
-        let n = src.len().min(dst.len());
-        dst[..n].copy_from_slice(&src[..n]);
-    }
-}
-
-impl Weight for half::f16 {
-    #[inline(always)]
-    fn to_f32(self) -> f32 {
-        half::f16::to_f32(self)
-    }
-
-    /// Through [`crate::kernels::widen_f16`]: one level check per slice and 16 values per
-    /// `vcvtph2ps`. Per element (`to_f32` in a loop: an out-of-line call with its own feature check
-    /// each) the biases of a paper-size network took a quarter of an f16 single query.
-    #[inline]
-    fn widen(src: &[half::f16], dst: &mut [f32]) {
-        crate::kernels::widen_f16(src, dst);
-    }
-}
 
 /// Shape of one network: `Mlp(n_in, width, hidden, n_out, skip)` of `docs/models.md`.
 ///

@@ -8,7 +8,8 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use nbrdf::file::{encode, Model, ModelBuf, ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity};
+use nbrdf::file::{encode, ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity};
+use nbrdf::{Model, ModelBuf};
 use nbrdf::image::RgbImage;
 use nbrdf::measured::{MerlTable, NbrdfNetwork};
 use nbrdf::parametric::ParametricKind;

@@ -13,7 +13,8 @@ use std::f32::consts::{FRAC_PI_2, PI};
 
 use nbrdf::angles::unit;
 use nbrdf::builtin::Builtin;
-use nbrdf::file::{encode, Model, ModelBuf, ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity};
+use nbrdf::file::{encode, ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity};
+use nbrdf::{Model, ModelBuf};
 use nbrdf::measured::{Lookup, MerlTable, NbrdfNetwork};
 use nbrdf::parametric::{
     Disney, FresnelMicrofacet, Lambert, Parametric, ParametricKind, Phong, TorranceSparrow, MAX_RAW,
@@ -513,11 +514,11 @@ fn to_f16_rejects_weights_beyond_the_f16_range_and_f16_models() {
     let mut w = vec![0.01; h.n_weights()];
     w[17] = 1e5;
     let bytes = encode(&h, &w, None).unwrap();
-    let buf = nbrdf::file::ModelBuf::from_bytes(&bytes).unwrap();
+    let buf = nbrdf::ModelBuf::from_bytes(&bytes).unwrap();
     assert!(matches!(buf.model().to_f16(), Err(nbrdf::Error::NonFinite { index: 17, .. })));
     assert_eq!(buf.as_bytes(), &bytes[..]);
     w[17] = 0.5;
-    let half = nbrdf::file::ModelBuf::from_bytes(&encode(&h, &w, None).unwrap()).unwrap().model().to_f16().unwrap();
+    let half = nbrdf::ModelBuf::from_bytes(&encode(&h, &w, None).unwrap()).unwrap().model().to_f16().unwrap();
     let words = words(&half);
     let half = Model::from_bytes(&as_bytes(&words)[..half.len()]).unwrap();
     assert!(matches!(half.to_f16(), Err(nbrdf::Error::InvalidValue { what: "model precision", .. })));

@@ -1,12 +1,14 @@
-//! The tiny-network kernels (`nbrdf::kernels::TinyNet`, the NBRDF-json evaluator) against a plain
-//! scalar f64 reference on random networks and inputs, at every kernel level this CPU has, including
-//! pre-activations that are exactly zero at the ReLU; and single queries against packets, bit for bit.
+//! The tiny-network kernels (`nbrdf::measured::nbrdf_json::TinyNet`, the NBRDF-json evaluator) against
+//! a plain scalar f64 reference on random networks and inputs, at every kernel level this CPU has,
+//! including pre-activations that are exactly zero at the ReLU; and single queries against packets, bit
+//! for bit.
 //! `.nbrdf` models with f16 weights, widened at load (`ModelBuf`) or row by row as they are read
 //! (`Model::from_bytes`), against the f32 model of the same values, bit for bit, at every level.
 
-use nbrdf::file::{encode, ModelBuf, ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity};
-use nbrdf::model::Model;
-use nbrdf::kernels::{set_level, Level, TinyLayer, TinyNet, TINY_INPUTS, TINY_PACKET};
+use nbrdf::file::{encode, ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity};
+use nbrdf::{Model, ModelBuf};
+use nbrdf::kernels::{set_level, Level};
+use nbrdf::measured::nbrdf_json::{TinyLayer, TinyNet, TINY_INPUTS, TINY_PACKET};
 use nbrdf::Vec3;
 use std::sync::Mutex;
 

@@ -3,9 +3,8 @@
 //! for every malformed file.
 
 use nbrdf::angles::{rusinkiewicz_angles, theta_map};
-use nbrdf::file::{
-    encode, Model, ModelBuf, ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity, Weights,
-};
+use nbrdf::file::{encode, ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity};
+use nbrdf::{Model, ModelBuf, Weights};
 use nbrdf::parametric::ParametricKind;
 use nbrdf::{Error, Vec3};
 
@@ -82,7 +81,7 @@ fn assert_close(got: [f32; 3], want: [f64; 3], what: &str) {
 }
 
 /// `(wi, wo)` evaluated through the batched path, in the middle lane of a packet of other pairs.
-fn eval_one_batched(model: &Model<'_>, prepared: &nbrdf::file::Prepared, wi: Vec3, wo: Vec3) -> [f32; 3] {
+fn eval_one_batched(model: &Model<'_>, prepared: &nbrdf::Prepared, wi: Vec3, wo: Vec3) -> [f32; 3] {
     let mut a: Vec<Vec3> = (0..11).map(|i| dir(0.1 * i as f32, 0.2, 0.9)).collect();
     let mut b = a.clone();
     b.reverse();

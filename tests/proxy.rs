@@ -4,7 +4,8 @@
 //! the lobe of a known BRDF, and the proxy survives the model file.
 
 use nbrdf::builtin::Builtin;
-use nbrdf::file::{encode, ModelBuf, ModelHeader, ModelKind, PositionEncoding, Reciprocity};
+use nbrdf::file::{encode, ModelHeader, ModelKind, PositionEncoding, Reciprocity};
+use nbrdf::ModelBuf;
 use nbrdf::measured::NbrdfNetwork;
 use nbrdf::parametric::microfacet::{ggx_d, smith_ggx_g1_over_2cos};
 use nbrdf::sampling::proxy::DEFENSIVE;

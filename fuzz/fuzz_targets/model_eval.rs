@@ -13,7 +13,8 @@
 mod common;
 
 use libfuzzer_sys::fuzz_target;
-use nbrdf::file::{encode, Model, ModelBuf, ModelKind, Precision, Reciprocity};
+use nbrdf::file::{encode, ModelKind, Precision, Reciprocity};
+use nbrdf::{Model, ModelBuf};
 
 fuzz_target!(|input: (u8, u8, u64, u8, [f32; 3], [f32; 6], Vec<(u16, f32)>)| {
     let (shape, variant, seed, scale, point, dirs, patches) = input;

@@ -12,7 +12,8 @@
 mod common;
 
 use libfuzzer_sys::fuzz_target;
-use nbrdf::file::{Model, ModelBuf, ModelKind, Reciprocity};
+use nbrdf::file::{ModelKind, Reciprocity};
+use nbrdf::{Model, ModelBuf};
 use nbrdf::Vec3;
 
 fuzz_target!(|data: &[u8]| {

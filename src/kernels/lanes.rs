@@ -7,7 +7,7 @@
 //! Each query's accumulator sees its `init`, then one multiply-add per nonzero input in row order, in
 //! both kernels, so a packet gives every query the bits of [`one`] at the same level.
 
-use super::{Dense, PACKET};
+use super::{Dense, Weight, PACKET};
 
 /// A vector of `N` f32 lanes of one instruction-set level.
 ///
@@ -35,51 +35,6 @@ pub(super) unsafe trait Lanes {
     fn mul_add(a: Self::V, b: Self::V, c: Self::V) -> Self::V;
     /// `max(v, 0)` as every kernel computes it: `+0` for either zero and for NaN.
     fn relu(v: Self::V) -> Self::V;
-}
-
-/// A weight type as the generic kernels read it: f32 rows as they are, f16 rows widened.
-pub(super) trait Row: Copy {
-    /// The value as f32.
-    fn to_f32(self) -> f32;
-    /// The slice itself where it already holds f32 values.
-    fn as_f32(s: &[Self]) -> Option<&[f32]>;
-    /// `dst[i] = src[i]` as f32 over the common length.
-    fn widen(src: &[Self], dst: &mut [f32]);
-}
-
-impl Row for f32 {
-    #[inline(always)]
-    fn to_f32(self) -> f32 {
-        self
-    }
-
-    #[inline(always)]
-    fn as_f32(s: &[f32]) -> Option<&[f32]> {
-        Some(s)
-    }
-
-    #[inline(always)]
-    fn widen(src: &[f32], dst: &mut [f32]) {
-        let n = src.len().min(dst.len());
-        dst[..n].copy_from_slice(&src[..n]);
-    }
-}
-
-impl Row for half::f16 {
-    #[inline(always)]
-    fn to_f32(self) -> f32 {
-        half::f16::to_f32(self)
-    }
-
-    #[inline(always)]
-    fn as_f32(_: &[half::f16]) -> Option<&[f32]> {
-        None
-    }
-
-    #[inline(always)]
-    fn widen(src: &[half::f16], dst: &mut [f32]) {
-        super::widen_f16(src, dst);
-    }
 }
 
 /// Outputs per tile: a query's accumulators for a tile (64 values) and one widened row stay in L1
@@ -144,7 +99,7 @@ unsafe fn axpy<L: Lanes>(x: f32, row: *const f32, acc: *mut f32, w: usize) {
 /// # Safety
 /// As [`axpy`] for `acc`; `row` holds `w` weights.
 #[inline(always)]
-unsafe fn axpy_row<L: Lanes, W: Row>(x: f32, row: &[W], acc: *mut f32, w: usize) {
+unsafe fn axpy_row<L: Lanes, W: Weight>(x: f32, row: &[W], acc: *mut f32, w: usize) {
     if let Some(f) = W::as_f32(row) {
         if w.is_multiple_of(L::N) {
             // SAFETY: `w` values, whole vectors.
@@ -187,7 +142,7 @@ unsafe fn store_tile<L: Lanes>(acc: &[f32; TILE], out: *mut f32, w: usize, relu:
 /// The tile of row `i` from output `t0` on, widened into `buf` (zero past `w`); for f32 rows whose
 /// tile is whole, the row itself.
 #[inline(always)]
-fn row_tile<W: Row>(rows: &[W], i: usize, n: usize, t0: usize, w: usize, buf: &mut [f32; TILE]) -> *const f32 {
+fn row_tile<W: Weight>(rows: &[W], i: usize, n: usize, t0: usize, w: usize, buf: &mut [f32; TILE]) -> *const f32 {
     let r = &rows[i * n + t0..i * n + t0 + w];
     if let Some(f) = W::as_f32(r) {
         if w == TILE {
@@ -203,7 +158,7 @@ fn row_tile<W: Row>(rows: &[W], i: usize, n: usize, t0: usize, w: usize, buf: &m
 /// # Safety
 /// `layer` passed `Dense::check(1, ..)` for an output buffer at `out`; the CPU has `L`'s level.
 #[inline(always)]
-pub(super) unsafe fn one<L: Lanes, W: Row>(layer: &Dense<'_, W>, out: *mut f32) {
+pub(super) unsafe fn one<L: Lanes, W: Weight>(layer: &Dense<'_, W>, out: *mut f32) {
     let n = layer.n_out;
     let mut acc = [0.0f32; TILE];
     for t0 in (0..n).step_by(TILE) {
@@ -230,7 +185,7 @@ pub(super) unsafe fn one<L: Lanes, W: Row>(layer: &Dense<'_, W>, out: *mut f32) 
 /// `layer` passed `Dense::check(PACKET, ..)` for an output buffer at `out` with rows `out_stride`
 /// apart; the CPU has `L`'s level.
 #[inline(always)]
-pub(super) unsafe fn packet<L: Lanes, W: Row>(layer: &Dense<'_, W>, out: *mut f32, out_stride: usize) {
+pub(super) unsafe fn packet<L: Lanes, W: Weight>(layer: &Dense<'_, W>, out: *mut f32, out_stride: usize) {
     let n = layer.n_out;
     let mut acc = [[0.0f32; TILE]; PACKET];
     let mut buf = [0.0f32; TILE];
@@ -270,7 +225,7 @@ pub(super) mod portable {
     ///
     /// # Safety
     /// As [`super::one`].
-    pub(in crate::kernels) unsafe fn one<W: Row>(layer: &Dense<'_, W>, out: *mut f32) {
+    pub(in crate::kernels) unsafe fn one<W: Weight>(layer: &Dense<'_, W>, out: *mut f32) {
         // SAFETY: forwarded; `Scalar` needs no CPU feature.
         unsafe { super::one::<Scalar, W>(layer, out) }
     }
@@ -279,7 +234,7 @@ pub(super) mod portable {
     ///
     /// # Safety
     /// As [`super::packet`].
-    pub(in crate::kernels) unsafe fn packet<W: Row>(layer: &Dense<'_, W>, out: *mut f32, out_stride: usize) {
+    pub(in crate::kernels) unsafe fn packet<W: Weight>(layer: &Dense<'_, W>, out: *mut f32, out_stride: usize) {
         // SAFETY: forwarded; `Scalar` needs no CPU feature.
         unsafe { super::packet::<Scalar, W>(layer, out, out_stride) }
     }

@@ -1,4 +1,14 @@
-//! Dense-layer kernels of the neural evaluator, selected by the CPU at run time.
+//! Dense-layer kernels of the neural evaluator, selected by the CPU at run time: the bottom layer of
+//! the crate, importing nothing from the modules above it (`tests/layers.rs` holds that).
+//!
+//! What is here: the layer description ([`Dense`], [`Chain`]) and its table of kernels per weight type
+//! ([`Weight`], [`Kernels`], [`kernels`]); the levels, their detection and `NBRDF_KERNEL`
+//! ([`Level`], [`detected`], [`level`], [`set_level`]); `lanes.rs`, the portable and NEON kernels
+//! written once over a small lane trait; `x86.rs`, the hand-tiled AVX2 and AVX-512 kernels;
+//! `neon.rs`, the aarch64 lanes; `widen.rs`, the f16-to-f32 conversion of weight slices
+//! ([`widen_f16`]). Vectorised code that is not a dense layer lives with what it computes and
+//! dispatches on [`level`]: Θ for 16 pairs in `angles`, the vector sin/cos in `encoding`, the output
+//! maps in `math`, the tiny NBRDF-json network kernel in `measured::nbrdf_json`.
 //!
 //! One kernel computes one layer `y_o = init_o + Σ_s Σ_i x_s[i] M_s[i][o]` (then ReLU for hidden layers)
 //! for either one query ([`Kernels::one`]) or a packet of [`PACKET`] queries ([`Kernels::packet`]).
@@ -7,10 +17,10 @@
 //! [`Kernels::chain`] runs one query through a whole 128-wide network in one call (AVX-512).
 //!
 //! Levels: [`Level::Avx512`] and [`Level::Avx2`] (x86-64, with FMA and F16C: half weights are widened
-//! by `vcvtph2ps` as they are loaded) and [`Level::Portable`] (plain Rust, every target). With the
-//! `std` feature the level is detected once at run time (`is_x86_feature_detected!`), so a default
-//! release build uses AVX-512 where the CPU has it; without `std` the level is what the compile-time
-//! target features allow (`-C target-cpu=…`).
+//! by `vcvtph2ps` as they are loaded), [`Level::Neon`] (aarch64) and [`Level::Portable`] (plain Rust,
+//! every target). With the `std` feature the level is detected once at run time
+//! (`is_x86_feature_detected!`), so a default release build uses AVX-512 where the CPU has it; without
+//! `std` the level is what the compile-time target features allow (`-C target-cpu=…`).
 //!
 //! # Determinism
 //! Every query's accumulator sees the same operations in the same order whatever the kernel shape:
@@ -22,31 +32,19 @@
 //! for finite weights, except that `-0 + 0 = +0`, and the sign of a zero pre-activation is erased by
 //! the ReLU (`max(acc, 0)` returns `+0`) and by every output map.
 //! Levels differ from each other by rounding only (FMA versus multiply-then-add).
-//!
-//! # Angles for 16 pairs
-//! `theta16.rs` maps 16 direction pairs through Θ (or the plain Rusinkiewicz angles) and the
-//! positional encoding at once for the batches (AVX-512): libm's `atanf`/`atan2f` and the rest of the
-//! map with lanes for pairs, every lane the bits of the one-pair functions, so `Model::eval_many`
-//! keeps `Model::eval`'s bits.
 
-mod output_map;
 mod lanes;
 #[cfg(target_arch = "aarch64")]
 mod neon;
-mod sincos;
-mod tiny;
 mod widen;
-#[cfg(target_arch = "x86_64")]
-pub(crate) mod theta16;
 #[cfg(target_arch = "x86_64")]
 mod x86;
 
 use core::sync::atomic::{AtomicU8, Ordering};
 
-pub use output_map::{map_outputs, sigmoid_slice, softplus_slice};
-pub use sincos::{sincos16, sincos_octaves};
 pub use widen::widen_f16;
-pub use tiny::{half_diff_packet, TinyLayer, TinyNet, TINY_INPUTS, TINY_MAX_WIDTH, TINY_PACKET};
+#[cfg(target_arch = "x86_64")]
+pub(crate) use x86::{mask16, transpose16};
 
 /// Queries per packet of the batched kernels: 16, so that one weight vector (one f16 conversion)
 /// serves 16 FMAs in the AVX-512 kernel (8 left f16 17% slower than f32; 16: within 2%).
@@ -497,48 +495,99 @@ impl<W: 'static> Kernels<W> {
     }
 }
 
-/// A weight type with kernels: `f32` and `half::f16`.
-pub trait KernelWeight: Sized + 'static {
+/// A weight element: `f32`, or `half::f16` for half-size model files (widened to f32 as it is read).
+///
+/// The one weight trait of the crate: how the kernels read a weight type (in place, or widened) and
+/// their table of kernels for it. The networks take it as [`crate::mlp::Weight`].
+pub trait Weight: Copy + Send + Sync + 'static {
+    /// The value as `f32`.
+    fn to_f32(self) -> f32;
+
+    /// The slice itself where it already holds f32 values (read in place rather than widened).
+    fn as_f32(s: &[Self]) -> Option<&[f32]>;
+
+    /// `dst[i] = src[i].to_f32()` over the common length, as fast as the CPU allows.
+    fn widen(src: &[Self], dst: &mut [f32]);
+
     /// The kernels of `level`, which must be at most [`detected`] (lower levels are always safe).
     #[doc(hidden)]
     fn table(level: Level) -> &'static Kernels<Self>;
 }
 
-macro_rules! tables {
+/// The body of [`Weight::table`] for weight type `$w`: its kernels at each level of this target.
+macro_rules! table {
     ($w:ty, $avx2:ident, $avx512:ident) => {
-        impl KernelWeight for $w {
-            #[inline]
-            fn table(level: Level) -> &'static Kernels<$w> {
-                static PORTABLE: Kernels<$w> =
-                    Kernels { one: lanes::portable::one::<$w>, packet: lanes::portable::packet::<$w>, chain: None };
+        #[inline]
+        fn table(level: Level) -> &'static Kernels<$w> {
+            static PORTABLE: Kernels<$w> =
+                Kernels { one: lanes::portable::one::<$w>, packet: lanes::portable::packet::<$w>, chain: None };
+            #[cfg(target_arch = "aarch64")]
+            static NEON: Kernels<$w> = Kernels { one: neon::one::<$w>, packet: neon::packet::<$w>, chain: None };
+            #[cfg(target_arch = "x86_64")]
+            static AVX2: Kernels<$w> = Kernels { one: x86::$avx2::one, packet: x86::$avx2::packet, chain: None };
+            #[cfg(target_arch = "x86_64")]
+            static AVX512: Kernels<$w> =
+                Kernels { one: x86::$avx512::one, packet: x86::$avx512::packet, chain: Some(x86::$avx512::chain) };
+            // Never hand out a level above the detected one, whatever the caller asked for.
+            match level.min(detected()) {
+                Level::Portable => &PORTABLE,
+                #[cfg(target_arch = "x86_64")]
+                Level::Avx2 => &AVX2,
+                #[cfg(target_arch = "x86_64")]
+                Level::Avx512 => &AVX512,
                 #[cfg(target_arch = "aarch64")]
-                static NEON: Kernels<$w> = Kernels { one: neon::one::<$w>, packet: neon::packet::<$w>, chain: None };
-                #[cfg(target_arch = "x86_64")]
-                static AVX2: Kernels<$w> = Kernels { one: x86::$avx2::one, packet: x86::$avx2::packet, chain: None };
-                #[cfg(target_arch = "x86_64")]
-                static AVX512: Kernels<$w> =
-                    Kernels { one: x86::$avx512::one, packet: x86::$avx512::packet, chain: Some(x86::$avx512::chain) };
-                // Never hand out a level above the detected one, whatever the caller asked for.
-                match level.min(detected()) {
-                    Level::Portable => &PORTABLE,
-                    #[cfg(target_arch = "x86_64")]
-                    Level::Avx2 => &AVX2,
-                    #[cfg(target_arch = "x86_64")]
-                    Level::Avx512 => &AVX512,
-                    #[cfg(target_arch = "aarch64")]
-                    Level::Neon => &NEON,
-                    _ => &PORTABLE,
-                }
+                Level::Neon => &NEON,
+                _ => &PORTABLE,
             }
         }
     };
 }
-tables!(f32, avx2_f32, avx512_f32);
-tables!(half::f16, avx2_f16, avx512_f16);
+
+impl Weight for f32 {
+    #[inline(always)]
+    fn to_f32(self) -> f32 {
+        self
+    }
+
+    #[inline(always)]
+    fn as_f32(s: &[f32]) -> Option<&[f32]> {
+        Some(s)
+    }
+
+    #[inline(always)]
+    fn widen(src: &[f32], dst: &mut [f32]) {
+        let n = src.len().min(dst.len());
+        dst[..n].copy_from_slice(&src[..n]);
+    }
+
+    table!(f32, avx2_f32, avx512_f32);
+}
+
+impl Weight for half::f16 {
+    #[inline(always)]
+    fn to_f32(self) -> f32 {
+        half::f16::to_f32(self)
+    }
+
+    #[inline(always)]
+    fn as_f32(_: &[half::f16]) -> Option<&[f32]> {
+        None
+    }
+
+    /// Through [`widen_f16`]: one level check per slice and 16 values per `vcvtph2ps`. Per element
+    /// (`to_f32` in a loop: an out-of-line call with its own feature check each) the biases of a
+    /// paper-size network took a quarter of an f16 single query.
+    #[inline(always)]
+    fn widen(src: &[half::f16], dst: &mut [f32]) {
+        widen_f16(src, dst);
+    }
+
+    table!(half::f16, avx2_f16, avx512_f16);
+}
 
 /// The kernels of the active [`level`] for weights `W`.
 #[inline]
-pub fn kernels<W: KernelWeight>() -> &'static Kernels<W> {
+pub fn kernels<W: Weight>() -> &'static Kernels<W> {
     W::table(level())
 }
 
@@ -571,7 +620,7 @@ pub(crate) mod tests {
     }
 
     /// f64 reference of one query of a layer.
-    fn reference<W: crate::mlp::Weight>(l: &Dense<'_, W>, q: usize) -> [f64; 256] {
+    fn reference<W: Weight>(l: &Dense<'_, W>, q: usize) -> [f64; 256] {
         let mut y = [0.0f64; 256];
         for (o, y) in y.iter_mut().enumerate().take(l.n_out) {
             let mut a = l.init[o] as f64;
@@ -616,7 +665,7 @@ pub(crate) mod tests {
         l
     }
 
-    fn check_shapes<W: crate::mlp::Weight>(w: &[W]) {
+    fn check_shapes<W: Weight>(w: &[W]) {
         for &(n_out, n1, n2, relu) in
             &[(3, 20, 0, false), (6, 31, 0, false), (17, 9, 5, true), (21, 21, 0, true), (32, 6, 0, true), (64, 20, 0, false), (128, 40, 0, true), (128, 64, 7, true), (130, 12, 3, true), (200, 3, 0, true), (48, 5, 5, false), (17, 300, 20, true), (40, 250, 9, false)]
         {
@@ -689,7 +738,7 @@ pub(crate) mod tests {
 
     /// The hidden layers of a chain run one by one through `one` (a one-query kernel); the last
     /// layer's activations.
-    fn layer_by_layer<W: crate::mlp::Weight>(
+    fn layer_by_layer<W: Weight>(
         one: impl Fn(&Dense<'_, W>, &mut [f32]),
         tail: &[f32],
         first_init: &[f32],
@@ -725,7 +774,7 @@ pub(crate) mod tests {
     /// A chain against the same layers run one by one through `Kernels::one`: every tail length
     /// (none, below and above the dense-layer threshold, near the longest encoding), with and without a
     /// skip layer, every output-layer shape.
-    fn check_chain<W: crate::mlp::Weight>(w: &[W]) {
+    fn check_chain<W: Weight>(w: &[W]) {
         let k = W::table(detected());
         if !k.has_chain() {
             return;
@@ -770,7 +819,7 @@ pub(crate) mod tests {
     /// query alone uses, pairs of queries walked together with rows only one of them uses, f32 and
     /// f16 weights.
     #[cfg(target_arch = "x86_64")]
-    fn check_sparse<W: crate::mlp::Weight>(w: &[W], sparse: unsafe fn(&Dense<'_, W>, *mut f32, usize), dense: unsafe fn(&Dense<'_, W>, *mut f32, usize)) {
+    fn check_sparse<W: Weight>(w: &[W], sparse: unsafe fn(&Dense<'_, W>, *mut f32, usize), dense: unsafe fn(&Dense<'_, W>, *mut f32, usize)) {
         for (case, &(n1, n2, zero_every)) in [(128, 0, 2), (128, 36, 2), (40, 0, 3), (150, 70, 2), (64, 1, 5), (0, 36, 2), (0, 0, 2), (100, 12, 1), (128, 0, 1), (128, 0, 2)].iter().enumerate() {
             let (mut x1, mut x2, init) = layer_inputs(128, n1);
             // Fewer zeros than `values` leaves where `zero_every` is 1 (then every input is zero).
@@ -857,7 +906,7 @@ pub(crate) mod tests {
 
     #[test]
     fn a_chain_with_a_tail_beyond_its_capacity_is_rejected() {
-        let k = <f32 as KernelWeight>::table(detected());
+        let k = <f32 as Weight>::table(detected());
         if !k.has_chain() {
             return;
         }

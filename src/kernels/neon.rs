@@ -3,8 +3,8 @@
 
 use core::arch::aarch64::*;
 
-use super::lanes::{self, Lanes, Row};
-use super::Dense;
+use super::lanes::{self, Lanes};
+use super::{Dense, Weight};
 
 /// A vector of 4 f32 lanes.
 pub(super) struct Neon;
@@ -54,7 +54,7 @@ unsafe impl Lanes for Neon {
 ///
 /// # Safety
 /// As [`lanes::one`].
-pub(super) unsafe fn one<W: Row>(layer: &Dense<'_, W>, out: *mut f32) {
+pub(super) unsafe fn one<W: Weight>(layer: &Dense<'_, W>, out: *mut f32) {
     // SAFETY: forwarded; NEON is present at this level.
     unsafe { lanes::one::<Neon, W>(layer, out) }
 }
@@ -63,7 +63,7 @@ pub(super) unsafe fn one<W: Row>(layer: &Dense<'_, W>, out: *mut f32) {
 ///
 /// # Safety
 /// As [`lanes::packet`].
-pub(super) unsafe fn packet<W: Row>(layer: &Dense<'_, W>, out: *mut f32, out_stride: usize) {
+pub(super) unsafe fn packet<W: Weight>(layer: &Dense<'_, W>, out: *mut f32, out_stride: usize) {
     // SAFETY: forwarded; NEON is present at this level.
     unsafe { lanes::packet::<Neon, W>(layer, out, out_stride) }
 }

@@ -1,6 +1,6 @@
-//! f16 weights widened to f32 a slice at a time: the conversion behind
-//! [`crate::model::Model::eval_many`]'s per-call copy of an f16 model's per-query network and behind
-//! every f16 bias.
+//! f16 weights widened to f32 a slice at a time: the conversion behind the f16 rows of the generic
+//! kernels (`lanes.rs`), every f16 bias ([`super::Weight::widen`]) and the widening of an f16 model
+//! file to f32 at load (`Model::to_f32`, which `ModelBuf` runs).
 //!
 //! Written here rather than taken from `half`'s `convert_to_f32_slice`: that converts 8 values per
 //! `vcvtph2ps` (F16C), and a 100 000-weight network took it 26 µs on this project's Zen 4 machine

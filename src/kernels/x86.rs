@@ -123,7 +123,7 @@ fn lane_mask(m: usize) -> __m256i {
 
 /// The AVX-512 mask selecting lanes `0..m`.
 #[inline(always)]
-pub(super) fn mask16(m: usize) -> __mmask16 {
+pub(crate) fn mask16(m: usize) -> __mmask16 {
     if m >= 16 {
         0xffff
     } else {
@@ -569,7 +569,7 @@ macro_rules! avx512 {
                         for _ in 0..piece.n {
                             let xv = _mm512_loadu_ps(x);
                             for (o, a) in acc.iter_mut().enumerate() {
-                                *a = _mm512_fmadd_ps(xv, _mm512_set1_ps(crate::mlp::Weight::to_f32(*r.add(o))), *a);
+                                *a = _mm512_fmadd_ps(xv, _mm512_set1_ps(crate::kernels::Weight::to_f32(*r.add(o))), *a);
                             }
                             x = x.add(PACKET);
                             r = r.add(N);
@@ -1133,7 +1133,7 @@ pub(super) unsafe fn transpose_columns(x: *const f32, stride: usize, n: usize, m
 /// shuffles.
 #[inline]
 #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
-pub(super) fn transpose16(r: [__m512; 16]) -> [__m512; 16] {
+pub(crate) fn transpose16(r: [__m512; 16]) -> [__m512; 16] {
     // t[2k] = a0 b0 a1 b1 | a4 b4 a5 b5 | ..., t[2k + 1] = a2 b2 a3 b3 | ... for rows a, b = 2k, 2k + 1.
     let t: [__m512; 16] = core::array::from_fn(|j| {
         let (a, b) = (r[j & !1], r[j | 1]);

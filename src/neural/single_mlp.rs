@@ -2,7 +2,7 @@
 //! width 128 and an input skip to the third layer. With fewer direction layers (Tab. 2) a position-only
 //! trunk runs first and the angles join the trunk's features.
 
-use crate::kernels::softplus_slice;
+use crate::math::softplus_slice;
 use crate::mlp::{self, forward, forward_packet, partial, partial_packet, Net, Partial, PartialPacket, Weight, MAX_WIDTH, PACKET};
 use crate::Rgb;
 

@@ -1,7 +1,6 @@
 //! The additive diffuse/specular split of Sec. 4.1.2 and its enhancement (Sec. 4.4, Eq. 8).
 
-use crate::kernels::{map_outputs, sigmoid_slice};
-use crate::math::{sanitize, INV_PI};
+use crate::math::{map_outputs, sanitize, sigmoid_slice, INV_PI};
 use crate::mlp::{forward, forward_packet, Net, Partial, Weight, MAX_WIDTH, PACKET};
 use crate::Rgb;
 

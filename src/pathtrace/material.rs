@@ -12,7 +12,8 @@
 use std::string::String;
 
 use crate::builtin::Builtin;
-use crate::file::{ModelBuf, PositionEncoding};
+use crate::file::PositionEncoding;
+use crate::model::ModelBuf;
 use crate::measured::{MerlTable, NbrdfNetwork};
 use crate::model::Prepared;
 use crate::parametric::Parametric;

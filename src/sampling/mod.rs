@@ -30,12 +30,12 @@
 //!
 //! Models without a closed form to sample (neural models, MERL tables, NBRDF-json networks) sample an
 //! analytic [`Proxy`] fitted to them ([`proxy`], [`fit_proxy`]) and evaluate the model itself for the
-//! weight ([`neural`]); the pdf is the proxy's, so the estimator stays unbiased.
+//! weight ([`Model::sample`](crate::Model::sample) for the neural models, [`measured`] for the
+//! measured ones); the pdf is the proxy's, so the estimator stays unbiased.
 
 pub mod fit;
 #[cfg(feature = "alloc")]
 pub mod measured;
-pub mod neural;
 pub mod proxy;
 
 pub use fit::fit_proxy;

@@ -17,7 +17,7 @@ use std::borrow::Cow;
 use std::sync::{Arc, Mutex};
 
 use candle_core::{CpuStorage, CustomOp1, Layout, Result, Shape, Tensor};
-use nbrdf::kernels::{sigmoid_slice, softplus_slice};
+use nbrdf::math::{sigmoid_slice, softplus_slice};
 use rayon::prelude::*;
 
 use crate::models::fused::{data, storage_data, ROW_BLOCK};

@@ -85,7 +85,7 @@ mod tests {
         let opts = TrainOptions { steps: 4, batch: 64, log_every: 2, checkpoint_every: 2, ..Default::default() };
         let log = run(config, obs.clone(), &opts, &dir, false, false, None).unwrap();
         let out = Outputs::in_dir(&dir, &config);
-        let model = nbrdf::file::ModelBuf::load(&out.model).unwrap();
+        let model = nbrdf::ModelBuf::load(&out.model).unwrap();
         // The architecture as configured, plus the sampling proxy fitted at export.
         let mut header = *model.header();
         assert!(header.proxy.take().is_some());

@@ -1,7 +1,7 @@
 //! Output nonlinearities of Sec. 4.1 as candle ops with their own backward pass.
 //!
-//! They map their tensors through the core's [`nbrdf::kernels::softplus_slice`] and
-//! [`nbrdf::kernels::sigmoid_slice`], the output maps of the exported models (vectorised where the CPU
+//! They map their tensors through the core's [`nbrdf::math::softplus_slice`] and
+//! [`nbrdf::math::sigmoid_slice`], the output maps of the exported models (vectorised where the CPU
 //! allows, and per value a function of that value alone), so the candle twin and the exported model
 //! apply bitwise the same function to the same pre-activation;
 //! composing them from candle's `exp`/`log` would differ by rounding and, for sigmoid, overflow to NaN
@@ -19,8 +19,8 @@ enum Func {
 impl Func {
     fn apply(self, x: &mut [f32]) {
         match self {
-            Func::Softplus => nbrdf::kernels::softplus_slice(x),
-            Func::Sigmoid => nbrdf::kernels::sigmoid_slice(x),
+            Func::Softplus => nbrdf::math::softplus_slice(x),
+            Func::Sigmoid => nbrdf::math::sigmoid_slice(x),
         }
     }
 }

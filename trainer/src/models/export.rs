@@ -21,7 +21,7 @@ pub fn encode(model: &Model, position_table: Option<&[f32]>) -> Result<Vec<u8>> 
     if matches!(header.kind, nbrdf::file::ModelKind::Parametric(_)) {
         return Ok(bytes);
     }
-    let buf = nbrdf::file::ModelBuf::from_bytes(&bytes)?;
+    let buf = nbrdf::ModelBuf::from_bytes(&bytes)?;
     let core = buf.model();
     let points: Vec<Vec<f32>> = match header.position {
         nbrdf::file::PositionEncoding::Uniform => vec![Vec::new()],
@@ -58,7 +58,7 @@ mod tests {
     use super::*;
     use crate::models::{arch, Config, Inputs, Kind, PositionEncoding, RawBatch, Reciprocity};
     use candle_core::Device;
-    use nbrdf::file::ModelBuf;
+    use nbrdf::ModelBuf;
     use rand::{RngExt, SeedableRng};
 
     /// Every variant the study fits, plus the other reciprocity strategies and the Tab. 2 layer counts.
@@ -141,7 +141,7 @@ mod tests {
         let position = PositionEncoding::Extrinsic { frequencies: 1 };
         for (kind, want) in [(Kind::SingleMlp, true), (Kind::Parametric(nbrdf::parametric::ParametricKind::Phong), false)] {
             let model = Model::init(Config::paper(kind, false, Reciprocity::Exact, position), 3, &Device::Cpu).unwrap();
-            let buf = nbrdf::file::ModelBuf::from_bytes(&encode(&model, None).unwrap()).unwrap();
+            let buf = nbrdf::ModelBuf::from_bytes(&encode(&model, None).unwrap()).unwrap();
             let proxy = buf.header().proxy;
             assert_eq!(proxy.is_some(), want, "{kind:?}");
             if let Some(p) = proxy {

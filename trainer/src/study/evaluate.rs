@@ -14,7 +14,8 @@
 
 use std::time::Instant;
 
-use nbrdf::file::{ModelBuf, Precision};
+use nbrdf::file::Precision;
+use nbrdf::ModelBuf;
 use nbrdf::image::{read_exr, RgbImage};
 use nbrdf::model::{Model, Prepared};
 use nbrdf::scene::render::{render_view, RenderOptions, SurfaceSample};
@@ -319,7 +320,7 @@ pub fn first_test_image(ds: &Dataset, model_path: &std::path::Path) -> Result<(R
     Ok((reference, test, view.mask.clone()))
 }
 
-/// The bytes of `buf` re-encoded with f16 network weights ([`nbrdf::model::Model::to_f16`]), for the
+/// The bytes of `buf` re-encoded with f16 network weights ([`nbrdf::Model::to_f16`]), for the
 /// f32-versus-f16 comparison without retraining; checked to keep the header apart from the precision.
 pub fn to_f16(buf: &ModelBuf) -> Result<Vec<u8>> {
     let out = buf.model().to_f16().map_err(Error::Core)?;

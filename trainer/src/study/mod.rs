@@ -213,7 +213,7 @@ pub fn run(config: &StudyConfig, out: &Path, shard: Option<Shard>, progress: boo
             let (eval_f16, size_bytes_f16) = if config::is_parametric(&spec.model) {
                 (None, None)
             } else {
-                let buf = nbrdf::file::ModelBuf::load(&model_path).map_err(Error::Core)?;
+                let buf = nbrdf::ModelBuf::load(&model_path).map_err(Error::Core)?;
                 let path16 = model_path.with_extension("f16.nbrdf");
                 let bytes = evaluate::to_f16(&buf)?;
                 crate::train::write_atomic(&path16, &bytes)?;

@@ -11,7 +11,8 @@
 //! borrowed f16 bytes; both give the same bits.
 //!
 //! ```
-//! use nbrdf::file::{encode, ModelBuf, ModelHeader, ModelKind, PositionEncoding, Reciprocity};
+//! use nbrdf::file::{encode, ModelHeader, ModelKind, PositionEncoding, Reciprocity};
+//! use nbrdf::ModelBuf;
 //! use nbrdf::Vec3;
 //! let h = ModelHeader::paper(ModelKind::AdditiveShared, true, Reciprocity::Exact,
 //!                            PositionEncoding::Extrinsic { frequencies: 2 }, 3);
@@ -24,9 +25,14 @@
 //! assert!(f.iter().all(|c| c.is_finite() && *c >= 0.0));
 //! assert_eq!(f, model.eval(&point, wo, wi)); // exact reciprocity, bit for bit
 //! ```
+//!
+//! Importance sampling of a model ([`Model::sample`], [`Model::pdf`], [`Model::fit_proxy`]) is in
+//! `sampling.rs`, over the proxies of [`crate::sampling`].
+
+mod sampling;
 
 use crate::angles::{rusinkiewicz_angles, theta_map, upper_hemisphere_pair};
-use crate::encoding::{encoded_len, positional_encoding};
+use crate::encoding::positional_encoding;
 use crate::file::{ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity, Sections, MAX_NETS};
 use crate::math::sanitize;
 use crate::mlp::{Net, NetDesc, Partial, Weight, PACKET};
@@ -34,10 +40,9 @@ use crate::neural::{additive_separate, additive_shared, parametric_net, single_m
 use crate::parametric::Parametric;
 use crate::{Error, Rgb, Vec3, BLACK};
 
-/// Largest encoded angle input: Θ (4 values) with 16 octaves.
-pub const MAX_ANGLE_INPUT: usize = encoded_len(4, crate::file::MAX_FREQUENCIES as usize);
-/// Largest extrinsic position encoding: xyz with 16 octaves.
-pub const MAX_POSITION_INPUT: usize = encoded_len(3, crate::file::MAX_FREQUENCIES as usize);
+// The stack buffers are sized by the format's limits, which `file` checks at load.
+pub use crate::file::{MAX_ANGLE_INPUT, MAX_POSITION_INPUT};
+
 /// Largest number of per-object parameters.
 pub const MAX_OBJECT: usize = 4;
 
@@ -136,7 +141,8 @@ impl<'a> Model<'a> {
     /// aligned) and single queries run as fast as through [`ModelBuf`], which does this itself.
     ///
     /// ```
-    /// use nbrdf::file::{encode, Model, ModelBuf, ModelHeader, ModelKind, PositionEncoding, Reciprocity};
+    /// use nbrdf::file::{encode, ModelHeader, ModelKind, PositionEncoding, Reciprocity};
+    /// use nbrdf::{Model, ModelBuf};
     /// let h = ModelHeader::paper(ModelKind::AdditiveSeparate, false, Reciprocity::Exact, PositionEncoding::Uniform, 2);
     /// let bytes = encode(&h, &vec![0.01; h.n_weights()], None).unwrap();
     /// let at = Model::query_weights_offset_of(&bytes).unwrap();
@@ -288,7 +294,8 @@ impl<'a> Model<'a> {
     /// Errors, writing nothing, when `points` does not hold `out.len()` inputs of `k` values.
     ///
     /// ```
-    /// use nbrdf::file::{encode, ModelBuf, ModelHeader, ModelKind, PositionEncoding, Reciprocity};
+    /// use nbrdf::file::{encode, ModelHeader, ModelKind, PositionEncoding, Reciprocity};
+    /// use nbrdf::ModelBuf;
     /// use nbrdf::parametric::ParametricKind;
     /// use nbrdf::Vec3;
     /// let h = ModelHeader::paper(ModelKind::Parametric(ParametricKind::Disney), false, Reciprocity::None,
@@ -421,13 +428,14 @@ impl<'a> Model<'a> {
     /// weight beyond ±65504 (it would round to infinity).
     ///
     /// ```
-    /// use nbrdf::file::{encode, ModelBuf, ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity};
+    /// use nbrdf::file::{encode, ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity};
+    /// use nbrdf::ModelBuf;
     /// let h = ModelHeader::paper(ModelKind::SingleMlp, false, Reciprocity::Exact, PositionEncoding::Uniform, 2);
     /// let f32_file = encode(&h, &vec![0.01; h.n_weights()], None).unwrap();
     /// let f16_file = ModelBuf::from_bytes(&f32_file).unwrap().model().to_f16().unwrap();
     /// assert_eq!(ModelBuf::from_bytes(&f16_file).unwrap().file_precision(), Precision::F16);
     /// assert!(f16_file.len() < f32_file.len());
-    /// assert!(nbrdf::file::Model::from_bytes(&f16_file).unwrap().to_f16().is_err());
+    /// assert!(nbrdf::Model::from_bytes(&f16_file).unwrap().to_f16().is_err());
     /// ```
     #[cfg(feature = "alloc")]
     pub fn to_f16(&self) -> Result<alloc::vec::Vec<u8>, Error> {
@@ -452,7 +460,8 @@ impl<'a> Model<'a> {
     /// Errors: [`Error::InvalidValue`] when the weights are f32 already.
     ///
     /// ```
-    /// use nbrdf::file::{encode, Model, ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity, Weights};
+    /// use nbrdf::file::{encode, ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity};
+    /// use nbrdf::{Model, Weights};
     /// let mut h = ModelHeader::paper(ModelKind::SingleMlp, false, Reciprocity::Exact, PositionEncoding::Uniform, 2);
     /// h.precision = Precision::F16;
     /// let f16_file = encode(&h, &vec![0.1; h.n_weights()], None).unwrap();
@@ -554,7 +563,7 @@ impl<'a> Model<'a> {
     }
 
     /// [`Model::eval_many_by`] on AVX-512: the pairs mapped (Θ, or the Rusinkiewicz angles) and
-    /// encoded 16 at a time (`kernels::theta16`, the bits of [`Model::encode_pair`] in every lane; the
+    /// encoded 16 at a time (`angles::theta16`, the bits of [`Model::encode_pair`] in every lane; the
     /// pairs it leaves to the scalar code encoded by that), the valid ones gathered into packets as there.
     #[cfg(target_arch = "x86_64")]
     fn eval_many_theta16(
@@ -582,7 +591,7 @@ impl<'a> Model<'a> {
             }
             // SAFETY: the level is AVX-512 (checked by the caller); `m ≤ 16`; at most `MAX_FREQUENCIES`
             // octaves, so a row's `len` values fit the `MAX_ANGLE_INPUT` between rows.
-            let (valid, scalar) = unsafe { crate::kernels::theta16::encode16(&wi, &wo, m, exact, frequencies, &mut stage, MAX_ANGLE_INPUT) };
+            let (valid, scalar) = unsafe { crate::angles::theta16::encode16(&wi, &wo, m, exact, frequencies, &mut stage, MAX_ANGLE_INPUT) };
             if filled == 0 && valid == 0xffff {
                 // A whole packet of valid pairs: straight from the rows.
                 for (q, f) in run(&stage).into_iter().enumerate() {
@@ -731,7 +740,8 @@ impl<'a> Model<'a> {
 /// when the caller aligns the same offset ([`Model::query_weights_offset_of`]).
 ///
 /// ```
-/// use nbrdf::file::{encode, ModelBuf, ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity};
+/// use nbrdf::file::{encode, ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity};
+/// use nbrdf::ModelBuf;
 /// let mut h = ModelHeader::paper(ModelKind::SingleMlp, false, Reciprocity::Exact, PositionEncoding::Uniform, 2);
 /// h.precision = Precision::F16;
 /// let f16_file = encode(&h, &vec![0.01; h.n_weights()], None).unwrap();

@@ -22,6 +22,15 @@
 //! - `wi = -wo`: the half vector is undefined; `None`.
 //! - grazing or below-horizon directions are parametrised like any other (the angles are purely
 //!   geometric); BRDFs reject them through [`upper_hemisphere_pair`].
+//!
+//! # 16 pairs at once
+//! `theta16.rs` (x86-64) maps 16 direction pairs through Θ (or the plain Rusinkiewicz angles) and the
+//! positional encoding at once for the batches (AVX-512): libm's `atanf`/`atan2f` and the rest of the
+//! map with lanes for pairs, every lane the bits of the one-pair functions here, so `Model::eval_many`
+//! keeps `Model::eval`'s bits.
+
+#[cfg(target_arch = "x86_64")]
+pub(crate) mod theta16;
 
 use crate::math::{safe_sqrt, PI};
 use crate::Vec3;
@@ -66,7 +75,7 @@ pub const UNIT_FAST_MAX: f32 = 1e30;
 ///   inputs normalise without underflow or overflow.
 ///
 /// The result is within 2e-7 (relative, per component) of the exact normalisation.
-/// `crate::kernels::half_diff_packet` repeats the first two rules in the same order on 16 vectors.
+/// `measured::nbrdf_json::half_diff_packet` repeats the first two rules in the same order on 16 vectors.
 ///
 /// ```
 /// use nbrdf::{angles::unit, Vec3};

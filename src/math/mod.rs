@@ -1,5 +1,13 @@
 //! Small numeric helpers shared by the models: safe square roots and inverse trigonometry, the output
 //! nonlinearities of Sec. 4.1, and finite-value guards. All `#[inline]`, all `no_std` through `libm`.
+//!
+//! The output maps of the neural models on many values at once, vectorised where the CPU allows, live
+//! beside the one-value activations (`output_map.rs`: [`map_outputs`], [`softplus_slice`],
+//! [`sigmoid_slice`]).
+
+mod output_map;
+
+pub use output_map::{map_outputs, sigmoid_slice, softplus_slice};
 
 use crate::Vec3;
 

@@ -2,9 +2,12 @@
 //! parameters its network predicted at the point; a neural model samples the [`Proxy`] stored in its
 //! file header (pure cosine sampling if the file has none) and evaluates the network for the weight.
 //! Either way the pdf is the density actually sampled, so `weight = f cos θi / pdf` is unbiased.
+//!
+//! These methods live with the model rather than in [`crate::sampling`], which they use: the samplers
+//! and the proxy sit below the model file and its evaluator, and import neither.
 
-use super::{fit_proxy, BsdfSample, Proxy};
-use crate::model::{Model, Prepared};
+use super::{Model, Prepared};
+use crate::sampling::{fit_proxy, BsdfSample, Proxy};
 use crate::{Rgb, Vec3};
 
 impl Model<'_> {
@@ -17,7 +20,8 @@ impl Model<'_> {
     /// Samples `wi` for the view `wo` at a prepared point; `u` is three uniform numbers in [0, 1).
     ///
     /// ```
-    /// use nbrdf::file::{encode, ModelBuf, ModelHeader, ModelKind, PositionEncoding, Reciprocity};
+    /// use nbrdf::file::{encode, ModelHeader, ModelKind, PositionEncoding, Reciprocity};
+    /// use nbrdf::ModelBuf;
     /// use nbrdf::Vec3;
     /// let h = ModelHeader::paper(ModelKind::SingleMlp, false, Reciprocity::Exact, PositionEncoding::Uniform, 2);
     /// let w: Vec<f32> = (0..h.n_weights()).map(|i| ((i * 7919) % 200) as f32 * 1e-3 - 0.1).collect();

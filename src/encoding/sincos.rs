@@ -1,5 +1,7 @@
-//! `sin` and `cos` of 16 arguments at once, for the positional encoding (`encoding.rs`): a Single MLP
-//! query encodes 4 angles at 4 octaves, 16 `sincosf` calls that took ~5% of a query one by one.
+//! `sin` and `cos` of 16 arguments at once, for the positional encoding
+//! ([`super::positional_encoding`], and the batch encoding of `angles/theta16.rs`, which shares the
+//! vector body): a Single MLP query encodes 4 angles at 4 octaves, 16 `sincosf` calls that took ~5% of
+//! a query one by one.
 //!
 //! AVX-512: the argument is reduced by `π/2` in three FMA steps (Cody & Waite 1980, with the split
 //! constants of Cephes `sinf.c`), then `sin` and `cos` of the remainder `|r| ≤ π/4` are the Cephes
@@ -14,7 +16,7 @@
 //! spans several smaller stores waits until they retire), which cost about half of a 4 × 4 encoding.
 
 #[cfg(target_arch = "x86_64")]
-use super::Level;
+use crate::kernels::{level, Level};
 
 /// Largest `|x|` reduced in the vector path: `j = round(2x/π)` stays below 2^13, where the three-part
 /// constant keeps the remainder accurate to well under an ulp.
@@ -25,7 +27,7 @@ const REDUCE_MAX: f32 = 8192.0;
 #[inline]
 pub fn sincos16(x: &[f32; 16], n: usize) -> ([f32; 16], [f32; 16]) {
     #[cfg(target_arch = "x86_64")]
-    if super::level() == Level::Avx512 {
+    if level() == Level::Avx512 {
         // SAFETY: `level()` is at most the detected level, so the CPU has AVX-512F.
         let (mut s, mut c, slow) = unsafe { avx512(x) };
         redo(x, slow as u32 & ((1u32 << n.min(16)) - 1), &mut s, &mut c);
@@ -46,7 +48,7 @@ pub fn sincos16(x: &[f32; 16], n: usize) -> ([f32; 16], [f32; 16]) {
 /// results, bit for bit.
 ///
 /// ```
-/// use nbrdf::kernels::{sincos16, sincos_octaves};
+/// use nbrdf::encoding::{sincos16, sincos_octaves};
 /// let v = [0.3f32, -1.2, 2.5];
 /// let (s, c) = sincos_octaves(&v, 4, 4);
 /// // Lane 0 is argument 4 = (j 1, k 0), lane 5 is (j 2, k 1).
@@ -64,7 +66,7 @@ pub fn sincos_octaves(values: &[f32], frequencies: usize, first: usize) -> ([f32
     }
     #[cfg(target_arch = "x86_64")]
     // `2^k` is built from its exponent bits: below 2^127 only (the encodings use a handful of octaves).
-    if super::level() == Level::Avx512 && frequencies <= 127 {
+    if level() == Level::Avx512 && frequencies <= 127 {
         // SAFETY: `level()` is at most the detected level, so the CPU has AVX-512F.
         let (args, (mut s, mut c, slow)) = unsafe {
             let args = octave_args(values, frequencies, first);
@@ -170,7 +172,7 @@ unsafe fn avx512_vector(v: core::arch::x86_64::__m512) -> ([f32; 16], [f32; 16],
 #[inline]
 #[target_feature(enable = "avx512f,avx2,fma")]
 #[allow(clippy::excessive_precision)] // The constants as Cephes prints them, so they can be checked there.
-pub(super) unsafe fn sincos_vector(v: core::arch::x86_64::__m512) -> (core::arch::x86_64::__m512, core::arch::x86_64::__m512, u16) {
+pub(crate) unsafe fn sincos_vector(v: core::arch::x86_64::__m512) -> (core::arch::x86_64::__m512, core::arch::x86_64::__m512, u16) {
     use core::arch::x86_64::*;
     let c = |f: f32| _mm512_set1_ps(f);
     // Ordered comparison: false for NaN, so NaN lanes go to libm as well.

@@ -1,5 +1,7 @@
 //! Whole-network kernels for tiny dense networks: the NBRDF-json fits of measured BRDFs (6-21-21-3,
-//! any widths up to [`TINY_MAX_WIDTH`]), input to `expm1`, in one call.
+//! any widths up to [`TINY_MAX_WIDTH`]), input to `expm1`, in one call. They live with the format
+//! they evaluate ([`super::NbrdfNetwork`]); the generic levels borrow the dense-layer kernels of
+//! [`crate::kernels`].
 //!
 //! The generic layer kernels (`Kernels::one`) are built for 128-wide layers: per layer they pay an
 //! indirect call, bounds checks and one FMA chain per input row, which for a 21-wide layer is a
@@ -27,9 +29,9 @@
 //!   (`Kernels::one` and `Kernels::packet`, one FMA chain per output; single queries and packets agree
 //!   bit for bit there too) and `libm::expm1f`.
 
-use super::{Dense, Segment};
 #[cfg(target_arch = "x86_64")]
-use super::Level;
+use crate::kernels::{level, Level};
+use crate::kernels::{Dense, Segment};
 
 /// Widest layer the tiny kernels accept (a multiple of 8).
 pub const TINY_MAX_WIDTH: usize = 64;
@@ -56,7 +58,7 @@ pub fn half_diff_packet(
 ) -> (u16, u16) {
     let lanes = if m >= 16 { 0xffff } else { ((1u32 << m) - 1) as u16 };
     #[cfg(target_arch = "x86_64")]
-    if super::level() == Level::Avx512 {
+    if level() == Level::Avx512 {
         // SAFETY: `level()` is at most the detected level, so the CPU has AVX-512.
         let (valid, slow) = unsafe { avx512::half_diff_packet(wi, wo, x) };
         return (valid & lanes, slow & lanes);
@@ -122,7 +124,7 @@ impl TinyNet<'_> {
     fn single<const CLAMP: bool>(&self, x: &[f32; TINY_INPUTS]) -> [f32; 3] {
         self.check();
         #[cfg(target_arch = "x86_64")]
-        if super::level() == Level::Avx512 {
+        if level() == Level::Avx512 {
             use core::arch::x86_64::*;
             // SAFETY: `level()` is at most the detected level, so the CPU has AVX-512; `check` verified
             // every extent the kernel reads.
@@ -142,7 +144,7 @@ impl TinyNet<'_> {
     pub fn packet(&self, x: &[[f32; TINY_PACKET]; TINY_INPUTS], out: &mut [[f32; TINY_PACKET]; 3]) {
         self.check();
         #[cfg(target_arch = "x86_64")]
-        if super::level() == Level::Avx512 {
+        if level() == Level::Avx512 {
             // SAFETY: as in `one`.
             return unsafe { avx512::packet(self, x, out) };
         }
@@ -170,7 +172,7 @@ const W: usize = TINY_MAX_WIDTH;
 /// leaving the last layer's outputs at `x[q * W..][..3]`.
 #[inline(always)]
 fn generic<const Q: usize>(net: &TinyNet<'_>, x: &mut [f32], y: &mut [f32]) {
-    let k = super::kernels::<f32>();
+    let k = crate::kernels::kernels::<f32>();
     let (mut a, mut b) = (x, y);
     for l in net.layers {
         let (n_in, n_out) = (l.inputs, l.padded);
@@ -602,7 +604,7 @@ mod tests {
     #[test]
     fn vector_expm1_is_within_two_ulp_of_libm() {
         #[cfg(target_arch = "x86_64")]
-        if super::super::detected() == Level::Avx512 {
+        if crate::kernels::detected() == Level::Avx512 {
             use core::arch::x86_64::*;
             let mut x = -30.0f32;
             while x < 89.0 {

@@ -5,6 +5,15 @@
 //! `[v, sin(2^0 v), cos(2^0 v), …, sin(2^(F-1) v), cos(2^(F-1) v)]`, blocks in input order. The raw value
 //! is kept so that `F = 0` is the identity. Frequencies are powers of two without a factor π because the
 //! inputs are angles in radians already.
+//!
+//! The sines and cosines are computed 16 at a time, vectorised where the CPU allows (`sincos.rs`:
+//! [`sincos16`], [`sincos_octaves`]).
+
+mod sincos;
+
+#[cfg(target_arch = "x86_64")]
+pub(crate) use sincos::sincos_vector;
+pub use sincos::{sincos16, sincos_octaves};
 
 /// Number of outputs of encoding `n` values with `frequencies` octaves: `n (1 + 2F)`.
 ///
@@ -22,7 +31,7 @@ pub const fn encoded_len(n: usize, frequencies: usize) -> usize {
 /// panic) and the count written is returned, so callers check it against `encoded_len`.
 ///
 /// Each octave is evaluated directly as `sincos(2^k v)` rather than by the double-angle recurrence,
-/// which accumulates error at high octaves, 16 arguments at a time ([`crate::kernels::sincos_octaves`],
+/// which accumulates error at high octaves, 16 arguments at a time ([`sincos_octaves`],
 /// within about an ulp of the true values); the trainer encodes through this function too.
 ///
 /// ```
@@ -48,7 +57,7 @@ pub fn positional_encoding(values: &[f32], frequencies: usize, out: &mut [f32]) 
     // The arguments `2^k v_j` in output order, 16 per batch.
     let (mut j, mut k) = (0, 0);
     for first in (0..n * frequencies).step_by(16) {
-        let (s, c) = crate::kernels::sincos_octaves(&values[..n], frequencies, first);
+        let (s, c) = sincos_octaves(&values[..n], frequencies, first);
         for (s, c) in s.iter().zip(&c).take(n * frequencies - first) {
             let o = j * block + 1 + 2 * k;
             out[o] = *s;

@@ -1,29 +1,29 @@
 //! The output maps of the neural models (Sec. 4.1.2), softplus `ln(1 + e^x)` and the sigmoid
-//! `1 / (1 + e^-x)`, on many values at once: a Single MLP query maps 3 raw outputs, a packet 48, and
-//! `libm`'s `expf` and `log1pf` one value at a time took ~15 ns per value (4% of a batched Single MLP
-//! query).
+//! `1 / (1 + e^-x)`, on many values at once, beside the one-value activations of [`crate::math`]: a
+//! Single MLP query maps 3 raw outputs, a packet 48, and `libm`'s `expf` and `log1pf` one value at a
+//! time took ~15 ns per value (4% of a batched Single MLP query).
 //!
 //! AVX-512: `e^x` as in Cephes `expf.c` (`x = k ln 2 + r` in two steps, a degree-7 polynomial for
 //! `e^r`, `2^k` by `vscalefps`, which also underflows and overflows where `expf` does) and
 //! `ln(1 + u)` for `u = e^-|x|` in `[0, 1]` as in Cephes `logf.c` (`1 + u = 2^e m` with
 //! `m ∈ [√½, √2]`, the polynomial of `ln m`), plus the rounding error of `1 + u` divided by it, which
 //! keeps `ln(1 + u) = u` exact for tiny `u`. Within 3 ulp of the true values (`tests`). Other levels
-//! call [`crate::math::softplus`] and [`crate::math::sigmoid`] per value.
+//! call [`super::softplus`] and [`super::sigmoid`] per value.
 //!
 //! Every value's result depends on that value alone, whatever its position in the slice, so a single
 //! query and a packet agree bit for bit, and the trainer's output ops, which map their tensors through
 //! [`softplus_slice`] and [`sigmoid_slice`], compute what an exported model computes.
 
+use super::{sigmoid, softplus};
 #[cfg(target_arch = "x86_64")]
-use super::Level;
-use crate::math::{sigmoid, softplus};
+use crate::kernels::{level, Level};
 
 /// Maps `x` in place by each value's index modulo 8, the stride of the neural models' raw outputs:
 /// bit `i` of `softplus` gives the values at `i mod 8` softplus, bit `i` of `sigmoid` the sigmoid
 /// (softplus wins where both are set); the rest are left as they are.
 ///
 /// ```
-/// use nbrdf::kernels::map_outputs;
+/// use nbrdf::math::map_outputs;
 /// let mut s = [0.0f32, 1.0, -1.0, 0.0, 2.0, 9.0, 9.0, 9.0];
 /// // An enhanced additive model: softplus of s[0..3], the sigmoid of s[3..6].
 /// map_outputs(&mut s, 0b000_111, 0b111_000);
@@ -34,7 +34,7 @@ use crate::math::{sigmoid, softplus};
 pub fn map_outputs(x: &mut [f32], softplus_lanes: u8, sigmoid_lanes: u8) {
     let sigmoid_lanes = sigmoid_lanes & !softplus_lanes;
     #[cfg(target_arch = "x86_64")]
-    if super::level() == Level::Avx512 {
+    if level() == Level::Avx512 {
         // The lane masks of 16 values starting at an index ≡ 0 (mod 8).
         let wide = |m: u8| m as u16 | (m as u16) << 8;
         for chunk in x.chunks_mut(16) {

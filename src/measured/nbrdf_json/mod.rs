@@ -15,6 +15,13 @@
 //! The published networks are 6-21-21-3 with ReLU; any consistent sizes up to [`MAX_WIDTH`] and
 //! [`MAX_LAYERS`] are accepted, so evaluation runs in fixed stack arrays without allocating.
 //! The networks are not reciprocal (they see `φd`, not `φd mod π`), as in the original.
+//!
+//! Evaluation runs the whole network in one call of the tiny-network kernel (`tiny.rs`: [`TinyNet`],
+//! AVX-512 where the CPU has it, the generic dense-layer kernels of [`crate::kernels`] elsewhere).
+
+mod tiny;
+
+pub use tiny::{half_diff_packet, TinyLayer, TinyNet, TINY_INPUTS, TINY_MAX_WIDTH, TINY_PACKET};
 
 use alloc::string::{String, ToString};
 use alloc::vec::Vec;
@@ -22,14 +29,13 @@ use alloc::vec::Vec;
 use serde::Deserialize;
 
 use crate::angles::{half_diff_vectors, unit};
-use crate::kernels::{half_diff_packet, TinyLayer, TinyNet, TINY_PACKET};
 use crate::math::{load_pair, sanitize};
 use crate::{Error, Rgb, Vec3, BLACK};
 
 /// Widest layer accepted: the size of the evaluator's stack buffers (the published networks are 21
 /// wide). Layers are padded to multiples of 8 (whole SIMD vectors).
 pub const MAX_WIDTH: usize = 64;
-const _: () = assert!(MAX_WIDTH <= crate::kernels::TINY_MAX_WIDTH && INPUTS == crate::kernels::TINY_INPUTS);
+const _: () = assert!(MAX_WIDTH <= TINY_MAX_WIDTH && INPUTS == TINY_INPUTS);
 /// Most layers accepted.
 pub const MAX_LAYERS: usize = 16;
 /// Network input size: `[hx, hy, hz, dx, dy, dz]`.
@@ -74,7 +80,7 @@ struct Layer {
 pub struct NbrdfNetwork {
     name: String,
     layers: Vec<Layer>,
-    /// The parameters rearranged for the tiny-network kernels (`crate::kernels::TinyNet`): each layer's
+    /// The parameters rearranged for the tiny-network kernels ([`TinyNet`]): each layer's
     /// matrix transposed to `[inputs][outputs]` with the outputs zero-padded to whole vectors, then its
     /// bias (zero-padded too).
     evaluator: Vec<f32>,
@@ -371,7 +377,7 @@ impl NbrdfNetwork {
 /// The numerators wait on no square root, and the two reciprocal square roots (`1 / r` and `1 / |h|`)
 /// run side by side, so the dependent chain is one square-root-and-divide step and two
 /// multiplications after `q`. `h_xy = 0` means `φh = 0`, as in `angles::to_rusinkiewicz`: `d` is `wi`
-/// rotated by `-θh = 0`. `crate::kernels::half_diff_packet` is the same computation on 16 pairs, bit
+/// rotated by `-θh = 0`. [`half_diff_packet`] is the same computation on 16 pairs, bit
 /// for bit.
 #[inline(always)]
 fn input(wi: Vec3, wo: Vec3) -> Option<[f32; INPUTS]> {

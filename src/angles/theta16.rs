@@ -1,6 +1,8 @@
-//! The exact reciprocity map Θ (Sec. 4.3, [`crate::angles::theta_map`]), or the plain Rusinkiewicz
-//! angles, and their positional encoding ([`crate::encoding::positional_encoding`]) for 16 direction
-//! pairs at once (AVX-512), with the bits of the one-pair functions in every lane.
+//! The exact reciprocity map Θ (Sec. 4.3, [`super::theta_map`]), or the plain Rusinkiewicz angles,
+//! and their positional encoding ([`crate::encoding::positional_encoding`]) for 16 direction pairs at
+//! once (AVX-512), with the bits of the one-pair functions in every lane: the batch form of this
+//! module's scalar functions, kept beside them (x86-64 only). It runs only where
+//! [`crate::kernels::level`] is AVX-512; `Model::eval_many` checks that before calling [`encode16`].
 //!
 //! Why: a batch's per-pair work before the network is Θ's three `atan2f` (libm, scalar) and the
 //! sines and cosines of its octaves, one vector of 16 per pair whose dependent chain the core cannot
@@ -10,17 +12,18 @@
 //!
 //! Why bit for bit: `Model::eval_many` promises the bits of `Model::eval`, exact reciprocity
 //! included, and the trainer encodes through the scalar functions. So each lane runs the same IEEE
-//! operations in the same order as the scalar code: [`crate::angles::unit`] (twice, as
+//! operations in the same order as the scalar code: [`super::unit`] (twice, as
 //! `upper_hemisphere_pair` and then `half_frame` normalise), the half frame with glam's sums in
 //! glam's order, libm's `atanf`/`atan2f` (FreeBSD `s_atanf.c`, `e_atan2f.c`; their branches as
-//! masks, no fused multiply-adds), and the encoding's one sine-cosine body
-//! ([`super::sincos`]`::sincos_vector`; lanes it does not reduce go to `libm::sincosf` as there). Pairs
-//! whose vectors need `unit`'s rescaled path (squared length outside `[1e-30, 1e30]`, zero, not
+//! masks, no fused multiply-adds), and the encoding's one sine-cosine body ([`crate::encoding`]'s
+//! `sincos_vector`, `encoding/sincos.rs`; lanes it does not reduce go to `libm::sincosf` as there).
+//! Pairs whose vectors need `unit`'s rescaled path (squared length outside `[1e-30, 1e30]`, zero, not
 //! finite) are left to the caller's scalar code.
 
 use core::arch::x86_64::*;
 
-use crate::angles::{UNIT_FAST_MAX, UNIT_FAST_MIN, UNIT_TAYLOR};
+use super::{UNIT_FAST_MAX, UNIT_FAST_MIN, UNIT_TAYLOR};
+use crate::kernels::{mask16, transpose16};
 use crate::Vec3;
 
 /// Three components of 16 vectors.
@@ -44,7 +47,7 @@ fn dot(a: V3, b: V3) -> __m512 {
     _mm512_add_ps(_mm512_add_ps(_mm512_mul_ps(a.x, b.x), _mm512_mul_ps(a.y, b.y)), _mm512_mul_ps(a.z, b.z))
 }
 
-/// [`crate::angles::unit`] of each lane, and the lanes its fast paths do not cover (the rescaled path:
+/// [`super::unit`] of each lane, and the lanes its fast paths do not cover (the rescaled path:
 /// left to the scalar code).
 #[inline]
 #[target_feature(enable = "avx512f")]
@@ -180,7 +183,7 @@ fn atan2f(y: __m512, x: __m512) -> __m512 {
 }
 
 /// Encodes up to 16 pairs as `Model` does one (`upper_hemisphere_pair`, then
-/// [`crate::angles::theta_map`] where `exact`, else [`crate::angles::rusinkiewicz_angles`], then
+/// [`super::theta_map`] where `exact`, else [`super::rusinkiewicz_angles`], then
 /// [`crate::encoding::positional_encoding`] with `frequencies` octaves): lane `q < n` to
 /// `out[q * stride..][..len]` (`len` = 4 or 3 angles × `1 + 2 * frequencies`), the same bits. Returns `(valid, scalar)`: the
 /// lanes whose row was written (the rest are off the upper hemisphere or degenerate: 0 for the
@@ -188,8 +191,8 @@ fn atan2f(y: __m512, x: __m512) -> __m512 {
 /// written nor valid.
 ///
 /// # Safety
-/// [`super::level`] is [`super::Level::Avx512`] (the condition of the sine-cosine body it shares with
-/// `sincos_octaves`); `n ≤ 16`; `frequencies ≤ 127`; `stride ≥ len` and `out` holds
+/// [`crate::kernels::level`] is [`crate::kernels::Level::Avx512`] (the condition of the sine-cosine
+/// body it shares with `sincos_octaves`); `n ≤ 16`; `frequencies ≤ 127`; `stride ≥ len` and `out` holds
 /// `(n - 1) * stride + len` values.
 #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c")]
 #[allow(clippy::too_many_arguments)]
@@ -256,9 +259,9 @@ pub(crate) unsafe fn encode16(wi: &[Vec3; 16], wo: &[Vec3; 16], n: usize, exact:
         cols[*col] = v;
         *col += 1;
         if *col == 16 || flush_all {
-            let t = super::x86::transpose16(*cols);
+            let t = transpose16(*cols);
             // Only the row's own values: rows may lie `len` apart.
-            let m = super::x86::mask16(len - rows_done);
+            let m = mask16(len - rows_done);
             for (q, row) in t.iter().enumerate().take(n) {
                 if valid & (1 << q) != 0 {
                     // SAFETY: row `q < n` has room for `len` values (contract); the mask stores no more.
@@ -275,7 +278,7 @@ pub(crate) unsafe fn encode16(wi: &[Vec3; 16], wo: &[Vec3; 16], n: usize, exact:
             // 2^k from its exponent bits, times the value: the product `octave_args` forms.
             let arg = _mm512_mul_ps(_mm512_castsi512_ps(_mm512_set1_epi32((k as i32 + 127) << 23)), v);
             // SAFETY: AVX-512F.
-            let (mut sin, mut cos, done) = unsafe { super::sincos::sincos_vector(arg) };
+            let (mut sin, mut cos, done) = unsafe { crate::encoding::sincos_vector(arg) };
             let redo = !done & valid;
             if redo != 0 {
                 let (mut xs, mut ss, mut cs) = ([0.0f32; 16], [0.0f32; 16], [0.0f32; 16]);
@@ -310,7 +313,7 @@ mod tests {
     use crate::encoding::positional_encoding;
 
     fn avx512() -> bool {
-        let here = super::super::level() == super::super::Level::Avx512;
+        let here = crate::kernels::level() == crate::kernels::Level::Avx512;
         if !here {
             std::eprintln!("theta16: no AVX-512 here; skipping");
         }
