@@ -9,6 +9,8 @@
 //! degenerate or not strictly above the horizon, and reciprocal where the model promises it — bit for bit
 //! for the parametric models, the Θ networks and the MERL lookups.
 
+mod common;
+
 use std::f32::consts::{FRAC_PI_2, PI};
 
 use nbrdf::angles::unit;
@@ -458,8 +460,8 @@ fn neural_models_of_every_kind_and_precision_with_extreme_weights() {
                 let buf = ModelBuf::from_bytes(&bytes).unwrap_or_else(|e| panic!("{name}: {e}"));
                 // The file borrowed in place: an f16 one runs the f16 kernels (a `ModelBuf` holds it
                 // widened to f32, whose batches are checked against these below).
-                let words = words(&bytes);
-                let model = Model::from_bytes(&as_bytes(&words)[..bytes.len()]).unwrap_or_else(|e| panic!("{name}: {e}"));
+                let words = common::words(&bytes);
+                let model = Model::from_bytes(&common::bytes(&words)[..bytes.len()]).unwrap_or_else(|e| panic!("{name}: {e}"));
                 let reciprocal = if h.reciprocity == Reciprocity::Exact || matches!(h.kind, ModelKind::Parametric(_)) {
                     Reciprocal::Bitwise
                 } else {
@@ -519,8 +521,8 @@ fn to_f16_rejects_weights_beyond_the_f16_range_and_f16_models() {
     assert_eq!(buf.as_bytes(), &bytes[..]);
     w[17] = 0.5;
     let half = nbrdf::ModelBuf::from_bytes(&encode(&h, &w, None).unwrap()).unwrap().model().to_f16().unwrap();
-    let words = words(&half);
-    let half = Model::from_bytes(&as_bytes(&words)[..half.len()]).unwrap();
+    let words = common::words(&half);
+    let half = Model::from_bytes(&common::bytes(&words)[..half.len()]).unwrap();
     assert!(matches!(half.to_f16(), Err(nbrdf::Error::InvalidValue { what: "model precision", .. })));
     assert!(matches!(buf.model().to_f32(), Err(nbrdf::Error::InvalidValue { what: "model precision", .. })));
 }
@@ -605,20 +607,3 @@ fn overflowing_diffuse_network_reads_as_zero_not_nan() {
     }
 }
 
-/// `bytes` in 4-byte aligned storage, as `Model::from_bytes` needs (the tail zero-padded).
-fn words(bytes: &[u8]) -> Vec<u32> {
-    bytes
-        .chunks(4)
-        .map(|c| {
-            let mut w = [0u8; 4];
-            w[..c.len()].copy_from_slice(c);
-            u32::from_ne_bytes(w)
-        })
-        .collect()
-}
-
-/// The bytes of `words`.
-fn as_bytes(words: &[u32]) -> &[u8] {
-    // SAFETY: u8 has no alignment requirement and every byte of a u32 slice is initialised.
-    unsafe { std::slice::from_raw_parts(words.as_ptr().cast::<u8>(), words.len() * 4) }
-}

@@ -12,6 +12,9 @@ use nbrdf::measured::nbrdf_json::{TinyLayer, TinyNet, TINY_INPUTS, TINY_PACKET};
 use nbrdf::Vec3;
 use std::sync::Mutex;
 
+mod common;
+use common::{bytes, words};
+
 /// The level is process-wide: tests that set it take turns.
 static LEVEL: Mutex<()> = Mutex::new(());
 
@@ -183,23 +186,6 @@ fn f16_files_widened_at_load_or_row_by_row_give_the_bits_of_f32_weights() {
     set_level(None);
 }
 
-/// `bytes` in 4-byte aligned storage, as `Model::from_bytes` needs (the tail zero-padded).
-fn words(bytes: &[u8]) -> Vec<u32> {
-    bytes
-        .chunks(4)
-        .map(|c| {
-            let mut w = [0u8; 4];
-            w[..c.len()].copy_from_slice(c);
-            u32::from_ne_bytes(w)
-        })
-        .collect()
-}
-
-/// The bytes of `words`.
-fn bytes(words: &[u32]) -> &[u8] {
-    // SAFETY: u8 has no alignment requirement and every byte of a u32 slice is initialised.
-    unsafe { std::slice::from_raw_parts(words.as_ptr().cast::<u8>(), words.len() * 4) }
-}
 
 /// `Model::prepare_many` runs the position networks 16 points at a time through the packet kernels:
 /// every point's evaluations get the bits of `prepare` of that point, for every model kind (the

@@ -1,7 +1,8 @@
-//! Checks shared by the sampling tests (`tests/sampling.rs`, `tests/proxy.rs`): a sampler against its
-//! own pdf by a chi-square test on a histogram of sampled directions (as pbrt's and Mitsuba's BSDF
-//! tests do), the pdf's integral against the share of samples produced, the estimator weight against
-//! `f cos / pdf`, and an independent quadrature of the directional albedo.
+//! Helpers shared by the integration tests: model bytes in aligned storage (`tests/kernels.rs`,
+//! `tests/hard_cases.rs`), and the sampling tests' checks (`tests/sampling.rs`, `tests/proxy.rs`): a
+//! sampler against its own pdf by a chi-square test on a histogram of sampled directions (as pbrt's and
+//! Mitsuba's BSDF tests do), the pdf's integral against the share of samples produced, the estimator
+//! weight against `f cos / pdf`, and an independent quadrature of the directional albedo.
 //!
 //! Each test binary uses a different subset of these helpers.
 #![allow(dead_code)]
@@ -137,4 +138,22 @@ pub fn check_sampler(name: &str, s: &Sampler<'_>, n: usize, seed: u64) -> (f64, 
     let limit = dof * (1.0 - k + 4.0 * k.sqrt()).powi(3);
     assert!(chi2 < limit, "{name}: χ² = {chi2:.1} > {limit:.1} with {dof} dof");
     (frac, weight_sum.map(|s| s / n as f64))
+}
+
+/// `bytes` in 4-byte aligned storage, as `Model::from_bytes` needs (the tail zero-padded).
+pub fn words(bytes: &[u8]) -> Vec<u32> {
+    bytes
+        .chunks(4)
+        .map(|c| {
+            let mut w = [0u8; 4];
+            w[..c.len()].copy_from_slice(c);
+            u32::from_ne_bytes(w)
+        })
+        .collect()
+}
+
+/// The bytes of `words`.
+pub fn bytes(words: &[u32]) -> &[u8] {
+    // SAFETY: u8 has no alignment requirement and every byte of a u32 slice is initialised.
+    unsafe { std::slice::from_raw_parts(words.as_ptr().cast::<u8>(), words.len() * 4) }
 }
