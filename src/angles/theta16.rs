@@ -315,7 +315,7 @@ mod tests {
     fn avx512() -> bool {
         let here = crate::kernels::level() == crate::kernels::Level::Avx512;
         if !here {
-            std::eprintln!("theta16: no AVX-512 here; skipping");
+            crate::kernels::skipped("Θ for 16 pairs", crate::kernels::Level::Avx512);
         }
         here
     }
