@@ -886,6 +886,22 @@ pub(crate) mod tests {
         }
     }
 
+    /// `NBRDF_KERNEL`'s errors name the value and what the CPU has; every level's name parses back.
+    #[test]
+    fn level_names_round_trip_and_errors_say_what_to_do() {
+        for l in [Level::Portable, Level::Neon, Level::Avx2, Level::Avx512] {
+            assert_eq!(Level::parse(l.name()), Some(l));
+        }
+        assert_eq!(Level::parse(" Avx512 "), Some(Level::Avx512));
+        use alloc::string::ToString;
+        let e = LevelError::Unsupported(Level::Avx512, Level::Avx2).to_string();
+        assert!(e.contains("NBRDF_KERNEL=avx512") && e.contains("best it runs is avx2"), "{e}");
+        let mut b = [0u8; 16];
+        b[..4].copy_from_slice(b"sse9");
+        let e = LevelError::Unknown(b, 4).to_string();
+        assert!(e.contains("\"sse9\"") && e.contains("portable") && e.contains("avx512"), "{e}");
+    }
+
     #[test]
     #[cfg(target_arch = "x86_64")]
     fn the_sparse_packet_kernels_give_the_bits_of_the_dense_ones() {
