@@ -5,10 +5,9 @@
 //! `batch-1024-random`, and in calls of 32 pairs, `batch-32`, at the best level), plus the NBRDF-json networks, plus the neural models'
 //! batched throughput with one thread per core (`eval-f32-N-threads`, wall time), and the floor that
 //! L2 bandwidth puts under a single Single MLP query (`eval-floor`). Run: `cargo bench --bench eval`,
-//! or e.g. `cargo bench --bench eval -- 'eval-f32/.*single-mlp'` for one model. f32 models load
-//! through `ModelBuf`; f16 ones are borrowed in place (`Model::from_bytes`, the `no_std` path whose
-//! kernels widen the f16 rows as they read them), since a `ModelBuf` widens an f16 file at load and
-//! then runs it as the f32 one.
+//! or e.g. `cargo bench --bench eval -- 'eval-f32/.*single-mlp'` for one model. Models load
+//! through `ModelBuf::from_bytes_as_is`, so that f16 ones keep their f16 rows, which the kernels widen
+//! as they read them (`from_bytes` widens an f16 file at load and then runs it as the f32 one).
 //!
 //! On Linux the clock is the thread's CPU time (`CLOCK_THREAD_CPUTIME_ID`), not wall time: the
 //! development machine is shared by several compiling users, and CPU time stays meaningful while the
@@ -20,7 +19,7 @@ use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Through
 use nbrdf::kernels::{detected, set_level, Level};
 use nbrdf::measured::NbrdfNetwork;
 use nbrdf::file::{encode, ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity};
-use nbrdf::{Model, ModelBuf};
+use nbrdf::ModelBuf;
 use nbrdf::parametric::ParametricKind;
 use nbrdf::{Rgb, Vec3};
 
@@ -147,36 +146,6 @@ impl Measurement for Clock {
     }
 }
 
-/// A model file in a buffer of the caller's, placed as `Model::query_weights_offset_of` advises (the
-/// per-query network on a cache line, to the 4 bytes a section's alignment allows), for
-/// `Model::from_bytes`.
-struct InPlace {
-    words: Vec<u32>,
-    start: usize,
-    len: usize,
-}
-
-impl InPlace {
-    fn new(bytes: &[u8]) -> Self {
-        let at = Model::query_weights_offset_of(bytes).unwrap();
-        let mut words = vec![0u32; bytes.len().div_ceil(4) + 16];
-        let base = words.as_ptr() as usize;
-        let start = (64 - (base + at) % 64) % 64 / 4;
-        for (w, c) in words[start..].iter_mut().zip(bytes.chunks(4)) {
-            let mut b = [0u8; 4];
-            b[..c.len()].copy_from_slice(c);
-            *w = u32::from_ne_bytes(b);
-        }
-        InPlace { words, start, len: bytes.len() }
-    }
-
-    fn model(&self) -> Model<'_> {
-        // SAFETY: u8 has no alignment requirement and every byte of a u32 slice is initialised.
-        let bytes = unsafe { std::slice::from_raw_parts(self.words.as_ptr().cast::<u8>(), self.words.len() * 4) };
-        Model::from_bytes(&bytes[4 * self.start..4 * self.start + self.len]).unwrap()
-    }
-}
-
 fn bench_models(c: &mut Criterion<Clock>) {
     let p: Vec<f32> = (0..64).map(|i| (i as f32 * 0.1).sin()).collect();
     // 1 024 points' intrinsic features, neighbouring points alike (a smooth field over the surface).
@@ -187,13 +156,8 @@ fn bench_models(c: &mut Criterion<Clock>) {
         let mut g = c.benchmark_group(format!("eval-{precision:?}").to_lowercase());
         for (name, mut h) in variants() {
             h.precision = precision;
-            let bytes = encode(&h, &weights(h.n_weights()), None).unwrap();
-            let buf = ModelBuf::from_bytes(&bytes).unwrap();
-            let in_place = InPlace::new(&bytes);
-            let m = match precision {
-                Precision::F32 => buf.model(),
-                Precision::F16 => in_place.model(),
-            };
+            let buf = ModelBuf::from_bytes_as_is(&encode(&h, &weights(h.n_weights()), None).unwrap()).unwrap();
+            let m = buf.model();
             for (level, lname) in levels() {
                 set_level(Some(level));
                 let prepared = m.prepare(&p);

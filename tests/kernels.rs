@@ -111,8 +111,8 @@ fn tiny_networks_match_a_scalar_reference_and_packets_match_single_queries() {
 }
 
 /// An f16 file evaluates alike however it is held: a `ModelBuf` widens it to f32 once at load, a
-/// `Model` over the borrowed f16 bytes widens each row as its kernels read it (one query, dense and
-/// sparse packets, the chain kernel), and both give every pair the bits of the f32 model whose
+/// `Model` over the borrowed f16 bytes (or `ModelBuf::from_bytes_as_is`) widens each row as its
+/// kernels read it (one query, dense and sparse packets, the chain kernel), and all give every pair the bits of the f32 model whose
 /// weights are the f16 values (the widening is exact and the f16 kernels sum in the f32 ones'
 /// order): single queries, batches in one call and in calls of 40 pairs, `prepare` and
 /// `prepare_many`, at every level, on several threads at once.
@@ -148,10 +148,12 @@ fn f16_files_widened_at_load_or_row_by_row_give_the_bits_of_f32_weights() {
             for (kind, f32_buf, f16_words, len, f16_buf) in models.iter() {
                 let borrowed = Model::from_bytes(&bytes(f16_words)[..*len]).unwrap();
                 assert_eq!(borrowed.header().precision, Precision::F16);
+                let as_is = ModelBuf::from_bytes_as_is(&bytes(f16_words)[..*len]).unwrap();
+                assert_eq!((as_is.file_precision(), as_is.header().precision), (Precision::F16, Precision::F16));
                 let m32 = f32_buf.model();
                 let mut want_prepared = vec![m32.prepare(&[]); 20];
                 m32.prepare_many(&points, &mut want_prepared).unwrap();
-                for (name, m) in [("ModelBuf", f16_buf.model()), ("borrowed f16", borrowed)] {
+                for (name, m) in [("ModelBuf", f16_buf.model()), ("borrowed f16", borrowed), ("ModelBuf as is", as_is.model())] {
                     let mut prepared = vec![m.prepare(&[]); 20];
                     m.prepare_many(&points, &mut prepared).unwrap();
                     for (q, (p, p32)) in prepared.iter().zip(&want_prepared).enumerate().step_by(7) {

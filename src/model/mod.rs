@@ -759,7 +759,7 @@ pub struct ModelBuf {
     len: usize,
     header: ModelHeader,
     sections: Sections,
-    /// The precision of the file loaded (`header` is the f32 one held).
+    /// The precision of the file loaded (`header` is the one held: f32 unless held as it is).
     file_precision: Precision,
 }
 
@@ -794,13 +794,33 @@ impl ModelBuf {
     /// Copies `bytes` into storage whose per-query network starts on a 64-byte boundary, and validates
     /// them as a model file; an f16 file is stored widened to f32 (see [`ModelBuf`]).
     pub fn from_bytes(bytes: &[u8]) -> Result<Self, Error> {
-        let (header, sections) = crate::file::parse(bytes)?;
-        if header.precision == Precision::F32 {
-            return Self::placed(bytes, header, sections);
+        let held = Self::from_bytes_as_is(bytes)?;
+        if held.header.precision == Precision::F32 {
+            return Ok(held);
         }
-        let wide = Self::placed(bytes, header, sections)?.model().to_f32()?;
+        let wide = held.model().to_f32()?;
         let (header, sections) = crate::file::parse(&wide)?;
         Ok(ModelBuf { file_precision: Precision::F16, ..Self::placed(&wide, header, sections)? })
+    }
+
+    /// Copies `bytes` as [`ModelBuf::from_bytes`] does, but holds an f16 file as it is: its rows stay
+    /// f16 and the kernels widen them as they read them (the same bits as the widened file, half its
+    /// weight memory, batches ~1.1–1.2× the time; `docs/speed.md`). For an f32 file the same as
+    /// `from_bytes`.
+    ///
+    /// ```
+    /// use nbrdf::file::{encode, ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity};
+    /// use nbrdf::ModelBuf;
+    /// let mut h = ModelHeader::paper(ModelKind::SingleMlp, false, Reciprocity::Exact, PositionEncoding::Uniform, 2);
+    /// h.precision = Precision::F16;
+    /// let f16_file = encode(&h, &vec![0.01; h.n_weights()], None).unwrap();
+    /// let buf = ModelBuf::from_bytes_as_is(&f16_file).unwrap();
+    /// assert_eq!((buf.file_precision(), buf.header().precision), (Precision::F16, Precision::F16));
+    /// assert_eq!(buf.as_bytes(), &f16_file[..]);
+    /// ```
+    pub fn from_bytes_as_is(bytes: &[u8]) -> Result<Self, Error> {
+        let (header, sections) = crate::file::parse(bytes)?;
+        Self::placed(bytes, header, sections)
     }
 
     /// The validated file `bytes` (of `header` and `sections`) copied so that its per-query network
@@ -832,12 +852,13 @@ impl ModelBuf {
         self.bytes()
     }
 
-    /// The header of the file held ([`Precision::F32`] for a widened f16 file).
+    /// The header of the file held ([`Precision::F32`] for an f16 file widened by `from_bytes`).
     pub fn header(&self) -> &ModelHeader {
         &self.header
     }
 
-    /// The precision of the file loaded: [`Precision::F16`] for an f16 file, held widened to f32.
+    /// The precision of the file loaded: [`Precision::F16`] for an f16 file, held widened to f32 (or
+    /// as it is, [`ModelBuf::from_bytes_as_is`]).
     pub fn file_precision(&self) -> Precision {
         self.file_precision
     }

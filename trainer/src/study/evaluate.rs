@@ -8,13 +8,12 @@
 //! - the evaluation cost is timed in-process on the reciprocity pairs: one query at a time (`eval`),
 //!   and in batches of many directions at one point (`eval_many`).
 //!
-//! An f32 file is evaluated through a [`ModelBuf`]; an f16 file borrowed in place ([`Held`]), so that
-//! the timings are those of its f16 rows (a `ModelBuf` widens an f16 file at load: the same values,
-//! at the f32 rows' speed).
+//! A file is held as it is ([`ModelBuf::from_bytes_as_is`]), so that an f16 file's timings are those
+//! of its f16 rows (`ModelBuf::from_bytes` would widen it at load: the same values, at the f32 rows'
+//! speed).
 
 use std::time::Instant;
 
-use nbrdf::file::Precision;
 use nbrdf::ModelBuf;
 use nbrdf::image::{read_exr, RgbImage};
 use nbrdf::model::{Model, Prepared};
@@ -77,58 +76,6 @@ fn prepare_at(model: &Model<'_>, ds: &Dataset, s: &SurfaceSample) -> Prepared {
     model.prepare(&point_input(model, ds, s.hit.triangle, s.hit.b1, s.hit.b2, s.position))
 }
 
-/// A model file as the study evaluates it: an f32 file in a [`ModelBuf`]; an f16 file borrowed in
-/// place ([`Model::from_bytes`], whose kernels widen the f16 rows as they read them), in words so that
-/// it is 4-byte aligned, placed as `ModelBuf` places a file (the per-query network on a cache line, to
-/// the 4 bytes the format's alignment allows).
-struct Held {
-    buf: Option<ModelBuf>,
-    words: Vec<u32>,
-    start: usize,
-    len: usize,
-}
-
-impl Held {
-    /// Reads and validates the model file at `path`.
-    fn load(path: &std::path::Path) -> Result<Held> {
-        Held::from_bytes(&nbrdf::io::read(path).map_err(Error::Core)?)
-    }
-
-    /// Validates the model file `bytes` and holds it.
-    fn from_bytes(bytes: &[u8]) -> Result<Held> {
-        let buf = ModelBuf::from_bytes(bytes).map_err(Error::Core)?;
-        if buf.file_precision() == Precision::F32 {
-            return Ok(Held { buf: Some(buf), words: Vec::new(), start: 0, len: 0 });
-        }
-        let at = Model::query_weights_offset_of(bytes).map_err(Error::Core)?;
-        let mut words = vec![0u32; bytes.len().div_ceil(4) + 16];
-        let start = (64 - (words.as_ptr() as usize + at) % 64) % 64 / 4;
-        for (w, c) in words[start..].iter_mut().zip(bytes.chunks(4)) {
-            let mut b = [0u8; 4];
-            b[..c.len()].copy_from_slice(c);
-            *w = u32::from_ne_bytes(b);
-        }
-        let held = Held { buf: None, words, start, len: bytes.len() };
-        held.try_model()?;
-        Ok(held)
-    }
-
-    fn try_model(&self) -> Result<Model<'_>> {
-        if let Some(buf) = &self.buf {
-            return Ok(buf.model());
-        }
-        // SAFETY: u8 has no alignment requirement and every byte of a u32 slice is initialised.
-        let bytes = unsafe { std::slice::from_raw_parts(self.words.as_ptr().cast::<u8>(), self.words.len() * 4) };
-        Model::from_bytes(&bytes[4 * self.start..4 * self.start + self.len]).map_err(Error::Core)
-    }
-
-    /// The evaluator over the held file.
-    fn model(&self) -> Model<'_> {
-        // `from_bytes` validated the same bytes in the same place.
-        self.try_model().expect("validated at load")
-    }
-}
-
 /// Evaluates the model file `model_path` on the test split of `ds` (see the module docs).
 pub fn evaluate(
     ds: &Dataset,
@@ -136,7 +83,7 @@ pub fn evaluate(
     lpips: &std::result::Result<Lpips, String>,
     config: &super::StudyConfig,
 ) -> Result<Evaluation> {
-    let held = Held::load(model_path)?;
+    let held = ModelBuf::from_bytes_as_is(&nbrdf::io::read(model_path).map_err(Error::Core)?).map_err(Error::Core)?;
     let model = held.model();
     let eval = |p: &Prepared, wi: Vec3, wo: Vec3| model.eval(p, wi, wo);
     let mut image_metrics = Vec::new();
@@ -348,9 +295,8 @@ mod tests {
         let buf = ModelBuf::from_bytes(&encode(&h, &weights, Some(&table)).unwrap()).unwrap();
         let f16_file = to_f16(&buf).unwrap();
         assert!(f16_file.len() < buf.as_bytes().len());
-        // Held as the study evaluates it: in place, f16 rows.
-        let b16 = Held::from_bytes(&f16_file).unwrap();
-        assert!(b16.buf.is_none());
+        // Held as the study evaluates it: f16 rows as they are.
+        let b16 = ModelBuf::from_bytes_as_is(&f16_file).unwrap();
         let (m32, m16) = (buf.model(), b16.model());
         assert_eq!(m16.header().precision, Precision::F16);
         let mut f32_feat = vec![0.0; k as usize];
