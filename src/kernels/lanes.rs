@@ -139,8 +139,8 @@ unsafe fn store_tile<L: Lanes>(acc: &[f32; TILE], out: *mut f32, w: usize, relu:
     unsafe { core::ptr::copy_nonoverlapping(t.as_ptr(), out, w) };
 }
 
-/// The tile of row `i` from output `t0` on, widened into `buf` (zero past `w`); for f32 rows whose
-/// tile is whole, the row itself.
+/// The tile of row `i` from output `t0` on, widened into `buf` (past `w` whatever an earlier tile
+/// left: padding lanes, computed and never stored); for f32 rows whose tile is whole, the row itself.
 #[inline(always)]
 fn row_tile<W: Weight>(rows: &[W], i: usize, n: usize, t0: usize, w: usize, buf: &mut [f32; TILE]) -> *const f32 {
     let r = &rows[i * n + t0..i * n + t0 + w];

@@ -185,10 +185,17 @@ pub fn requested() -> Result<Option<Level>, LevelError> {
 /// compile-time target features without it).
 pub fn cpu_level() -> Level {
     static CPU: AtomicU8 = AtomicU8::new(0);
-    match CPU.load(Ordering::Relaxed) {
+    cached(&CPU, detect)
+}
+
+/// The level in `cell`, or `init()`'s, stored there first where the cell is still 0 (unset). Racing
+/// threads may both run `init`; they store the same level.
+#[inline]
+fn cached(cell: &AtomicU8, init: impl FnOnce() -> Level) -> Level {
+    match cell.load(Ordering::Relaxed) {
         0 => {
-            let l = detect();
-            CPU.store(l.to_u8(), Ordering::Relaxed);
+            let l = init();
+            cell.store(l.to_u8(), Ordering::Relaxed);
             l
         }
         v => Level::from_u8(v),
@@ -200,14 +207,7 @@ pub fn cpu_level() -> Level {
 /// tests every level below its own by setting the variable.
 pub fn detected() -> Level {
     static DETECTED: AtomicU8 = AtomicU8::new(0);
-    match DETECTED.load(Ordering::Relaxed) {
-        0 => {
-            let l = ceiling();
-            DETECTED.store(l.to_u8(), Ordering::Relaxed);
-            l
-        }
-        v => Level::from_u8(v),
-    }
+    cached(&DETECTED, ceiling)
 }
 
 #[cfg(feature = "std")]
@@ -233,14 +233,7 @@ static ACTIVE: AtomicU8 = AtomicU8::new(0);
 /// The level the evaluator uses now: [`detected`], unless lowered by [`set_level`].
 #[inline]
 pub fn level() -> Level {
-    match ACTIVE.load(Ordering::Relaxed) {
-        0 => {
-            let l = detected();
-            ACTIVE.store(l.to_u8(), Ordering::Relaxed);
-            l
-        }
-        v => Level::from_u8(v),
-    }
+    cached(&ACTIVE, detected)
 }
 
 /// Makes the evaluator use `level` (clamped to [`detected`]; a level of another architecture gives
