@@ -189,6 +189,20 @@ fn f16_files_widened_at_load_or_row_by_row_give_the_bits_of_f32_weights() {
 }
 
 
+/// Each header's model with random weights as an f32 and an f16 file, in 4-byte aligned words with
+/// their lengths, for `Model::from_bytes`: borrowed, so that the f16 file's rows stay f16.
+fn files_of(headers: &[ModelHeader], rng: &mut Rng) -> Vec<(Vec<u32>, usize)> {
+    let mut files = Vec::new();
+    for h in headers {
+        let w: Vec<f32> = (0..h.n_weights()).map(|_| rng.next() * 0.3).collect();
+        let f32_file = encode(h, &w, None).unwrap();
+        let f16_file = ModelBuf::from_bytes(&f32_file).unwrap().model().to_f16().unwrap();
+        files.push((words(&f32_file), f32_file.len()));
+        files.push((words(&f16_file), f16_file.len()));
+    }
+    files
+}
+
 /// `Model::prepare_many` runs the position networks 16 points at a time through the packet kernels:
 /// every point's evaluations get the bits of `prepare` of that point, for every model kind (the
 /// parametric ones, whose whole network runs per point; the Single MLP with its one network and with
@@ -209,14 +223,7 @@ fn prepare_many_gives_each_point_the_evaluations_of_prepare() {
             headers.push(ModelHeader::paper(kind, kind.is_additive(), Reciprocity::Exact, pos, 2));
         }
         headers.push(ModelHeader::paper(ModelKind::SingleMlp, false, Reciprocity::None, pos, 2).with_direction_layers(2));
-        for h in headers {
-            let w: Vec<f32> = (0..h.n_weights()).map(|_| rng.next() * 0.3).collect();
-            // Borrowed, so that the f16 file's rows are f16 (a `ModelBuf` would widen them).
-            let f32_file = encode(&h, &w, None).unwrap();
-            let f16_file = ModelBuf::from_bytes(&f32_file).unwrap().model().to_f16().unwrap();
-            models.push((words(&f32_file), f32_file.len()));
-            models.push((words(&f16_file), f16_file.len()));
-        }
+        models.extend(files_of(&headers, &mut rng));
     }
     let pairs: Vec<(Vec3, Vec3)> = (0..6)
         .map(|_| (Vec3::new(rng.next(), rng.next(), rng.next() + 0.6).normalize(), Vec3::new(rng.next(), rng.next(), rng.next() + 0.6).normalize()))
@@ -287,19 +294,12 @@ fn every_level_agrees_with_the_portable_one_within_the_rounding_bound() {
     let _level = LEVEL.lock().unwrap_or_else(|e| e.into_inner());
     let mut rng = Rng(0x5851f42d4c957f2d);
     let pos = PositionEncoding::Intrinsic { k: 6 };
-    let mut files = Vec::new();
     let mut headers: Vec<ModelHeader> =
         nbrdf::parametric::ParametricKind::ALL.iter().map(|&k| ModelHeader::paper(ModelKind::Parametric(k), false, Reciprocity::None, pos, 0)).collect();
     for kind in [ModelKind::SingleMlp, ModelKind::AdditiveSeparate, ModelKind::AdditiveShared] {
         headers.push(ModelHeader::paper(kind, kind.is_additive(), Reciprocity::Exact, pos, 4));
     }
-    for h in headers {
-        let w: Vec<f32> = (0..h.n_weights()).map(|_| rng.next() * 0.3).collect();
-        let f32_file = encode(&h, &w, None).unwrap();
-        let f16_file = ModelBuf::from_bytes(&f32_file).unwrap().model().to_f16().unwrap();
-        files.push((words(&f32_file), f32_file.len()));
-        files.push((words(&f16_file), f16_file.len()));
-    }
+    let files = files_of(&headers, &mut rng);
     let point: Vec<f32> = (0..6).map(|_| rng.next()).collect();
     let n = 100;
     let mut dir = || Vec3::new(rng.next(), rng.next(), rng.next() + 0.6).normalize();
