@@ -155,6 +155,7 @@ fn model_file_every_prefix_is_truncated_and_every_bit_flip_is_caught() {
     aligned[..good.len()].copy_from_slice(&good);
     for cut in 0..good.len() {
         assert_err!(format!("prefix of {cut} bytes"), ModelBuf::from_bytes(&good[..cut]), Error::Truncated { .. });
+        assert_err!(format!("prefix of {cut} bytes, held as is"), ModelBuf::from_bytes_as_is(&good[..cut]), Error::Truncated { .. });
         assert_err!(format!("prefix of {cut} bytes, zero-copy"), Model::from_bytes(&aligned[..cut]), Error::Truncated { .. });
     }
     // A flipped bit anywhere is an error, never a silently different model: in the magic, the version,
@@ -169,6 +170,7 @@ fn model_file_every_prefix_is_truncated_and_every_bit_flip_is_caught() {
             b[at] ^= 1 << bit;
             let r = ModelBuf::from_bytes(&b);
             assert!(r.is_err(), "bit {bit} of byte {at} flipped: accepted");
+            assert!(ModelBuf::from_bytes_as_is(&b).is_err(), "bit {bit} of byte {at} flipped: accepted as is");
             if at >= 16 + hl.div_ceil(4) * 4 {
                 assert_err!(format!("bit {bit} of byte {at}"), r, Error::ChecksumMismatch { .. });
             }
