@@ -262,7 +262,17 @@ fn obj_and_ply_load_and_bad_meshes_fail_clearly() {
         assert_eq!(from_ply.corners(t), tet.corners(t));
     }
 
-    let cases: [(&str, &str, &str); 6] = [
+    // The same tetrahedron as triangle strips (Stanford's format), separated by -1: two triangles
+    // (the second flipped back to the strip's winding), one, and one with a repeated vertex whose
+    // degenerate second triangle is dropped.
+    let strips = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\nelement tristrips 1\nproperty list int int vertex_indices\nend_header\n0 0 0\n2 0 0\n0 2 0\n0 0 2\n13 2 0 3 1 -1 1 2 3 -1 0 2 1 1\n";
+    std::fs::write(dir.join("tet-strips.ply"), strips).unwrap();
+    let from_strips = Mesh::load(dir.join("tet-strips.ply")).unwrap();
+    assert_eq!(from_strips.triangles, vec![[2, 0, 3], [3, 0, 1], [1, 2, 3], [0, 2, 1]]);
+    assert!(is_convex(&from_strips), "outward winding throughout");
+
+    let cases: [(&str, &str, &str); 7] = [
+        ("no-faces.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nend_header\n0 0 0\n1 0 0\n0 1 0\n", "no 'face' or 'tristrips' element"),
         ("line.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n2 0 1\n", "2 corners"),
         ("empty.obj", "# nothing\n", "no triangles"),
         ("flat.obj", "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n", "degenerate"),

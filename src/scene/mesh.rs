@@ -197,7 +197,18 @@ impl Mesh {
     }
 
     /// Reads an ASCII or binary PLY with `ply-rs-bw`: element `vertex` with `x, y, z` (and optional
-    /// `nx, ny, nz`), element `face` with a `vertex_indices` (or `vertex_index`) list of three or more entries (polygons become triangle fans).
+    /// `nx, ny, nz`), and element `face` with a `vertex_indices` (or `vertex_index`) list of three or
+    /// more entries (polygons become triangle fans) or element `tristrips` with one such list of
+    /// strips separated by -1 (or both).
+    ///
+    /// ```
+    /// use nbrdf::scene::Mesh;
+    /// let ply = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n\
+    ///            property float z\nelement tristrips 1\nproperty list int int vertex_indices\n\
+    ///            end_header\n0 0 0\n1 0 0\n0 1 0\n1 1 0\n4 0 1 2 3\n";
+    /// let mesh = Mesh::from_ply_reader(&mut ply.as_bytes()).unwrap();
+    /// assert_eq!(mesh.triangles, vec![[0, 1, 2], [2, 1, 3]]); // the second one flipped: same winding
+    /// ```
     pub fn from_ply_reader(reader: &mut impl std::io::Read) -> Result<Self, Error> {
         use ply_rs_bw::parser::Parser;
         use ply_rs_bw::ply::{DefaultElement, Property};
@@ -219,8 +230,6 @@ impl Mesh {
             .payload
             .get("vertex")
             .ok_or_else(|| parse_err("PLY", "no 'vertex' element"))?;
-        let faces =
-            ply.payload.get("face").ok_or_else(|| parse_err("PLY", "no 'face' element"))?;
         let get3 = |e: &DefaultElement, keys: [&str; 3]| -> Option<Vec3> {
             let c = |k: &str| e.get(k).and_then(scalar);
             Some(Vec3::new(c(keys[0])?, c(keys[1])?, c(keys[2])?))
@@ -235,35 +244,51 @@ impl Mesh {
                 normals.push(n);
             }
         }
-        let mut triangles = Vec::with_capacity(faces.len());
-        for (i, f) in faces.iter().enumerate() {
-            let list = f.get("vertex_indices").or_else(|| f.get("vertex_index"));
-            let idx: Vec<i64> = match list {
+        // The integer list of element `what`'s entry `i`, widened.
+        let indices = |what: &str, i: usize, e: &DefaultElement| -> Result<Vec<i64>, Error> {
+            Ok(match e.get("vertex_indices").or_else(|| e.get("vertex_index")) {
                 Some(Property::ListChar(l)) => l.iter().map(|&x| x as i64).collect(),
                 Some(Property::ListUChar(l)) => l.iter().map(|&x| x as i64).collect(),
                 Some(Property::ListShort(l)) => l.iter().map(|&x| x as i64).collect(),
                 Some(Property::ListUShort(l)) => l.iter().map(|&x| x as i64).collect(),
                 Some(Property::ListInt(l)) => l.iter().map(|&x| x as i64).collect(),
                 Some(Property::ListUInt(l)) => l.iter().map(|&x| x as i64).collect(),
-                _ => {
-                    return Err(parse_err("PLY", format!("face {i} lacks an integer vertex_indices list")))
-                }
-            };
+                _ => return Err(parse_err("PLY", format!("{what} {i} lacks an integer vertex_indices list"))),
+            })
+        };
+        let vertex = |what: &str, i: usize, x: i64| {
+            u32::try_from(x).map_err(|_| parse_err("PLY", format!("{what} {i} has the negative vertex index {x}")))
+        };
+        let (faces, strips) = (ply.payload.get("face"), ply.payload.get("tristrips"));
+        if faces.is_none() && strips.is_none() {
+            return Err(parse_err("PLY", "no 'face' or 'tristrips' element"));
+        }
+        let mut triangles = Vec::new();
+        for (i, f) in faces.into_iter().flatten().enumerate() {
+            let idx = indices("face", i, f)?;
             if idx.len() < 3 {
                 return Err(parse_err(
                     "PLY",
                     format!("face {i} has {} corners; a face needs at least three", idx.len()),
                 ));
             }
-            let idx: Vec<u32> = idx
-                .iter()
-                .map(|&x| {
-                    u32::try_from(x)
-                        .map_err(|_| parse_err("PLY", format!("face {i} has the negative vertex index {x}")))
-                })
-                .collect::<Result<_, _>>()?;
+            let idx: Vec<u32> = idx.iter().map(|&x| vertex("face", i, x)).collect::<Result<_, _>>()?;
             // Polygons become triangle fans, as tobj does for OBJ files.
             triangles.extend((1..idx.len() - 1).map(|j| [idx[0], idx[j], idx[j + 1]]));
+        }
+        // Triangle strips (as Stanford's scanner tools write them): -1 ends a strip; every other
+        // triangle is flipped so that all keep the strip's winding; repeated vertices give
+        // degenerate triangles, which are dropped.
+        for (i, s) in strips.into_iter().flatten().enumerate() {
+            for strip in indices("tristrips", i, s)?.split(|&x| x == -1) {
+                let strip: Vec<u32> = strip.iter().map(|&x| vertex("tristrips", i, x)).collect::<Result<_, _>>()?;
+                for (j, w) in strip.windows(3).enumerate() {
+                    let t = if j % 2 == 0 { [w[0], w[1], w[2]] } else { [w[1], w[0], w[2]] };
+                    if t[0] != t[1] && t[1] != t[2] && t[0] != t[2] {
+                        triangles.push(t);
+                    }
+                }
+            }
         }
         if !normals.is_empty() && normals.len() == positions.len() {
             Self::with_normals(positions, normals, triangles)
