@@ -160,7 +160,7 @@ fn bench_models(c: &mut Criterion<Clock>) {
             let m = buf.model();
             for (level, lname) in levels() {
                 set_level(Some(level));
-                let prepared = m.prepare(&p);
+                let prepared = m.prepare(&p).unwrap();
                 g.throughput(Throughput::Elements(1));
                 g.bench_function(BenchmarkId::new(format!("single/{lname}"), &name), |b| {
                     let mut i = 0;
@@ -170,7 +170,7 @@ fn bench_models(c: &mut Criterion<Clock>) {
                     })
                 });
                 g.bench_function(BenchmarkId::new(format!("prepare/{lname}"), &name), |b| {
-                    b.iter(|| black_box(m.prepare(black_box(&p))))
+                    b.iter(|| black_box(m.prepare(black_box(&p)).unwrap()))
                 });
                 if level == detected() {
                     // 1 024 points of one material at once (a wavefront's hits): the position
@@ -277,7 +277,7 @@ fn bench_all_cores(c: &mut Criterion<WallTime>) {
                 std::thread::scope(|s| {
                     for _ in 0..threads {
                         s.spawn(|| {
-                            let prepared = m.prepare(&p);
+                            let prepared = m.prepare(&p).unwrap();
                             let mut out: Vec<Rgb> = vec![[0.0; 3]; wi.len()];
                             for _ in 0..8 {
                                 m.eval_many(&prepared, black_box(&wi), black_box(&wo), &mut out);

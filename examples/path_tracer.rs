@@ -20,7 +20,7 @@ use nbrdf::builtin::Builtin;
 use nbrdf::ModelBuf;
 use nbrdf::measured::{MerlTable, NbrdfNetwork};
 use nbrdf::parametric::{Lambert, Parametric, ParametricKind, Phong, TorranceSparrow};
-use nbrdf::pathtrace::{render, Brdf, Environment, Material, Options, Sampling, Scene};
+use nbrdf::pathtrace::{render, Environment, Material, Options, Sampling, Scene};
 use nbrdf::scene::{builtin::BuiltinMesh, Camera, DirectionalLight, Geometry, Mesh};
 use nbrdf::{Error, Vec3};
 
@@ -110,7 +110,7 @@ fn mesh_of(spec: &str) -> Result<Mesh, String> {
     Ok(mesh.normalized().0)
 }
 
-fn brdf_of(spec: &str) -> Result<Brdf, String> {
+fn brdf_of(spec: &str) -> Result<Material, String> {
     let (kind, rest) = match spec.split_once(':') {
         Some((k, r)) => (k, r),
         None => match Path::new(spec).extension().and_then(|e| e.to_str()) {
@@ -132,15 +132,12 @@ fn brdf_of(spec: &str) -> Result<Brdf, String> {
         "lambert" => {
             let v = parse_floats(rest, 3, "lambert")?;
             range(&v)?;
-            Brdf::Parametric(Parametric::Lambert(Lambert { kd: [v[0], v[1], v[2]] }))
+            Material::parametric(Parametric::Lambert(Lambert { kd: [v[0], v[1], v[2]] }))
         }
         "phong" => {
             let v = parse_floats(rest, 7, "phong")?;
-            range(&v[..6])?;
-            if v[6] < 0.0 {
-                return Err(format!("BRDF `{spec}`: the Phong exponent must be ≥ 0"));
-            }
-            Brdf::Parametric(Parametric::Phong(Phong { kd: [v[0], v[1], v[2]], ks: [v[3], v[4], v[5]], n: v[6] }))
+            let rp = Phong::new([v[0], v[1], v[2]], [v[3], v[4], v[5]], v[6]).map_err(err)?;
+            Material::parametric(Parametric::Phong(rp))
         }
         "torrance-sparrow" => {
             let v = parse_floats(rest, 7, "torrance-sparrow")?;
@@ -148,7 +145,7 @@ fn brdf_of(spec: &str) -> Result<Brdf, String> {
             if v[6].is_nan() || v[6] <= 0.0 {
                 return Err(format!("BRDF `{spec}`: alpha must be > 0"));
             }
-            Brdf::Parametric(Parametric::TorranceSparrow(TorranceSparrow {
+            Material::parametric(Parametric::TorranceSparrow(TorranceSparrow {
                 kd: [v[0], v[1], v[2]],
                 ks: [v[3], v[4], v[5]],
                 alpha: v[6],
@@ -158,15 +155,15 @@ fn brdf_of(spec: &str) -> Result<Brdf, String> {
             let (k, vals) = rest.split_once(':').ok_or(format!("BRDF `{spec}`: expected raw:KIND:V,..."))?;
             let kind = ParametricKind::from_id(k).ok_or(format!("BRDF `{spec}`: unknown parametric kind `{k}`"))?;
             let v = parse_floats(vals, kind.n_raw() + kind.n_object(), "raw parameters")?;
-            Brdf::Parametric(Parametric::from_raw(kind, &v[..kind.n_raw()], &v[kind.n_raw()..]))
+            Material::parametric(Parametric::from_raw(kind, &v[..kind.n_raw()], &v[kind.n_raw()..]))
         }
-        "builtin" => Brdf::Builtin(Builtin::from_id(rest).ok_or_else(|| {
+        "builtin" => Material::builtin(Builtin::from_id(rest).ok_or_else(|| {
             let ids: Vec<_> = Builtin::ALL.iter().map(|b| b.id()).collect();
             format!("BRDF `{spec}`: unknown built-in material (known: {})", ids.join(", "))
         })?),
-        "merl" => Brdf::Merl(MerlTable::read(rest).map_err(err)?),
-        "json" => Brdf::NbrdfJson(NbrdfNetwork::load(rest).map_err(err)?),
-        "model" => Brdf::Model(ModelBuf::load(rest).map_err(err)?),
+        "merl" => Material::merl(MerlTable::read(rest).map_err(err)?),
+        "json" => Material::nbrdf_json(NbrdfNetwork::load(rest).map_err(err)?),
+        "model" => Material::model(ModelBuf::load(rest).map_err(err)?).map_err(err)?,
         other => return Err(format!("BRDF `{spec}`: unknown kind `{other}`")),
     })
 }
@@ -192,7 +189,7 @@ fn run(args: Args) -> Result<(), String> {
         s => return Err(format!("--sampling `{s}`: expected native or cosine")),
     };
     let fit_start = std::time::Instant::now();
-    let material = Material::new(brdf_of(&args.brdf)?).map_err(|e| format!("material: {e}"))?.with_sampling(sampling);
+    let material = brdf_of(&args.brdf)?.with_sampling(sampling);
     let fit_secs = fit_start.elapsed().as_secs_f64();
     let lights: Vec<DirectionalLight> = args.light.iter().map(|l| light_of(l)).collect::<Result<_, _>>()?;
     let env = match (&args.env, args.env_color) {

@@ -31,6 +31,7 @@ extern crate alloc;
 extern crate std;
 
 pub mod angles;
+pub mod brdf;
 pub mod builtin;
 pub mod encoding;
 pub mod error;
@@ -53,6 +54,7 @@ pub mod sampling;
 #[cfg(feature = "std")]
 pub mod scene;
 
+pub use brdf::{Brdf, BsdfSample};
 pub use error::Error;
 pub use glam::Vec3;
 #[cfg(feature = "alloc")]

@@ -21,7 +21,7 @@ use nbrdf::measured::{Lookup, MerlTable, NbrdfNetwork};
 use nbrdf::parametric::{
     Disney, FresnelMicrofacet, Lambert, Parametric, ParametricKind, Phong, TorranceSparrow, MAX_RAW,
 };
-use nbrdf::{Rgb, Vec3, BLACK};
+use nbrdf::{Brdf, Rgb, Vec3, BLACK};
 
 // -------------------------------------------------------------------------------------------------
 // The grid
@@ -334,27 +334,25 @@ fn sampling_is_finite_on_the_grid_for_extreme_models_and_random_numbers() {
     // but its pdf and weight must still be finite.
     let us = [0.0, 1e-7, 0.25, 0.5, 0.999_999_94, 1.0, -0.5, 1.5, f32::NAN];
     let in_range = |u: f32| (0.0..=1.0).contains(&u);
-    type Sample = Box<dyn Fn([f32; 3], Vec3) -> Option<nbrdf::sampling::BsdfSample>>;
-    type Pdf = Box<dyn Fn(Vec3, Vec3) -> f32>;
-    let mut models: Vec<(String, Sample, Pdf)> = Vec::new();
+    let mut models: Vec<(String, Box<dyn Brdf>)> = Vec::new();
     let mut rng = Lcg(11);
     for kind in ParametricKind::ALL {
         for (raw, object) in raw_configs(kind, &mut rng).into_iter().step_by(7) {
             let m = Parametric::from_raw(kind, &raw[..kind.n_raw()], &[object][..kind.n_object()]);
-            models.push((format!("{} {raw:?}", kind.name()), Box::new(move |u, wo| m.sample(u, wo)), Box::new(move |wo, wi| m.pdf(wo, wi))));
+            models.push((format!("{} {raw:?}", kind.name()), Box::new(m)));
         }
     }
     for m in Builtin::ALL {
-        models.push((m.id().to_string(), Box::new(move |u, wo| m.sample(u, wo)), Box::new(move |wo, wi| m.pdf(wo, wi))));
+        models.push((m.id().to_string(), Box::new(m)));
     }
     let d = directions();
     let mut samples = 0;
-    for (name, sample, pdf) in &models {
+    for (name, m) in &models {
         for &wo in &d {
             for &u0 in &us {
                 for &u1 in &us {
                     for u2 in [0.0, 0.5, 0.999_999_94] {
-                        let Some(s) = sample([u0, u1, u2], wo) else { continue };
+                        let Some(s) = m.sample(wo, [u0, u1, u2]) else { continue };
                         samples += 1;
                         assert!(above(wo), "{name}: a sample for the invalid wo = {wo}");
                         assert!(s.wi.z > 0.0 && s.wi.is_finite(), "{name}: wi = {}", s.wi);
@@ -367,7 +365,7 @@ fn sampling_is_finite_on_the_grid_for_extreme_models_and_random_numbers() {
                 }
             }
             for &wi in d.iter().step_by(3) {
-                let p = pdf(wo, wi);
+                let p = m.pdf(wi, wo);
                 assert!(p.is_finite() && p >= 0.0, "{name}: pdf({wo}, {wi}) = {p}");
                 if !(above(wi) && above(wo)) {
                     assert_eq!(p, 0.0, "{name}: pdf({wo}, {wi}) must be 0");
@@ -469,7 +467,7 @@ fn neural_models_of_every_kind_and_precision_with_extreme_weights() {
                 };
                 let (wi, wo): (Vec<Vec3>, Vec<Vec3>) = pairs.iter().copied().unzip();
                 for p in points(h.position) {
-                    let prepared = model.try_prepare(&p).unwrap();
+                    let prepared = model.prepare(&p).unwrap();
                     let d = prepared.diffuse();
                     assert!(d.iter().all(|c| c.is_finite() && *c >= 0.0), "{name}: diffuse {d:?} at {p:?}");
                     n += sweep(&format!("{name} at {p:?}"), &pairs, reciprocal, |wi, wo| model.eval(&prepared, wi, wo));
@@ -481,15 +479,15 @@ fn neural_models_of_every_kind_and_precision_with_extreme_weights() {
                         assert_eq!(f.map(f32::to_bits), one.map(f32::to_bits), "{name}: batch f({}, {}) at {p:?}", wi[k], wo[k]);
                     }
                     let mut held = vec![[f32::NAN; 3]; pairs.len()];
-                    buf.model().eval_many(&buf.model().try_prepare(&p).unwrap(), &wi, &wo, &mut held);
+                    buf.model().eval_many(&buf.model().prepare(&p).unwrap(), &wi, &wo, &mut held);
                     for (k, (a, b)) in held.iter().zip(&batch).enumerate() {
                         assert_eq!(a.map(f32::to_bits), b.map(f32::to_bits), "{name}: ModelBuf batch f({}, {}) at {p:?}", wi[k], wo[k]);
                     }
                 }
-                // A point of the wrong length evaluates to 0 everywhere (documented), never garbage.
+                // A point of the wrong length is an error; the state of no point evaluates to 0.
                 let wrong = vec![0.5; h.position.input_len() + 1];
-                let prepared = model.prepare(&wrong);
-                assert_eq!(model.eval(&prepared, Vec3::new(0.1, 0.2, 0.9), Vec3::Z), BLACK, "{name}");
+                assert!(model.prepare(&wrong).is_err(), "{name}");
+                assert_eq!(model.eval(&Default::default(), Vec3::new(0.1, 0.2, 0.9), Vec3::Z), BLACK, "{name}");
             }
         }
     }
@@ -600,7 +598,7 @@ fn overflowing_diffuse_network_reads_as_zero_not_nan() {
         let (_, w) = weight_sets(h.n_weights(), Precision::F32, seed).swap_remove(2);
         let buf = ModelBuf::from_bytes(&encode(&h, &w, None).unwrap()).unwrap();
         let model = buf.model();
-        let p = model.try_prepare(&[]).unwrap();
+        let p = model.prepare(&[]).unwrap();
         assert!(p.diffuse().iter().all(|c| c.is_finite() && *c >= 0.0), "seed {seed}: {:?}", p.diffuse());
         let f = model.eval(&p, Vec3::new(0.2, 0.1, 0.9), Vec3::new(-0.3, 0.0, 0.8));
         assert!(f.iter().all(|c| c.is_finite() && *c >= 0.0), "seed {seed}: {f:?}");

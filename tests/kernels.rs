@@ -6,7 +6,7 @@
 //! (`Model::from_bytes`), against the f32 model of the same values, bit for bit, at every level.
 
 use nbrdf::file::{encode, ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity};
-use nbrdf::{Model, ModelBuf};
+use nbrdf::{Model, ModelBuf, Prepared};
 use nbrdf::kernels::{set_level, Level};
 use nbrdf::measured::nbrdf_json::{TinyLayer, TinyNet, TINY_INPUTS, TINY_PACKET};
 use nbrdf::Vec3;
@@ -151,17 +151,17 @@ fn f16_files_widened_at_load_or_row_by_row_give_the_bits_of_f32_weights() {
                 let as_is = ModelBuf::from_bytes_as_is(&bytes(f16_words)[..*len]).unwrap();
                 assert_eq!((as_is.file_precision(), as_is.header().precision), (Precision::F16, Precision::F16));
                 let m32 = f32_buf.model();
-                let mut want_prepared = vec![m32.prepare(&[]); 20];
+                let mut want_prepared = vec![Prepared::default(); 20];
                 m32.prepare_many(&points, &mut want_prepared).unwrap();
                 for (name, m) in [("ModelBuf", f16_buf.model()), ("borrowed f16", borrowed), ("ModelBuf as is", as_is.model())] {
-                    let mut prepared = vec![m.prepare(&[]); 20];
+                    let mut prepared = vec![Prepared::default(); 20];
                     m.prepare_many(&points, &mut prepared).unwrap();
                     for (q, (p, p32)) in prepared.iter().zip(&want_prepared).enumerate().step_by(7) {
                         let mut want = vec![[f32::NAN; 3]; n];
                         m32.eval_many(p32, &wi, &wo, &mut want);
                         let nonzero = want.iter().filter(|f| **f != [0.0; 3]).count();
                         assert!(nonzero > n / 2, "{kind:?}: most pairs are valid ({nonzero})");
-                        let one = m.prepare(&points[q * 6..(q + 1) * 6]);
+                        let one = m.prepare(&points[q * 6..(q + 1) * 6]).unwrap();
                         let mut whole = vec![[f32::NAN; 3]; n];
                         m.eval_many(p, &wi, &wo, &mut whole);
                         let mut chunked = vec![[f32::NAN; 3]; n];
@@ -243,10 +243,10 @@ fn prepare_many_gives_each_point_the_evaluations_of_prepare() {
                     }
                     points[3 * k - 1] = f32::NAN;
                 }
-                let mut many = vec![m.prepare(&[f32::NAN]); n];
+                let mut many = vec![Prepared::default(); n];
                 m.prepare_many(&points, &mut many).unwrap();
                 for (i, p) in many.iter().enumerate() {
-                    let one = m.prepare(&points[i * k..(i + 1) * k]);
+                    let one = m.prepare(&points[i * k..(i + 1) * k]).unwrap();
                     assert_eq!(p.diffuse().map(f32::to_bits), one.diffuse().map(f32::to_bits), "{name}: point {i} of {n}, diffuse");
                     assert_eq!(format!("{:?}", p.parameters()), format!("{:?}", one.parameters()), "{name}: point {i} of {n}, parameters");
                     for &(wi, wo) in &pairs {
@@ -305,7 +305,7 @@ fn every_level_agrees_with_the_portable_one_within_the_rounding_bound() {
     let mut dir = || Vec3::new(rng.next(), rng.next(), rng.next() + 0.6).normalize();
     let (wi, wo): (Vec<Vec3>, Vec<Vec3>) = (0..n).map(|_| (dir(), dir())).unzip();
     let run = |m: &Model<'_>| {
-        let p = m.prepare(&point[..m.position_len()]);
+        let p = m.prepare(&point[..m.position_len()]).unwrap();
         let single: Vec<[f32; 3]> = wi.iter().zip(&wo).map(|(a, b)| m.eval(&p, *a, *b)).collect();
         let mut batch = vec![[0.0f32; 3]; n];
         m.eval_many(&p, &wi, &wo, &mut batch);

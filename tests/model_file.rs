@@ -107,7 +107,7 @@ fn additive_shared_enhanced_matches_the_reference_forward_pass() {
     let buf = ModelBuf::from_bytes(&encode(&h, &w, None).unwrap()).unwrap();
     let model = buf.model();
     let p: Vec<f32> = (0..k).map(|i| (i as f32 * 0.37).sin()).collect();
-    let prepared = model.prepare(&p);
+    let prepared = model.prepare(&p).unwrap();
 
     let n = h.nets();
     let (w0, rest) = w.split_at(n[0].n_weights());
@@ -138,7 +138,7 @@ fn single_mlp_and_additive_separate_match_the_reference() {
         let model = buf.model();
         let p: Vec<f32> = (0..k).map(|i| 0.2 * i as f32 - 0.4).collect();
         let pd: Vec<f64> = p.iter().map(|&x| x as f64).collect();
-        let prepared = model.prepare(&p);
+        let prepared = model.prepare(&p).unwrap();
         for (a, b, c, x, y, z) in DIRS {
             let (wi, wo) = (dir(a, b, c), dir(x, y, z));
             let ang = ref_pe(&rusinkiewicz_angles(wi, wo).unwrap(), 4);
@@ -169,7 +169,7 @@ fn direction_layer_ablation_single_mlp_matches_trunk_plus_head() {
     let buf = ModelBuf::from_bytes(&encode(&h, &w, None).unwrap()).unwrap();
     let model = buf.model();
     let x = [0.2f32, -0.5, 0.1];
-    let prepared = model.prepare(&x);
+    let prepared = model.prepare(&x).unwrap();
     let (wt, wh) = w.split_at(h.nets()[0].n_weights());
     let trunk = ref_mlp(wt, 15, 128, 3, 0, 0, &ref_pe(&x, 2));
     let (wi, wo) = (dir(0.3, 0.1, 0.9), dir(-0.5, 0.2, 0.7));
@@ -186,7 +186,7 @@ fn exact_reciprocity_is_bitwise_for_every_neural_kind_and_absent_without_it() {
             let h = ModelHeader::paper(kind, kind.is_additive(), recip, PositionEncoding::Uniform, 4);
             let buf = ModelBuf::from_bytes(&encode(&h, &weights(h.n_weights(), 4, 0.2), None).unwrap()).unwrap();
             let model = buf.model();
-            let p = model.prepare(&[]);
+            let p = model.prepare(&[]).unwrap();
             let mut max_diff = 0.0f32;
             for i in 0..200 {
                 let t = i as f32 * 0.731;
@@ -242,7 +242,7 @@ fn parametric_network_predicts_the_model_parameters() {
     let buf = ModelBuf::from_bytes(&encode(&h, &w, None).unwrap()).unwrap();
     let model = buf.model();
     let p = [0.1f32, 0.2, 0.3, 0.4];
-    let prepared = model.prepare(&p);
+    let prepared = model.prepare(&p).unwrap();
     let raw = ref_mlp(&w, 4, 128, 6, ParametricKind::Phong.n_raw(), 2, &p.map(|x| x as f64));
     let raw32: Vec<f32> = raw.iter().map(|&x| x as f32).collect();
     let direct = nbrdf::parametric::Parametric::from_raw(ParametricKind::Phong, &raw32, &[]);
@@ -267,7 +267,7 @@ fn f16_files_are_half_the_size_and_evaluate_like_rounded_f32() {
     h32.precision = Precision::F32;
     let (m16, m32) = (ModelBuf::from_bytes(&f16_bytes).unwrap(), ModelBuf::from_bytes(&encode(&h32, &rounded, None).unwrap()).unwrap());
     let (wi, wo) = (dir(0.3, 0.1, 0.9), dir(-0.5, 0.2, 0.7));
-    let (a, b) = (m16.model().eval(&m16.model().prepare(&[]), wi, wo), m32.model().eval(&m32.model().prepare(&[]), wi, wo));
+    let (a, b) = (m16.model().eval(&m16.model().prepare(&[]).unwrap(), wi, wo), m32.model().eval(&m32.model().prepare(&[]).unwrap(), wi, wo));
     assert_eq!(a, b);
     // Weights beyond the f16 range are refused at export instead of turning into infinities.
     let mut big = w.clone();
@@ -299,7 +299,7 @@ fn model_buf_puts_the_per_query_network_on_a_cache_line_and_evaluates_as_in_plac
         let raw = unsafe { std::slice::from_raw_parts_mut(words.as_mut_ptr().cast::<u8>(), words.len() * 4) };
         raw[skew..skew + bytes.len()].copy_from_slice(&bytes);
         let in_place = Model::from_bytes(&raw[skew..skew + bytes.len()]).unwrap();
-        let (m, p, q) = (buf.model(), buf.model().prepare(&[0.3, 0.5, 0.2]), in_place.prepare(&[0.3, 0.5, 0.2]));
+        let (m, p, q) = (buf.model(), buf.model().prepare(&[]).unwrap(), in_place.prepare(&[]).unwrap());
         for (wi, wo) in [(dir(0.2, 0.1, 1.0), dir(-0.4, 0.3, 0.8)), (dir(0.7, 0.0, 0.3), dir(0.0, -0.6, 0.5))] {
             let (a, b) = (m.eval(&p, wi, wo), in_place.eval(&q, wi, wo));
             assert_eq!(a.map(f32::to_bits), b.map(f32::to_bits), "{kind:?}");
@@ -325,10 +325,11 @@ fn invalid_points_and_directions_evaluate_to_zero() {
     let h = ModelHeader::paper(ModelKind::SingleMlp, false, Reciprocity::Exact, PositionEncoding::Intrinsic { k: 3 }, 2);
     let buf = ModelBuf::from_bytes(&encode(&h, &weights(h.n_weights(), 8, 0.1), None).unwrap()).unwrap();
     let m = buf.model();
-    let bad = m.prepare(&[1.0, 2.0]); // wrong length
-    assert_eq!(m.eval(&bad, Vec3::Z, Vec3::Z), [0.0; 3]);
-    assert!(matches!(m.try_prepare(&[1.0]), Err(Error::SizeMismatch { what: "point input", expected: 3, found: 1 })));
-    let p = m.prepare(&[0.1, 0.2, 0.3]);
+    // A point of the wrong length is an error; the state of no point evaluates to 0.
+    assert!(matches!(m.prepare(&[1.0, 2.0]), Err(Error::SizeMismatch { what: "point input", expected: 3, found: 2 })));
+    assert_eq!(m.eval(&nbrdf::Prepared::default(), Vec3::Z, Vec3::Z), [0.0; 3]);
+    assert!(matches!(m.prepare(&[1.0]), Err(Error::SizeMismatch { what: "point input", expected: 3, found: 1 })));
+    let p = m.prepare(&[0.1, 0.2, 0.3]).unwrap();
     assert!(m.eval(&p, Vec3::Z, Vec3::Z)[0] > 0.0);
     for (wi, wo) in [
         (Vec3::new(0.0, 0.0, -1.0), Vec3::Z),
@@ -339,7 +340,7 @@ fn invalid_points_and_directions_evaluate_to_zero() {
         assert_eq!(m.eval(&p, wi, wo), [0.0; 3]);
     }
     // A NaN point input never leaks out as NaN.
-    let nan = m.prepare(&[f32::NAN, 0.0, 0.0]);
+    let nan = m.prepare(&[f32::NAN, 0.0, 0.0]).unwrap();
     assert!(m.eval(&nan, Vec3::Z, Vec3::Z).iter().all(|c| c.is_finite()));
 }
 
@@ -482,7 +483,7 @@ fn batched_evaluation_equals_single_queries_bit_for_bit() {
             h.precision = precision;
             let buf = ModelBuf::from_bytes(&encode(&h, &weights(h.n_weights(), 9, 0.15), None).unwrap()).unwrap();
             let model = buf.model();
-            let p = model.prepare(&[0.1, 0.5, -0.3, 0.2, 0.0, 0.9]);
+            let p = model.prepare(&[0.1, 0.5, -0.3, 0.2, 0.0, 0.9]).unwrap();
             let n = 203; // not a multiple of the packet size
             let (wi, wo) = pairs(n, 21);
             let mut many = vec![[f32::NAN; 3]; n];
@@ -539,7 +540,7 @@ fn model_buf_and_a_caller_buffer_evaluate_alike() {
             let aligned = unsafe { std::slice::from_raw_parts(words.as_ptr().cast::<u8>(), bytes.len()) };
             let (a, b) = (buf.model(), Model::from_bytes(aligned).unwrap());
             let point = [0.1, 0.5, -0.3, 0.2, 0.0, 0.9];
-            let (pa, pb) = (a.prepare(&point), b.prepare(&point));
+            let (pa, pb) = (a.prepare(&point).unwrap(), b.prepare(&point).unwrap());
             assert_eq!(b.header().precision, precision);
             let (wi, wo) = pairs(203, 3);
             let (mut ma, mut mb) = (vec![[0.0; 3]; 203], vec![[0.0; 3]; 203]);
@@ -562,7 +563,7 @@ fn batched_parametric_models_and_invalid_points_match_single_queries() {
     let buf = ModelBuf::from_bytes(&encode(&h, &weights(h.n_weights(), 5, 0.1), None).unwrap()).unwrap();
     let model = buf.model();
     let (wi, wo) = pairs(40, 3);
-    for p in [model.prepare(&[0.1, 0.2, 0.3, 0.4]), model.prepare(&[0.1])] {
+    for p in [model.prepare(&[0.1, 0.2, 0.3, 0.4]).unwrap(), nbrdf::Prepared::default()] {
         let mut many = vec![[f32::NAN; 3]; 40];
         model.eval_many(&p, &wi, &wo, &mut many);
         for i in 0..40 {

@@ -8,6 +8,7 @@ use nbrdf::file::{encode, ModelHeader, ModelKind, PositionEncoding, Reciprocity}
 use nbrdf::ModelBuf;
 use nbrdf::measured::NbrdfNetwork;
 use nbrdf::parametric::microfacet::{ggx_d, smith_ggx_g1_over_2cos};
+use nbrdf::Brdf;
 use nbrdf::sampling::proxy::DEFENSIVE;
 use nbrdf::sampling::{fit_proxy, GgxLobe, Proxy};
 use nbrdf::{Rgb, Vec3};
@@ -18,7 +19,7 @@ use common::{albedo, check_sampler, dir, Sampler};
 /// Samples `proxy` `n` times with `brdf` for the weight and checks it against its pdf
 /// ([`common::check_sampler`]); returns the mean weight.
 fn check(name: &str, proxy: &Proxy, brdf: &dyn Fn(Vec3, Vec3) -> Rgb, wo: Vec3, n: usize, seed: u64) -> [f64; 3] {
-    let sampler = Sampler { sample: &|u| proxy.sample(u, wo, brdf), pdf: &|wi| proxy.pdf(wo, wi), eval: &|wi| brdf(wi, wo) };
+    let sampler = Sampler { sample: &|u| proxy.sample(wo, u, brdf), pdf: &|wi| proxy.pdf(wi, wo), eval: &|wi| brdf(wi, wo) };
     check_sampler(name, &sampler, n, seed).1
 }
 
@@ -88,16 +89,16 @@ fn model_file_round_trips_its_proxy_and_samples_it() {
     // Fit at export, as the trainer does: evaluate the model without a proxy, store the fit.
     let plain = ModelBuf::from_bytes(&encode(&h, &weights, None).unwrap()).unwrap();
     assert_eq!(plain.model().proxy(), Proxy::COSINE);
-    let point = plain.model().prepare(&[]);
+    let point = plain.model().prepare(&[]).unwrap();
     let proxy = plain.model().fit_proxy(&[point]);
     proxy.validate().unwrap();
     let buf = ModelBuf::from_bytes(&encode(&h.with_proxy(proxy), &weights, None).unwrap()).unwrap();
     assert_eq!(buf.header().proxy, Some(proxy));
-    let (model, p) = (buf.model(), buf.model().prepare(&[]));
+    let (model, p) = (buf.model(), buf.model().prepare(&[]).unwrap());
     let wo = dir(0.6, 0.2);
-    let s = model.sample(&p, [0.3, 0.8, 0.5], wo).unwrap();
-    assert_eq!(s.pdf, proxy.pdf(wo, s.wi));
-    assert_eq!(model.pdf(&p, wo, s.wi), s.pdf);
+    let s = model.sample(&p, wo, [0.3, 0.8, 0.5]).unwrap();
+    assert_eq!(s.pdf, proxy.pdf(s.wi, wo));
+    assert_eq!(model.pdf(&p, s.wi, wo), s.pdf);
     let f = model.eval(&p, s.wi, wo);
     assert!((s.weight[0] - f[0] * s.wi.z / s.pdf).abs() <= 1e-5 * s.weight[0].max(1e-6));
     // An invalid proxy is refused at export.
@@ -114,13 +115,14 @@ fn chrome_network_gets_a_sharp_lobe() {
         return;
     }
     let net = NbrdfNetwork::load(&path).unwrap();
-    let proxy = net.fit_proxy();
+    let proxy = *net.proxy();
     proxy.validate().unwrap();
     let sharp = proxy.lobes.iter().filter(|l| l.alpha < 0.1).map(|l| l.weight).sum::<f32>();
     assert!(sharp > 0.5, "chrome-steel should be sampled mostly by a sharp lobe: {proxy:?}");
     let wo = dir(0.4, 1.0);
-    let s = net.sample_with(&proxy, [0.1, 0.9, 0.6], wo).unwrap();
-    assert_eq!(s.pdf, net.pdf_with(&proxy, wo, s.wi));
+    let s = net.sample(wo, [0.1, 0.9, 0.6]).unwrap();
+    assert_eq!(s.pdf, proxy.pdf(s.wi, wo));
+    assert_eq!(s.pdf, net.pdf(s.wi, wo));
 }
 
 #[test]
@@ -142,7 +144,7 @@ fn files_written_before_the_proxy_field_still_load() {
     assert_eq!(buf.header(), &h);
     let (wi, wo) = (dir(0.3, 0.1), dir(0.5, 2.0));
     let (a, b) = (buf.model(), ModelBuf::from_bytes(&new).unwrap());
-    assert_eq!(a.eval(&a.prepare(&[]), wi, wo), b.model().eval(&b.model().prepare(&[]), wi, wo));
+    assert_eq!(a.eval(&a.prepare(&[]).unwrap(), wi, wo), b.model().eval(&b.model().prepare(&[]).unwrap(), wi, wo));
 }
 
 #[test]
@@ -160,13 +162,13 @@ fn parametric_models_sample_their_own_lobes_not_the_proxy() {
     let proxy = Proxy::new(0.5, [GgxLobe { weight: 0.5, alpha: 0.3 }, GgxLobe::NONE]).unwrap();
     let buf = ModelBuf::from_bytes(&encode(&h.with_proxy(proxy), &weights, None).unwrap()).unwrap();
     let model = buf.model();
-    let p = model.prepare(&[0.2, -0.4, 0.6]);
+    let p = model.prepare(&[0.2, -0.4, 0.6]).unwrap();
     let params = *p.parameters().unwrap();
     let wo = dir(0.7, 0.3);
     for u in [[0.1, 0.2, 0.3], [0.8, 0.5, 0.9], [0.4, 0.9, 0.6]] {
-        assert_eq!(model.sample(&p, u, wo), params.sample(u, wo));
+        assert_eq!(model.sample(&p, wo, u), params.sample(wo, u));
     }
     let wi = dir(0.4, 2.5);
-    assert_eq!(model.pdf(&p, wo, wi), params.pdf(wo, wi));
-    assert_ne!(model.pdf(&p, wo, wi), proxy.pdf(wo, wi));
+    assert_eq!(model.pdf(&p, wi, wo), params.pdf(wi, wo));
+    assert_ne!(model.pdf(&p, wi, wo), proxy.pdf(wi, wo));
 }

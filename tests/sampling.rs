@@ -5,45 +5,15 @@
 
 use nbrdf::builtin::Builtin;
 use nbrdf::parametric::{Disney, FresnelMicrofacet, Lambert, Parametric, Phong, TorranceSparrow};
-use nbrdf::sampling::BsdfSample;
-use nbrdf::{Rgb, Vec3};
+use nbrdf::{Brdf, Vec3};
 
 mod common;
 use common::{albedo, check_sampler, dir, expected_mass, Sampler};
 
-/// What the checks need of a sampled BRDF: the parametric models and the built-in materials.
-trait Sampled: Send + Sync {
-    fn sample(&self, u: [f32; 3], wo: Vec3) -> Option<BsdfSample>;
-    fn pdf(&self, wo: Vec3, wi: Vec3) -> f32;
-    fn eval(&self, wi: Vec3, wo: Vec3) -> Rgb;
-}
-impl Sampled for Parametric {
-    fn sample(&self, u: [f32; 3], wo: Vec3) -> Option<BsdfSample> {
-        Parametric::sample(self, u, wo)
-    }
-    fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-        Parametric::pdf(self, wo, wi)
-    }
-    fn eval(&self, wi: Vec3, wo: Vec3) -> Rgb {
-        Parametric::eval(self, wi, wo)
-    }
-}
-impl Sampled for Builtin {
-    fn sample(&self, u: [f32; 3], wo: Vec3) -> Option<BsdfSample> {
-        Builtin::sample(*self, u, wo)
-    }
-    fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-        Builtin::pdf(*self, wo, wi)
-    }
-    fn eval(&self, wi: Vec3, wo: Vec3) -> Rgb {
-        Builtin::eval(*self, wi, wo)
-    }
-}
-
 /// Draws `n` samples of `m` at `wo` and checks them against its pdf ([`common::check_sampler`]);
 /// returns (share produced, mean weight).
-fn check_model(name: &str, m: &dyn Sampled, wo: Vec3, n: usize, seed: u64) -> (f64, [f64; 3]) {
-    let sampler = Sampler { sample: &|u| m.sample(u, wo), pdf: &|wi| m.pdf(wo, wi), eval: &|wi| m.eval(wi, wo) };
+fn check_model(name: &str, m: &(dyn Brdf + Sync), wo: Vec3, n: usize, seed: u64) -> (f64, [f64; 3]) {
+    let sampler = Sampler { sample: &|u| m.sample(wo, u), pdf: &|wi| m.pdf(wi, wo), eval: &|wi| m.eval(wi, wo) };
     check_sampler(name, &sampler, n, seed)
 }
 
@@ -97,9 +67,9 @@ fn sample_and_pdf_agree_and_weights_are_unbiased() {
     // of 650); the configurations run on scoped threads.
     let n = 400_000;
     std::thread::scope(|scope| {
-        let mut all: Vec<(&str, Box<dyn Sampled>)> =
-            parametric_models().into_iter().map(|(n, m)| (n, Box::new(m) as Box<dyn Sampled>)).collect();
-        all.extend(Builtin::ALL.map(|b| (b.id(), Box::new(b) as Box<dyn Sampled>)));
+        let mut all: Vec<(&str, Box<dyn Brdf + Send + Sync>)> =
+            parametric_models().into_iter().map(|(n, m)| (n, Box::new(m) as Box<dyn Brdf + Send + Sync>)).collect();
+        all.extend(Builtin::ALL.map(|b| (b.id(), Box::new(b) as Box<dyn Brdf + Send + Sync>)));
         for (k, (name, m)) in all.into_iter().enumerate() {
             scope.spawn(move || {
                 for (t, theta) in [0.5f64, 1.3].into_iter().enumerate() {
@@ -124,20 +94,20 @@ fn sample_and_pdf_agree_and_weights_are_unbiased() {
 #[test]
 fn cosine_lobe_pdf_integrates_to_one() {
     let m = Parametric::Lambert(Lambert { kd: [1.0; 3] });
-    let total: f64 = expected_mass(&|wi| m.pdf(dir(0.4, 0.0), wi)).iter().sum();
+    let total: f64 = expected_mass(&|wi| m.pdf(wi, dir(0.4, 0.0))).iter().sum();
     assert!((total - 1.0).abs() < 1e-4, "{total}");
 }
 
 #[test]
 fn below_horizon_wo_gives_nothing() {
     for (_, m) in parametric_models() {
-        assert!(m.sample([0.5, 0.5, 0.5], Vec3::new(0.3, 0.0, -0.5)).is_none());
-        assert_eq!(m.pdf(Vec3::new(0.3, 0.0, -0.5), Vec3::Z), 0.0);
+        assert!(m.sample(Vec3::new(0.3, 0.0, -0.5), [0.5, 0.5, 0.5]).is_none());
         assert_eq!(m.pdf(Vec3::Z, Vec3::new(0.3, 0.0, -0.5)), 0.0);
+        assert_eq!(m.pdf(Vec3::new(0.3, 0.0, -0.5), Vec3::Z), 0.0);
     }
     for b in Builtin::ALL {
-        assert!(b.sample([0.5, 0.5, 0.5], Vec3::new(0.3, 0.0, -0.5)).is_none());
-        assert_eq!(b.pdf(Vec3::Z, Vec3::new(0.3, 0.0, -0.5)), 0.0);
+        assert!(b.sample(Vec3::new(0.3, 0.0, -0.5), [0.5, 0.5, 0.5]).is_none());
+        assert_eq!(b.pdf(Vec3::new(0.3, 0.0, -0.5), Vec3::Z), 0.0);
     }
 }
 
@@ -168,7 +138,7 @@ fn samples_stay_finite_in_extreme_regimes() {
                 for u0 in us {
                     for u1 in us {
                         for u2 in [0.1f32, 0.6, 0.95] {
-                            if let Some(s) = m.sample([u0, u1, u2], wo) {
+                            if let Some(s) = m.sample(wo, [u0, u1, u2]) {
                                 assert!(
                                     s.wi.z > 0.0 && s.pdf > 0.0 && s.pdf.is_finite(),
                                     "{m:?} {wo}: {s:?}"
@@ -178,7 +148,7 @@ fn samples_stay_finite_in_extreme_regimes() {
                                     "{m:?} {wo}: {s:?}"
                                 );
                             }
-                            let p = m.pdf(wo, dir(0.3, u0 as f64 * 6.0));
+                            let p = m.pdf(dir(0.3, u0 as f64 * 6.0), wo);
                             assert!(p.is_finite() && p >= 0.0);
                         }
                     }
@@ -191,7 +161,7 @@ fn samples_stay_finite_in_extreme_regimes() {
             for u0 in us {
                 for u1 in us {
                     for u2 in [0.1f32, 0.6, 0.95] {
-                        if let Some(s) = b.sample([u0, u1, u2], wo) {
+                        if let Some(s) = b.sample(wo, [u0, u1, u2]) {
                             assert!(s.wi.z > 0.0 && s.pdf > 0.0 && s.pdf.is_finite(), "{b:?} {wo}: {s:?}");
                             assert!(s.weight.iter().all(|w| w.is_finite() && *w >= 0.0), "{b:?} {wo}: {s:?}");
                         }

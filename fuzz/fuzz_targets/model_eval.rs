@@ -37,16 +37,17 @@ fuzz_target!(|input: (u8, u8, u64, u8, [f32; 3], [f32; 6], Vec<(u16, f32)>)| {
     aligned[..bytes.len()].copy_from_slice(&bytes);
     let model = Model::from_bytes(&aligned[..bytes.len()]).expect("encode's output loads in place");
     let len = model.position_len().min(3);
-    let prepared = model.prepare(&point[..len]);
-    if len != model.position_len() {
+    // A wrong point length is an error, never a state.
+    let Ok(prepared) = model.prepare(&point[..len]) else {
+        assert_ne!(len, model.position_len(), "the right length prepares");
         return;
-    }
+    };
     common::assert_valid_brdf(prepared.diffuse(), "diffuse term");
     let (wi, wo) = common::pair(dirs);
     let f = model.eval(&prepared, wi, wo);
     common::assert_valid_brdf(f, "model eval");
     let held = buf.model();
-    let f_held = held.eval(&held.prepare(&point[..len]), wi, wo);
+    let f_held = held.eval(&held.prepare(&point[..len]).unwrap(), wi, wo);
     assert!(common::same_bits(f, f_held), "ModelBuf ({:?} file): {f_held:?} vs in place {f:?}", h.precision);
     // Many points at once (packets of 16, the last overlapping the one before): each point's
     // evaluation has the bits of its own `prepare`.
@@ -55,7 +56,7 @@ fuzz_target!(|input: (u8, u8, u64, u8, [f32; 3], [f32; 6], Vec<(u16, f32)>)| {
     let mut states = vec![prepared; 17];
     model.prepare_many(&points, &mut states).expect("17 points of position_len values");
     for (q, p) in states.iter().enumerate() {
-        let one = model.prepare(&points[q * k..(q + 1) * k]);
+        let one = model.prepare(&points[q * k..(q + 1) * k]).unwrap();
         let (a, b) = (model.eval(p, wi, wo), model.eval(&one, wi, wo));
         assert!(common::same_bits(a, b), "prepare_many point {q}: {a:?} vs {b:?}");
         assert!(common::same_bits(p.diffuse(), one.diffuse()), "prepare_many point {q}: diffuse");

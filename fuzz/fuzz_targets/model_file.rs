@@ -49,9 +49,9 @@ fuzz_target!(|data: &[u8]| {
     let Ok(buf) = owned else { return };
     let model = buf.model();
     let point = [0.3f32, -0.2, 0.6];
-    let Ok(prepared) = model.try_prepare(&point[..model.position_len().min(3)]) else {
+    let Ok(prepared) = model.prepare(&point[..model.position_len().min(3)]) else {
         // Intrinsic k > 3: only the empty-point path is checked.
-        let p = model.prepare(&[]);
+        let p = model.prepare(&[]).unwrap();
         assert_eq!(model.eval(&p, Vec3::Z, Vec3::Z), [0.0; 3]);
         return;
     };

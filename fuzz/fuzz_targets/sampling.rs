@@ -2,7 +2,7 @@
 //!
 //! Invariants: a sample has a finite direction above the horizon, a finite pdf > 0 and a finite,
 //! non-negative weight; for `u` in [0, 1] the direction is a unit vector (outside, `u` is out of contract
-//! and only finiteness is required); `pdf(wo, wi)` is finite, ≥ 0, and 0 off the upper hemisphere.
+//! and only finiteness is required); `pdf(wi, wo)` is finite, ≥ 0, and 0 off the upper hemisphere.
 #![no_main]
 
 mod common;
@@ -10,8 +10,7 @@ mod common;
 use libfuzzer_sys::fuzz_target;
 use nbrdf::builtin::Builtin;
 use nbrdf::parametric::{Parametric, ParametricKind, MAX_RAW};
-use nbrdf::sampling::BsdfSample;
-use nbrdf::Vec3;
+use nbrdf::{Brdf, BsdfSample, Vec3};
 
 fn check(name: &str, s: Option<BsdfSample>, u: [f32; 3], wo: Vec3) {
     let Some(s) = s else { return };
@@ -36,10 +35,10 @@ fuzz_target!(|input: (u8, [f32; MAX_RAW], f32, [f32; 3], [f32; 6])| {
     let (wi, wo) = common::pair(dirs);
     let kind = ParametricKind::ALL[which as usize % ParametricKind::ALL.len()];
     let m = Parametric::from_raw(kind, &raw[..kind.n_raw()], &[object][..kind.n_object()]);
-    check(kind.name(), m.sample(u, wo), u, wo);
-    check_pdf(kind.name(), m.pdf(wo, wi), wo, wi);
+    check(kind.name(), m.sample(wo, u), u, wo);
+    check_pdf(kind.name(), m.pdf(wi, wo), wo, wi);
 
     let b = Builtin::ALL[which as usize % Builtin::ALL.len()];
-    check(b.id(), b.sample(u, wo), u, wo);
-    check_pdf(b.id(), b.pdf(wo, wi), wo, wi);
+    check(b.id(), b.sample(wo, u), u, wo);
+    check_pdf(b.id(), b.pdf(wi, wo), wo, wi);
 });

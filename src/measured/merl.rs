@@ -28,7 +28,9 @@ use alloc::vec;
 use alloc::vec::Vec;
 
 use crate::angles::{from_rusinkiewicz, theta_map, upper_hemisphere_pair, Rusinkiewicz};
+use crate::brdf::{Brdf, BsdfSample};
 use crate::math::sanitize;
+use crate::sampling::{fit_proxy, Proxy};
 use crate::{Error, Rgb, Vec3, BLACK};
 
 /// Number of `θh` bins (header field 0).
@@ -78,6 +80,8 @@ pub enum Lookup {
 pub struct MerlTable {
     /// `3 × SAMPLES_PER_CHANNEL` stored values, finite; negative = invalid.
     raw: Vec<f64>,
+    /// The sampling proxy fitted to the table at construction (a function of `raw`).
+    proxy: Proxy,
 }
 
 impl core::fmt::Debug for MerlTable {
@@ -92,6 +96,19 @@ impl core::fmt::Debug for MerlTable {
 }
 
 impl MerlTable {
+    /// The table over `raw` with its proxy fitted (what every constructor returns).
+    fn with_proxy(raw: Vec<f64>) -> Self {
+        let mut table = MerlTable { raw, proxy: Proxy::COSINE };
+        table.proxy = fit_proxy(|wi, wo| table.eval(wi, wo));
+        table
+    }
+
+    /// The proxy [`Brdf::sample`] draws from: [`fit_proxy`] on the nearest-bin lookup, fitted once at
+    /// construction.
+    pub fn proxy(&self) -> &Proxy {
+        &self.proxy
+    }
+
     /// Parses a `.binary` file (module docs for the format).
     ///
     /// Errors: [`Error::Truncated`] for a short header or sample block, [`Error::SizeMismatch`] for a
@@ -132,7 +149,7 @@ impl MerlTable {
             }
             raw.push(v);
         }
-        Ok(MerlTable { raw })
+        Ok(Self::with_proxy(raw))
     }
 
     /// Builds a table from stored (unscaled) values, channel-planar as in the file.
@@ -153,7 +170,7 @@ impl MerlTable {
                 index,
             });
         }
-        Ok(MerlTable { raw })
+        Ok(Self::with_proxy(raw))
     }
 
     /// The stored (unscaled) values, channel-planar; negative entries are invalid bins.
@@ -213,7 +230,7 @@ impl MerlTable {
                 }
             }
         }
-        MerlTable { raw }
+        Self::with_proxy(raw)
     }
 
     /// The bins `[iθh, iθd, iφd]` of Rusinkiewicz angles, exactly as `BRDFRead.cpp` computes them
@@ -476,6 +493,31 @@ fn clamped_cell(u: f64, n: usize) -> (usize, usize, f64) {
     let i0 = (u as usize).min(n - 1);
     let i1 = (i0 + 1).min(n - 1);
     (i0, i1, u - i0 as f64)
+}
+
+
+/// The nearest-bin lookup, sampled through the table's proxy. Reciprocal: `φd` and `φd + π` share a
+/// bin and `θh`, `θd` are symmetric in `wi` and `wo`.
+impl Brdf for MerlTable {
+    #[inline]
+    fn eval(&self, wi: Vec3, wo: Vec3) -> Rgb {
+        MerlTable::eval(self, wi, wo)
+    }
+
+    #[inline]
+    fn sample(&self, wo: Vec3, u: [f32; 3]) -> Option<BsdfSample> {
+        self.proxy.sample(wo, u, |wi, wo| MerlTable::eval(self, wi, wo))
+    }
+
+    #[inline]
+    fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
+        self.proxy.pdf(wi, wo)
+    }
+
+    #[inline]
+    fn is_reciprocal(&self) -> bool {
+        true
+    }
 }
 
 #[cfg(test)]

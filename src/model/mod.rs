@@ -19,17 +19,20 @@
 //! let weights: Vec<f32> = (0..h.n_weights()).map(|i| ((i * 7919) % 200) as f32 * 1e-3 - 0.1).collect();
 //! let buf = ModelBuf::from_bytes(&encode(&h, &weights, None).unwrap()).unwrap();
 //! let model = buf.model();
-//! let point = model.prepare(&[0.1, -0.3, 0.5]);
+//! let point = model.prepare(&[0.1, -0.3, 0.5]).unwrap();
 //! let (wi, wo) = (Vec3::new(0.3, 0.1, 0.9).normalize(), Vec3::new(-0.5, 0.2, 0.7).normalize());
 //! let f = model.eval(&point, wi, wo);
 //! assert!(f.iter().all(|c| c.is_finite() && *c >= 0.0));
 //! assert_eq!(f, model.eval(&point, wo, wi)); // exact reciprocity, bit for bit
 //! ```
 //!
-//! Importance sampling of a model ([`Model::sample`], [`Model::pdf`], [`Model::fit_proxy`]) is in
-//! `sampling.rs`, over the proxies of [`crate::sampling`].
+//! Importance sampling of a model ([`Model::sample`], [`Model::pdf`], [`Model::fit_proxy`]) and the
+//! model at one point as a [`Brdf`](crate::Brdf) ([`ModelAt`]) are in `sampling.rs`, over the proxies
+//! of [`crate::sampling`].
 
 mod sampling;
+
+pub use sampling::ModelAt;
 
 use crate::angles::{rusinkiewicz_angles, theta_map, upper_hemisphere_pair};
 use crate::encoding::positional_encoding;
@@ -64,8 +67,16 @@ pub struct Prepared {
     pub(crate) diffuse: Rgb,
     /// Parameters of a parametric model at the point.
     pub(crate) params: Option<Parametric>,
-    /// False when the point input had the wrong length: every evaluation then gives 0.
+    /// False for [`Prepared::default`], the state of no point: every evaluation then gives 0.
     pub(crate) valid: bool,
+}
+
+/// The state of no point: every evaluation gives 0 and every sample is the model's proxy's with
+/// weight 0. What [`Model::prepare_many`]'s output starts as.
+impl Default for Prepared {
+    fn default() -> Self {
+        Prepared { partial: Partial::default(), diffuse: BLACK, params: None, valid: false }
+    }
 }
 
 impl Prepared {
@@ -247,23 +258,15 @@ impl<'a> Model<'a> {
         Ok(())
     }
 
-    /// Like [`Model::prepare`], but a point input of the wrong length is an error.
-    pub fn try_prepare(&self, p: &[f32]) -> Result<Prepared, Error> {
-        if p.len() != self.position_len() {
-            return Err(Error::SizeMismatch { what: "point input", expected: self.position_len(), found: p.len() });
-        }
-        Ok(self.prepare(p))
-    }
-
     /// Precomputes everything that depends on the surface point: `p` is the intrinsic encoding at the
     /// point (`k` values), the point itself (`Extrinsic`, 3 values) or empty (`Uniform`).
     ///
-    /// Input of the wrong length gives a state that evaluates to 0 everywhere (see [`Model::try_prepare`]).
-    pub fn prepare(&self, p: &[f32]) -> Prepared {
-        let mut prepared = Prepared { partial: Partial::default(), diffuse: BLACK, params: None, valid: false };
+    /// Errors when `p` does not hold [`Model::position_len`] values.
+    pub fn prepare(&self, p: &[f32]) -> Result<Prepared, Error> {
         if p.len() != self.position_len() {
-            return prepared;
+            return Err(Error::SizeMismatch { what: "point input", expected: self.position_len(), found: p.len() });
         }
+        let mut prepared = Prepared::default();
         let mut enc = [0.0f32; MAX_POSITION_INPUT];
         let pos: &[f32] = match self.header.position {
             PositionEncoding::Extrinsic { frequencies } => {
@@ -277,7 +280,7 @@ impl<'a> Model<'a> {
             Weights::F16(w) => self.prepare_with(&self.nets(w), pos, &mut prepared),
         }
         prepared.valid = true;
-        prepared
+        Ok(prepared)
     }
 
     /// [`Model::prepare`] for many points at once: point `i`'s input is `points[i * k..(i + 1) * k]`
@@ -304,11 +307,11 @@ impl<'a> Model<'a> {
     /// let buf = ModelBuf::from_bytes(&encode(&h, &w, None).unwrap()).unwrap();
     /// let model = buf.model();
     /// let points: Vec<f32> = (0..40 * 8).map(|i| (i as f32 * 0.21).sin()).collect(); // 40 points
-    /// let mut prepared = vec![model.prepare(&[]); 40];
+    /// let mut prepared = vec![nbrdf::Prepared::default(); 40];
     /// model.prepare_many(&points, &mut prepared).unwrap();
     /// let (wi, wo) = (Vec3::new(0.3, 0.1, 0.9).normalize(), Vec3::new(-0.2, 0.4, 0.8).normalize());
     /// for (i, p) in prepared.iter().enumerate() {
-    ///     let one = model.prepare(&points[i * 8..(i + 1) * 8]);
+    ///     let one = model.prepare(&points[i * 8..(i + 1) * 8]).unwrap();
     ///     assert_eq!(model.eval(p, wi, wo).map(f32::to_bits), model.eval(&one, wi, wo).map(f32::to_bits));
     /// }
     /// assert!(model.prepare_many(&points[1..], &mut prepared).is_err());
@@ -320,12 +323,12 @@ impl<'a> Model<'a> {
         }
         if k == 0 {
             // One state for every point: nothing depends on the point.
-            out.fill(self.prepare(&[]));
+            out.fill(self.prepare(&[])?);
             return Ok(());
         }
         if out.len() < PACKET {
             for (i, o) in out.iter_mut().enumerate() {
-                *o = self.prepare(&points[i * k..(i + 1) * k]);
+                *o = self.prepare(&points[i * k..(i + 1) * k])?;
             }
             return Ok(());
         }

@@ -2,15 +2,45 @@
 //! parameters its network predicted at the point; a neural model samples the [`Proxy`] stored in its
 //! file header (pure cosine sampling if the file has none) and evaluates the network for the weight.
 //! Either way the pdf is the density actually sampled, so `weight = f cos θi / pdf` is unbiased.
+//! [`ModelAt`] is the model at one prepared point: a [`Brdf`] like every other BRDF of the crate.
 //!
 //! These methods live with the model rather than in [`crate::sampling`], which they use: the samplers
 //! and the proxy sit below the model file and its evaluator, and import neither.
 
 use super::{Model, Prepared};
-use crate::sampling::{fit_proxy, BsdfSample, Proxy};
-use crate::{Rgb, Vec3};
+use crate::brdf::{Brdf, BsdfSample};
+use crate::file::{ModelKind, Reciprocity};
+use crate::sampling::{fit_proxy, Proxy};
+use crate::{Error, Rgb, Vec3};
 
-impl Model<'_> {
+impl<'a> Model<'a> {
+    /// Whether the model is reciprocal by construction: a parametric model (its formula is) or a
+    /// neural model on the reciprocity map Θ (Sec. 4.3; bitwise). Random swapping only trains toward it.
+    #[inline]
+    pub fn is_reciprocal(&self) -> bool {
+        matches!(self.header().kind, ModelKind::Parametric(_)) || self.header().reciprocity == Reciprocity::Exact
+    }
+
+    /// The model at the point `p` (see [`Model::prepare`]) as a [`Brdf`].
+    ///
+    /// ```
+    /// use nbrdf::file::{encode, ModelHeader, ModelKind, PositionEncoding, Reciprocity};
+    /// use nbrdf::{Brdf, ModelBuf, Vec3};
+    /// let h = ModelHeader::paper(ModelKind::SingleMlp, false, Reciprocity::Exact, PositionEncoding::Uniform, 2);
+    /// let w: Vec<f32> = (0..h.n_weights()).map(|i| ((i * 7919) % 200) as f32 * 1e-3 - 0.1).collect();
+    /// let buf = ModelBuf::from_bytes(&encode(&h, &w, None).unwrap()).unwrap();
+    /// let brdf = buf.model().at(&[]).unwrap();
+    /// let wo = Vec3::new(0.2, 0.1, 0.9).normalize();
+    /// let s = brdf.sample(wo, [0.3, 0.6, 0.2]).unwrap();
+    /// assert_eq!(s.pdf, brdf.pdf(s.wi, wo));
+    /// assert!(brdf.is_reciprocal());
+    /// assert!(buf.model().at(&[0.5]).is_err()); // a uniform model has no point input
+    /// ```
+    #[inline]
+    pub fn at(&self, p: &[f32]) -> Result<ModelAt<'a>, Error> {
+        Ok(ModelAt { model: *self, prepared: self.prepare(p)? })
+    }
+
     /// The sampling proxy of a neural model: the one stored in the file, else [`Proxy::COSINE`].
     #[inline]
     pub fn proxy(&self) -> Proxy {
@@ -26,25 +56,25 @@ impl Model<'_> {
     /// let h = ModelHeader::paper(ModelKind::SingleMlp, false, Reciprocity::Exact, PositionEncoding::Uniform, 2);
     /// let w: Vec<f32> = (0..h.n_weights()).map(|i| ((i * 7919) % 200) as f32 * 1e-3 - 0.1).collect();
     /// let buf = ModelBuf::from_bytes(&encode(&h, &w, None).unwrap()).unwrap();
-    /// let (model, p) = (buf.model(), buf.model().prepare(&[]));
+    /// let (model, p) = (buf.model(), buf.model().prepare(&[]).unwrap());
     /// let wo = Vec3::new(0.2, 0.1, 0.9).normalize();
-    /// let s = model.sample(&p, [0.3, 0.6, 0.2], wo).unwrap();
-    /// assert_eq!(s.pdf, model.pdf(&p, wo, s.wi));
+    /// let s = model.sample(&p, wo, [0.3, 0.6, 0.2]).unwrap();
+    /// assert_eq!(s.pdf, model.pdf(&p, s.wi, wo));
     /// ```
     #[inline]
-    pub fn sample(&self, prepared: &Prepared, u: [f32; 3], wo: Vec3) -> Option<BsdfSample> {
+    pub fn sample(&self, prepared: &Prepared, wo: Vec3, u: [f32; 3]) -> Option<BsdfSample> {
         match prepared.parameters() {
-            Some(params) if prepared.valid => params.sample(u, wo),
-            _ => self.proxy().sample(u, wo, |wi, wo| self.eval(prepared, wi, wo)),
+            Some(params) if prepared.valid => params.sample(wo, u),
+            _ => self.proxy().sample(wo, u, |wi, wo| self.eval(prepared, wi, wo)),
         }
     }
 
     /// Density of [`Model::sample`] at `wi` per unit solid angle.
     #[inline]
-    pub fn pdf(&self, prepared: &Prepared, wo: Vec3, wi: Vec3) -> f32 {
+    pub fn pdf(&self, prepared: &Prepared, wi: Vec3, wo: Vec3) -> f32 {
         match prepared.parameters() {
-            Some(params) if prepared.valid => params.pdf(wo, wi),
-            _ => self.proxy().pdf(wo, wi),
+            Some(params) if prepared.valid => params.pdf(wi, wo),
+            _ => self.proxy().pdf(wi, wo),
         }
     }
 
@@ -65,5 +95,37 @@ impl Model<'_> {
             }
             f
         })
+    }
+}
+
+/// A model at one prepared point: the [`Brdf`] a renderer shades a hit with. Cheap to copy (the
+/// model borrows its weights; the prepared state is a few hundred bytes).
+#[derive(Clone, Copy, Debug)]
+pub struct ModelAt<'a> {
+    /// The model.
+    pub model: Model<'a>,
+    /// Its state at the point ([`Model::prepare`]).
+    pub prepared: Prepared,
+}
+
+impl Brdf for ModelAt<'_> {
+    #[inline]
+    fn eval(&self, wi: Vec3, wo: Vec3) -> Rgb {
+        self.model.eval(&self.prepared, wi, wo)
+    }
+
+    #[inline]
+    fn sample(&self, wo: Vec3, u: [f32; 3]) -> Option<BsdfSample> {
+        self.model.sample(&self.prepared, wo, u)
+    }
+
+    #[inline]
+    fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
+        self.model.pdf(&self.prepared, wi, wo)
+    }
+
+    #[inline]
+    fn is_reciprocal(&self) -> bool {
+        self.model.is_reciprocal()
     }
 }

@@ -20,13 +20,13 @@ use super::raw_at;
 use super::real::Real;
 use crate::angles::upper_hemisphere_pair;
 use crate::math::{logit, softplus_inv, INV_PI};
-use crate::{Rgb, Vec3};
+use crate::{Error, Rgb, Vec3};
 
 /// Energy-preserving modified Phong ("RP").
 ///
 /// ```
 /// use nbrdf::{parametric::Phong, Vec3};
-/// let rp = Phong { kd: [0.0; 3], ks: [1.0; 3], n: 10.0 };
+/// let rp = Phong::new([0.0; 3], [1.0; 3], 10.0).unwrap();
 /// // In the mirror direction cos α = 1: f = ks (n + 2) / 2π.
 /// let (wi, wo) = (Vec3::new(0.6, 0.0, 0.8), Vec3::new(-0.6, 0.0, 0.8));
 /// assert!((rp.eval(wi, wo)[0] - 12.0 / (2.0 * core::f32::consts::PI)).abs() < 1e-5);
@@ -35,7 +35,8 @@ use crate::{Rgb, Vec3};
 pub struct Phong {
     /// Diffuse albedo per channel.
     pub kd: Rgb,
-    /// Specular albedo (at normal incidence) per channel; `kd + ks ≤ 1` preserves energy.
+    /// Specular albedo (at normal incidence) per channel; `kd + ks ≤ 1` preserves energy
+    /// ([`Phong::new`] checks it; a struct literal does not).
     pub ks: Rgb,
     /// Phong exponent `n ≥ 0`; larger is shinier.
     pub n: f32,
@@ -44,6 +45,33 @@ pub struct Phong {
 impl Phong {
     /// Raw network outputs this model reads.
     pub const N_RAW: usize = 7;
+
+    /// The model with albedos `kd`, `ks` and exponent `n`, checked: albedos in [0, 1] with
+    /// `kd + ks ≤ 1` per channel (else the BRDF reflects more than it receives), `n` finite and ≥ 0.
+    ///
+    /// ```
+    /// use nbrdf::parametric::Phong;
+    /// assert!(Phong::new([0.4; 3], [0.5; 3], 20.0).is_ok());
+    /// let err = Phong::new([0.6; 3], [0.5; 3], 20.0).unwrap_err();
+    /// assert!(err.to_string().contains("kd + ks"));
+    /// ```
+    pub fn new(kd: Rgb, ks: Rgb, n: f32) -> Result<Self, Error> {
+        let albedo = |x: f32| x.is_finite() && (0.0..=1.0).contains(&x);
+        if !kd.iter().chain(&ks).all(|&x| albedo(x)) {
+            return Err(Error::InvalidValue { what: "Phong kd and ks", reason: "must be finite and in [0, 1]" });
+        }
+        // One ulp of slack: `from_raw`'s `ks = (1 - kd) σ` may round a hair above.
+        if (0..3).any(|c| kd[c] + ks[c] > 1.0 + f32::EPSILON) {
+            return Err(Error::InvalidValue {
+                what: "Phong kd + ks",
+                reason: "must be at most 1 per channel, or the BRDF creates energy (Lafortune & Willems 1994)",
+            });
+        }
+        if !(n.is_finite() && n >= 0.0) {
+            return Err(Error::InvalidValue { what: "Phong exponent n", reason: "must be finite and >= 0" });
+        }
+        Ok(Phong { kd, ks, n })
+    }
 
     /// Parameters from raw network outputs (table at the top of the file); missing or non-finite raw
     /// values count as 0. The result always satisfies `kd + ks ≤ 1` per channel.

@@ -17,6 +17,7 @@ use super::environment::Environment;
 use super::material::Material;
 use super::plan::Plan;
 use super::rng::SampleRng;
+use crate::brdf::Brdf;
 use crate::image::RgbImage;
 use crate::scene::render::{surface_sample, SurfaceSample};
 use crate::scene::{Camera, DirectionalLight, Frame, Geometry, Ray};
@@ -238,7 +239,7 @@ fn trace(scene: &Scene, plan: &Plan, options: &Options, camera_ray: Ray, rng: &S
         for light in scene.lights {
             if unoccluded(g, &s, light.direction, plan, stats) {
                 let wi = frame.to_local(light.direction);
-                let f = m.eval(&pt, wi, wo);
+                let f = pt.eval(wi, wo);
                 stats.brdf_evals += 1;
                 add_scaled(&mut radiance, mul(mul(beta, f), light.intensity), wi.z);
             }
@@ -248,8 +249,8 @@ fn trace(scene: &Scene, plan: &Plan, options: &Options, camera_ray: Ray, rng: &S
             if let Some(ls) = env.sample([rng.get(base), rng.get(base + 1)]) {
                 if unoccluded(g, &s, ls.dir, plan, stats) {
                     let wi = frame.to_local(ls.dir);
-                    let f = m.eval(&pt, wi, wo);
-                    let w = power(ls.pdf, m.pdf(&pt, wo, wi));
+                    let f = pt.eval(wi, wo);
+                    let w = power(ls.pdf, pt.pdf(wi, wo));
                     stats.brdf_evals += 1;
                     add_scaled(&mut radiance, mul(mul(beta, f), ls.radiance), wi.z * w / ls.pdf);
                 }
@@ -259,7 +260,7 @@ fn trace(scene: &Scene, plan: &Plan, options: &Options, camera_ray: Ray, rng: &S
             break;
         }
         // Continue the path by sampling the BSDF.
-        let Some(bs) = m.sample(&pt, [rng.get(base + 2), rng.get(base + 3), rng.get(base + 4)], wo) else { break };
+        let Some(bs) = pt.sample(wo, [rng.get(base + 2), rng.get(base + 3), rng.get(base + 4)]) else { break };
         stats.brdf_evals += 1;
         let wi_world = frame.to_world(bs.wi);
         if s.facet_normal.dot(wi_world) <= 0.0 {

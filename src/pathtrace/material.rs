@@ -1,45 +1,31 @@
-//! The one material of a path-traced scene: any BRDF the crate evaluates, with the importance sampling
-//! that suits it, behind one `eval`/`sample`/`pdf` surface.
+//! The one material of a path-traced scene: any [`Brdf`] of the crate with the importance sampling
+//! that suits it. The integrator shades every hit through the [`Brdf`] trait of a [`Shading`].
 //!
 //! | BRDF | sampled with |
 //! |---|---|
 //! | parametric model, built-in material | its own lobes ([`crate::sampling`]) |
 //! | `.nbrdf` model | a parametric model's own lobes at the point; a neural model's stored proxy |
-//! | MERL table, NBRDF-json network | a proxy fitted here, once ([`crate::sampling::fit_proxy`]) |
+//! | MERL table, NBRDF-json network | the proxy fitted to it at load ([`crate::sampling::fit_proxy`]) |
 //!
 //! [`Sampling::Cosine`] replaces all of that by cosine sampling, the baseline the tests compare with.
 
 use std::string::String;
+use std::sync::Arc;
 
+use crate::brdf::{Brdf, BsdfSample};
 use crate::builtin::Builtin;
-use crate::file::PositionEncoding;
-use crate::model::ModelBuf;
+use crate::file::{ModelKind, PositionEncoding};
 use crate::measured::{MerlTable, NbrdfNetwork};
-use crate::model::Prepared;
+use crate::model::{ModelAt, ModelBuf, Prepared};
 use crate::parametric::Parametric;
-use crate::sampling::{BsdfSample, Proxy};
+use crate::sampling::Proxy;
 use crate::scene::Mesh;
-use crate::{Error, Rgb, Vec3};
-
-/// A BRDF the renderer can shade with.
-#[derive(Clone, Debug)]
-pub enum Brdf {
-    /// An analytic model with fixed parameters.
-    Parametric(Parametric),
-    /// A built-in procedural material.
-    Builtin(Builtin),
-    /// A MERL table (nearest lookup).
-    Merl(MerlTable),
-    /// An NBRDF-json network.
-    NbrdfJson(NbrdfNetwork),
-    /// A `.nbrdf` model file.
-    Model(ModelBuf),
-}
+use crate::{Error, Rgb, Vec3, BLACK};
 
 /// How directions are importance-sampled.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum Sampling {
-    /// The model's own lobes or its proxy (table in the module docs).
+    /// The BRDF's own [`Brdf::sample`]: its lobes or its proxy (table in the module docs).
     #[default]
     Native,
     /// Cosine-weighted hemisphere sampling for every BRDF (the baseline).
@@ -47,46 +33,86 @@ pub enum Sampling {
 }
 
 /// A BRDF with its sampler.
-#[derive(Clone, Debug)]
+#[derive(Clone)]
 pub struct Material {
-    brdf: Brdf,
-    proxy: Proxy,
+    source: Source,
     sampling: Sampling,
-    /// The prepared state of a spatially uniform `.nbrdf` model, computed once instead of per hit.
-    uniform: Option<Prepared>,
+    /// What the BRDF is and how it samples itself, for reports.
+    what: String,
 }
 
-/// What a material needs to know about a surface point: the prepared state of a `.nbrdf` model.
-#[derive(Clone, Copy, Debug)]
-pub struct ShadingPoint {
-    prepared: Option<Prepared>,
+// One per material: its size does not matter, and boxing the model would add an indirection per hit.
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone)]
+enum Source {
+    /// The same BRDF at every point.
+    Fixed(Arc<dyn Brdf + Send + Sync>),
+    /// A `.nbrdf` model, prepared per point; a spatially uniform one once, here.
+    Model { buf: ModelBuf, uniform: Option<Prepared> },
+}
+
+impl core::fmt::Debug for Material {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(&self.describe())
+    }
+}
+
+/// The proxy's lobes in one line.
+fn proxy_line(p: &Proxy) -> String {
+    std::format!(
+        "proxy: cosine {:.2}, GGX {:.2} (α {:.3}), GGX {:.2} (α {:.3})",
+        p.diffuse, p.lobes[0].weight, p.lobes[0].alpha, p.lobes[1].weight, p.lobes[1].alpha
+    )
 }
 
 impl Material {
-    /// A material with native sampling. Measured materials get their proxy fitted here; a `.nbrdf`
-    /// model uses the proxy in its header. Errors on a model with an intrinsic position encoding but no
-    /// per-vertex table (the renderer has no eigenfunctions to interpolate).
-    pub fn new(brdf: Brdf) -> Result<Self, Error> {
-        let proxy = match &brdf {
-            Brdf::Merl(t) => t.fit_proxy(),
-            Brdf::NbrdfJson(n) => n.fit_proxy(),
-            Brdf::Model(m) => {
-                let h = m.header();
-                if matches!(h.position, PositionEncoding::Intrinsic { .. }) && h.n_vertices == 0 {
-                    return Err(Error::InvalidValue {
-                        what: "model position encoding",
-                        reason: "intrinsic encoding without a per-vertex table cannot be rendered on a new mesh",
-                    });
-                }
-                m.model().proxy()
-            }
-            Brdf::Parametric(_) | Brdf::Builtin(_) => Proxy::COSINE,
+    /// Any BRDF, the same at every point, described as `what` in reports.
+    pub fn new(brdf: impl Brdf + Send + Sync + 'static, what: impl Into<String>) -> Self {
+        Material { source: Source::Fixed(Arc::new(brdf)), sampling: Sampling::Native, what: what.into() }
+    }
+
+    /// An analytic model with fixed parameters.
+    pub fn parametric(p: Parametric) -> Self {
+        Self::new(p, std::format!("parametric {}, sampled by own lobes", p.kind().name()))
+    }
+
+    /// A built-in procedural material.
+    pub fn builtin(b: Builtin) -> Self {
+        Self::new(b, std::format!("built-in {}, sampled by own lobes", b.id()))
+    }
+
+    /// A MERL table (nearest lookup), sampled through its proxy.
+    pub fn merl(t: MerlTable) -> Self {
+        let what = std::format!("MERL table, sampled by {}", proxy_line(t.proxy()));
+        Self::new(t, what)
+    }
+
+    /// An NBRDF-json network, sampled through its proxy.
+    pub fn nbrdf_json(n: NbrdfNetwork) -> Self {
+        let what = std::format!("NBRDF-json {}, sampled by {}", n.name(), proxy_line(n.proxy()));
+        Self::new(n, what)
+    }
+
+    /// A `.nbrdf` model. Errors on a model with an intrinsic position encoding but no per-vertex
+    /// table (the renderer has no eigenfunctions to interpolate).
+    pub fn model(buf: ModelBuf) -> Result<Self, Error> {
+        let h = *buf.header();
+        if matches!(h.position, PositionEncoding::Intrinsic { .. }) && h.n_vertices == 0 {
+            return Err(Error::InvalidValue {
+                what: "model position encoding",
+                reason: "intrinsic encoding without a per-vertex table cannot be rendered on a new mesh",
+            });
+        }
+        let what = match h.kind {
+            ModelKind::Parametric(k) => std::format!(".nbrdf {} network, sampled by own lobes at each point", k.name()),
+            k if h.proxy.is_some() => std::format!(".nbrdf {k:?}, sampled by {}", proxy_line(&buf.model().proxy())),
+            k => std::format!(".nbrdf {k:?}, sampled by cosine (no proxy in the file)"),
         };
-        let uniform = match &brdf {
-            Brdf::Model(m) if m.header().position == PositionEncoding::Uniform => Some(m.model().prepare(&[])),
+        let uniform = match h.position {
+            PositionEncoding::Uniform => Some(buf.model().prepare(&[])?),
             _ => None,
         };
-        Ok(Material { brdf, proxy, sampling: Sampling::Native, uniform })
+        Ok(Material { source: Source::Model { buf, uniform }, sampling: Sampling::Native, what })
     }
 
     /// The same material sampled with `sampling`.
@@ -95,110 +121,103 @@ impl Material {
         self
     }
 
-    /// The BRDF.
-    pub fn brdf(&self) -> &Brdf {
-        &self.brdf
-    }
-
-    /// The proxy used for measured and neural BRDFs ([`Proxy::COSINE`] for the others).
-    pub fn proxy(&self) -> &Proxy {
-        &self.proxy
-    }
-
     /// A one-line description for reports: the BRDF and its sampler.
     pub fn describe(&self) -> String {
-        let proxy = |p: &Proxy| {
-            std::format!(
-                "proxy: cosine {:.2}, GGX {:.2} (α {:.3}), GGX {:.2} (α {:.3})",
-                p.diffuse, p.lobes[0].weight, p.lobes[0].alpha, p.lobes[1].weight, p.lobes[1].alpha
-            )
-        };
-        let (what, native) = match &self.brdf {
-            Brdf::Parametric(p) => (std::format!("parametric {}", p.kind().name()), String::from("own lobes")),
-            Brdf::Builtin(b) => (std::format!("built-in {}", b.id()), String::from("own lobes")),
-            Brdf::Merl(_) => (String::from("MERL table"), proxy(&self.proxy)),
-            Brdf::NbrdfJson(n) => (std::format!("NBRDF-json {}", n.name()), proxy(&self.proxy)),
-            Brdf::Model(m) => match m.header().kind {
-                crate::file::ModelKind::Parametric(k) => {
-                    (std::format!(".nbrdf {} network", k.name()), String::from("own lobes at each point"))
-                }
-                k => (
-                    std::format!(".nbrdf {k:?}"),
-                    if m.header().proxy.is_some() { proxy(&self.proxy) } else { String::from("no proxy in file: cosine") },
-                ),
-            },
-        };
         match self.sampling {
-            Sampling::Native => std::format!("{what}, sampled by {native}"),
-            Sampling::Cosine => std::format!("{what}, sampled by cosine (forced)"),
+            Sampling::Native => self.what.clone(),
+            Sampling::Cosine => {
+                let what = self.what.split(", sampled by").next().unwrap_or(&self.what);
+                std::format!("{what}, sampled by cosine (forced)")
+            }
         }
     }
 
-    /// Prepares the material at a surface point: triangle `tri` with barycentrics `(b1, b2)` at world
-    /// position `x` (for an extrinsic encoding the mesh should lie in the unit sphere, as in training).
+    /// The BRDF at a surface point: triangle `tri` with barycentrics `(b1, b2)` at world position `x`
+    /// (for an extrinsic encoding the mesh should lie in the unit sphere, as in training).
     #[inline]
-    pub fn point(&self, mesh: &Mesh, tri: u32, b1: f32, b2: f32, x: Vec3) -> ShadingPoint {
-        let Brdf::Model(buf) = &self.brdf else { return ShadingPoint { prepared: None } };
-        if self.uniform.is_some() {
-            return ShadingPoint { prepared: self.uniform };
-        }
-        let model = buf.model();
-        let prepared = match model.header().position {
-            PositionEncoding::Uniform => model.prepare(&[]),
-            PositionEncoding::Extrinsic { .. } => model.prepare(&[x.x, x.y, x.z]),
-            PositionEncoding::Intrinsic { k } => {
-                let mut feat = [0.0f32; crate::file::MAX_INTRINSIC as usize];
-                let bary = [1.0 - b1 - b2, b1, b2];
-                match model.position_features(mesh.triangles[tri as usize], bary, &mut feat) {
-                    Ok(()) => model.prepare(&feat[..k as usize]),
-                    // A mesh that does not match the table: an invalid state that shades black.
-                    Err(_) => model.prepare(&[]),
-                }
+    pub fn point(&self, mesh: &Mesh, tri: u32, b1: f32, b2: f32, x: Vec3) -> Shading<'_> {
+        let cosine = self.sampling == Sampling::Cosine;
+        let at = match &self.source {
+            Source::Fixed(brdf) => At::Fixed(&**brdf),
+            Source::Model { buf, uniform: Some(p) } => At::Model(ModelAt { model: buf.model(), prepared: *p }),
+            Source::Model { buf, uniform: None } => {
+                let model = buf.model();
+                let prepared = match model.header().position {
+                    PositionEncoding::Extrinsic { .. } => model.prepare(&[x.x, x.y, x.z]),
+                    PositionEncoding::Intrinsic { k } => {
+                        let mut feat = [0.0f32; crate::file::MAX_INTRINSIC as usize];
+                        let bary = [1.0 - b1 - b2, b1, b2];
+                        model
+                            .position_features(mesh.triangles[tri as usize], bary, &mut feat)
+                            .and_then(|()| model.prepare(&feat[..k as usize]))
+                    }
+                    PositionEncoding::Uniform => model.prepare(&[]),
+                };
+                // A mesh that does not match the model's table shades black.
+                prepared.map_or(At::Black, |prepared| At::Model(ModelAt { model, prepared }))
             }
         };
-        ShadingPoint { prepared: Some(prepared) }
+        Shading { at, cosine }
+    }
+}
+
+/// A material at one surface point: the [`Brdf`] the integrator shades with.
+#[derive(Clone, Copy)]
+pub struct Shading<'a> {
+    at: At<'a>,
+    /// Sample the cosine lobe instead of the BRDF's own sampler.
+    cosine: bool,
+}
+
+// Lives on the stack for one hit; boxing the prepared model would allocate per hit.
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Copy)]
+enum At<'a> {
+    Fixed(&'a (dyn Brdf + Send + Sync)),
+    Model(ModelAt<'a>),
+    Black,
+}
+
+impl Brdf for Shading<'_> {
+    #[inline]
+    fn eval(&self, wi: Vec3, wo: Vec3) -> Rgb {
+        match &self.at {
+            At::Fixed(b) => b.eval(wi, wo),
+            At::Model(m) => m.eval(wi, wo),
+            At::Black => BLACK,
+        }
     }
 
-    /// The BRDF value at a point for local directions.
     #[inline]
-    pub fn eval(&self, pt: &ShadingPoint, wi: Vec3, wo: Vec3) -> Rgb {
-        match &self.brdf {
-            Brdf::Parametric(p) => p.eval(wi, wo),
-            Brdf::Builtin(b) => b.eval(wi, wo),
-            Brdf::Merl(t) => t.eval(wi, wo),
-            Brdf::NbrdfJson(n) => n.eval(wi, wo),
-            Brdf::Model(m) => match &pt.prepared {
-                Some(p) => m.model().eval(p, wi, wo),
-                None => [0.0; 3],
-            },
+    fn sample(&self, wo: Vec3, u: [f32; 3]) -> Option<BsdfSample> {
+        if self.cosine {
+            return Proxy::COSINE.sample(wo, u, |wi, wo| self.eval(wi, wo));
+        }
+        match &self.at {
+            At::Fixed(b) => b.sample(wo, u),
+            At::Model(m) => m.sample(wo, u),
+            At::Black => None,
         }
     }
 
-    /// Samples `wi` for the view `wo` (three uniform numbers).
     #[inline]
-    pub fn sample(&self, pt: &ShadingPoint, u: [f32; 3], wo: Vec3) -> Option<BsdfSample> {
-        if self.sampling == Sampling::Cosine {
-            return Proxy::COSINE.sample(u, wo, |wi, wo| self.eval(pt, wi, wo));
+    fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
+        if self.cosine {
+            return Proxy::COSINE.pdf(wi, wo);
         }
-        match &self.brdf {
-            Brdf::Parametric(p) => p.sample(u, wo),
-            Brdf::Builtin(b) => b.sample(u, wo),
-            Brdf::Merl(_) | Brdf::NbrdfJson(_) => self.proxy.sample(u, wo, |wi, wo| self.eval(pt, wi, wo)),
-            Brdf::Model(m) => m.model().sample(pt.prepared.as_ref()?, u, wo),
+        match &self.at {
+            At::Fixed(b) => b.pdf(wi, wo),
+            At::Model(m) => m.pdf(wi, wo),
+            At::Black => 0.0,
         }
     }
 
-    /// Density of [`Material::sample`] at `wi`.
     #[inline]
-    pub fn pdf(&self, pt: &ShadingPoint, wo: Vec3, wi: Vec3) -> f32 {
-        if self.sampling == Sampling::Cosine {
-            return Proxy::COSINE.pdf(wo, wi);
-        }
-        match &self.brdf {
-            Brdf::Parametric(p) => p.pdf(wo, wi),
-            Brdf::Builtin(b) => b.pdf(wo, wi),
-            Brdf::Merl(_) | Brdf::NbrdfJson(_) => self.proxy.pdf(wo, wi),
-            Brdf::Model(m) => pt.prepared.as_ref().map_or(0.0, |p| m.model().pdf(p, wo, wi)),
+    fn is_reciprocal(&self) -> bool {
+        match &self.at {
+            At::Fixed(b) => b.is_reciprocal(),
+            At::Model(m) => m.is_reciprocal(),
+            At::Black => true,
         }
     }
 }

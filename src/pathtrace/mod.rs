@@ -9,12 +9,12 @@
 //!
 //! ```
 //! use nbrdf::pathtrace::{environment::Environment, integrator::{render, Options, Scene},
-//!                        material::{Brdf, Material}};
+//!                        material::Material};
 //! use nbrdf::parametric::{Lambert, Parametric};
 //! use nbrdf::scene::{builtin::BuiltinMesh, Camera, Geometry};
 //! use nbrdf::Vec3;
 //! let geometry = Geometry::new(BuiltinMesh::Sphere.mesh()).unwrap();
-//! let material = Material::new(Brdf::Parametric(Parametric::Lambert(Lambert { kd: [0.5; 3] }))).unwrap();
+//! let material = Material::parametric(Parametric::Lambert(Lambert { kd: [0.5; 3] }));
 //! let camera = Camera::look_at(Vec3::new(0.0, 0.0, 4.0), Vec3::ZERO, Vec3::Y, 0.6, 8, 8).unwrap();
 //! let env = Environment::Constant([1.0; 3]);
 //! let scene = Scene { geometry: &geometry, material: &material, lights: &[], env: Some(&env), camera: &camera };
@@ -33,5 +33,5 @@ pub mod rng;
 
 pub use environment::Environment;
 pub use integrator::{render, Options, Rendered, Scene, Stats};
-pub use material::{Brdf, Material, Sampling};
+pub use material::{Material, Sampling, Shading};
 pub use plan::Plan;

@@ -34,8 +34,6 @@
 //! measured ones); the pdf is the proxy's, so the estimator stays unbiased.
 
 pub mod fit;
-#[cfg(feature = "alloc")]
-pub mod measured;
 pub mod proxy;
 
 pub use fit::fit_proxy;
@@ -45,21 +43,12 @@ use crate::builtin::{self, Builtin};
 use crate::math::{safe_sqrt, PI};
 use crate::parametric::microfacet::{self, clamp_alpha, ALPHA_MIN};
 use crate::parametric::{Disney, FresnelMicrofacet, Lambert, Parametric, Phong, TorranceSparrow};
+pub use crate::brdf::BsdfSample;
+use crate::brdf::Brdf;
 use crate::{Rgb, Vec3};
 
 /// 1/π as `f32`.
 const INV_PI: f32 = crate::math::INV_PI;
-
-/// A sampled incident direction with its estimator weight.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct BsdfSample {
-    /// The sampled direction toward the light, unit, upper hemisphere.
-    pub wi: Vec3,
-    /// `f(wi, wo) cos θi / pdf`, finite and non-negative.
-    pub weight: Rgb,
-    /// Density of `wi` per unit solid angle (the whole mixture's), > 0.
-    pub pdf: f32,
-}
 
 // -------------------------------------------------------------------------------------------------
 // Warps
@@ -271,22 +260,32 @@ pub(crate) fn finish(wi: Vec3, pdf: f32, f: Rgb) -> Option<BsdfSample> {
 // -------------------------------------------------------------------------------------------------
 // Per model
 
-impl Lambert {
+impl Brdf for Lambert {
+    #[inline]
+    fn eval(&self, wi: Vec3, wo: Vec3) -> Rgb {
+        Lambert::eval(self, wi, wo)
+    }
+
     /// Cosine-weighted `wi`; the weight is `kd` exactly.
     #[inline]
-    pub fn sample(&self, u: [f32; 3], wo: Vec3) -> Option<BsdfSample> {
+    fn sample(&self, wo: Vec3, u: [f32; 3]) -> Option<BsdfSample> {
         let wo = valid_wo(wo)?;
         let wi = square_to_cosine_hemisphere([u[0], u[1]]);
         finish(wi, cosine_hemisphere_pdf(wi), self.eval(wi, wo))
     }
 
-    /// Density of [`Lambert::sample`] at `wi`.
+    /// Density of `sample` at `wi`.
     #[inline]
-    pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+    fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
         match crate::angles::upper_hemisphere_pair(wi, wo) {
             Some((wi, _)) => cosine_hemisphere_pdf(wi),
             None => 0.0,
         }
+    }
+
+    #[inline]
+    fn is_reciprocal(&self) -> bool {
+        true
     }
 }
 
@@ -296,27 +295,39 @@ impl Phong {
     fn lobe_probabilities(&self) -> [f32; 2] {
         normalise([lum(self.kd), lum(self.ks)])
     }
+}
+
+impl Brdf for Phong {
+    #[inline]
+    fn eval(&self, wi: Vec3, wo: Vec3) -> Rgb {
+        Phong::eval(self, wi, wo)
+    }
 
     /// Mixture of the cosine lobe and the Phong lobe about the mirror direction of `wo`.
     #[inline]
-    pub fn sample(&self, u: [f32; 3], wo: Vec3) -> Option<BsdfSample> {
+    fn sample(&self, wo: Vec3, u: [f32; 3]) -> Option<BsdfSample> {
         let wo = valid_wo(wo)?;
         let p = self.lobe_probabilities();
         let wi = match choose(&p, u[2]) {
             0 => square_to_cosine_hemisphere([u[0], u[1]]),
             _ => sample_phong_lobe(crate::angles::reflect(wo, Vec3::Z), self.n, [u[0], u[1]]),
         };
-        finish(wi, self.pdf(wo, wi), self.eval(wi, wo))
+        finish(wi, self.pdf(wi, wo), self.eval(wi, wo))
     }
 
-    /// Density of [`Phong::sample`] at `wi`.
+    /// Density of `sample` at `wi`.
     #[inline]
-    pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+    fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
         let Some((wi, wo)) = crate::angles::upper_hemisphere_pair(wi, wo) else {
             return 0.0;
         };
         let p = self.lobe_probabilities();
         p[0] * cosine_hemisphere_pdf(wi) + p[1] * phong_lobe_pdf(Phong::cos_alpha(wi, wo), self.n)
+    }
+
+    #[inline]
+    fn is_reciprocal(&self) -> bool {
+        true
     }
 }
 
@@ -327,22 +338,34 @@ impl TorranceSparrow {
         let spec = self.ks.map(|f0| microfacet::fresnel_schlick(f0, wo.z));
         normalise([lum(self.kd), lum(spec)])
     }
+}
+
+impl Brdf for TorranceSparrow {
+    #[inline]
+    fn eval(&self, wi: Vec3, wo: Vec3) -> Rgb {
+        TorranceSparrow::eval(self, wi, wo)
+    }
 
     /// Mixture of the cosine lobe and Beckmann half vectors reflected about `wo`.
     #[inline]
-    pub fn sample(&self, u: [f32; 3], wo: Vec3) -> Option<BsdfSample> {
+    fn sample(&self, wo: Vec3, u: [f32; 3]) -> Option<BsdfSample> {
         let wo = valid_wo(wo)?;
         let wi = sample_cosine_beckmann(self.lobe_probabilities(wo), self.alpha, u, wo);
-        finish(wi, self.pdf(wo, wi), self.eval(wi, wo))
+        finish(wi, self.pdf(wi, wo), self.eval(wi, wo))
     }
 
-    /// Density of [`TorranceSparrow::sample`] at `wi`.
+    /// Density of `sample` at `wi`.
     #[inline]
-    pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+    fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
         let Some((wi, wo)) = crate::angles::upper_hemisphere_pair(wi, wo) else {
             return 0.0;
         };
         pdf_cosine_beckmann(self.lobe_probabilities(wo), self.alpha, wo, wi)
+    }
+
+    #[inline]
+    fn is_reciprocal(&self) -> bool {
+        true
     }
 }
 
@@ -371,23 +394,35 @@ impl FresnelMicrofacet {
         let f = microfacet::fresnel_dielectric(wo.z, self.eta);
         normalise([lum(self.rho) * (1.0 - f), self.ks * f])
     }
+}
+
+impl Brdf for FresnelMicrofacet {
+    #[inline]
+    fn eval(&self, wi: Vec3, wo: Vec3) -> Rgb {
+        FresnelMicrofacet::eval(self, wi, wo)
+    }
 
     /// Mixture of the cosine lobe and Beckmann half vectors of slope α (a proposal for the generalised
     /// Gaussian; see the module docs).
     #[inline]
-    pub fn sample(&self, u: [f32; 3], wo: Vec3) -> Option<BsdfSample> {
+    fn sample(&self, wo: Vec3, u: [f32; 3]) -> Option<BsdfSample> {
         let wo = valid_wo(wo)?;
         let wi = sample_cosine_beckmann(self.lobe_probabilities(wo), self.alpha, u, wo);
-        finish(wi, self.pdf(wo, wi), self.eval(wi, wo))
+        finish(wi, self.pdf(wi, wo), self.eval(wi, wo))
     }
 
-    /// Density of [`FresnelMicrofacet::sample`] at `wi`.
+    /// Density of `sample` at `wi`.
     #[inline]
-    pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+    fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
         let Some((wi, wo)) = crate::angles::upper_hemisphere_pair(wi, wo) else {
             return 0.0;
         };
         pdf_cosine_beckmann(self.lobe_probabilities(wo), self.alpha, wo, wi)
+    }
+
+    #[inline]
+    fn is_reciprocal(&self) -> bool {
+        true
     }
 }
 
@@ -427,10 +462,17 @@ impl Disney {
             0.25 * self.clearcoat * crate::math::lerp(0.04, 1.0, fw),
         ])
     }
+}
+
+impl Brdf for Disney {
+    #[inline]
+    fn eval(&self, wi: Vec3, wo: Vec3) -> Rgb {
+        Disney::eval(self, wi, wo)
+    }
 
     /// Mixture of the cosine lobe, GGX visible normals and GTR1 half vectors, chosen by their weights.
     #[inline]
-    pub fn sample(&self, u: [f32; 3], wo: Vec3) -> Option<BsdfSample> {
+    fn sample(&self, wo: Vec3, u: [f32; 3]) -> Option<BsdfSample> {
         let wo = valid_wo(wo)?;
         let p = self.lobe_probabilities(wo);
         let wi = match choose(&p, u[2]) {
@@ -438,12 +480,12 @@ impl Disney {
             1 => reflect_about(wo, sample_ggx_vndf(wo, self.alpha(), [u[0], u[1]])),
             _ => reflect_about(wo, sample_gtr1(self.coat_alpha(), [u[0], u[1]])),
         };
-        finish(wi, self.pdf(wo, wi), self.eval(wi, wo))
+        finish(wi, self.pdf(wi, wo), self.eval(wi, wo))
     }
 
-    /// Density of [`Disney::sample`] at `wi`.
+    /// Density of `sample` at `wi`.
     #[inline]
-    pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+    fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
         let Some((wi, wo)) = crate::angles::upper_hemisphere_pair(wi, wo) else {
             return 0.0;
         };
@@ -457,36 +499,51 @@ impl Disney {
         let coat = half_vector_pdf(wo, wi, |c, s2| microfacet::gtr1_d(c, s2, coat_alpha));
         p[0] * cosine_hemisphere_pdf(wi) + p[1] * spec + p[2] * coat
     }
+
+    #[inline]
+    fn is_reciprocal(&self) -> bool {
+        true
+    }
 }
 
-impl Parametric {
+impl Brdf for Parametric {
+    #[inline]
+    fn eval(&self, wi: Vec3, wo: Vec3) -> Rgb {
+        Parametric::eval(self, wi, wo)
+    }
+
     /// Samples `wi` for the given `wo` (see the model's `sample`); `u` is three uniform numbers in [0, 1).
     #[inline]
-    pub fn sample(&self, u: [f32; 3], wo: Vec3) -> Option<BsdfSample> {
+    fn sample(&self, wo: Vec3, u: [f32; 3]) -> Option<BsdfSample> {
         match self {
-            Parametric::Lambert(m) => m.sample(u, wo),
-            Parametric::Phong(m) => m.sample(u, wo),
-            Parametric::TorranceSparrow(m) => m.sample(u, wo),
-            Parametric::FresnelMicrofacet(m) => m.sample(u, wo),
-            Parametric::Disney(m) => m.sample(u, wo),
+            Parametric::Lambert(m) => m.sample(wo, u),
+            Parametric::Phong(m) => m.sample(wo, u),
+            Parametric::TorranceSparrow(m) => m.sample(wo, u),
+            Parametric::FresnelMicrofacet(m) => m.sample(wo, u),
+            Parametric::Disney(m) => m.sample(wo, u),
         }
     }
 
-    /// Density of [`Parametric::sample`] at `wi` per unit solid angle.
+    /// Density of `sample` at `wi` per unit solid angle.
     #[inline]
-    pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+    fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
         let p = match self {
-            Parametric::Lambert(m) => m.pdf(wo, wi),
-            Parametric::Phong(m) => m.pdf(wo, wi),
-            Parametric::TorranceSparrow(m) => m.pdf(wo, wi),
-            Parametric::FresnelMicrofacet(m) => m.pdf(wo, wi),
-            Parametric::Disney(m) => m.pdf(wo, wi),
+            Parametric::Lambert(m) => m.pdf(wi, wo),
+            Parametric::Phong(m) => m.pdf(wi, wo),
+            Parametric::TorranceSparrow(m) => m.pdf(wi, wo),
+            Parametric::FresnelMicrofacet(m) => m.pdf(wi, wo),
+            Parametric::Disney(m) => m.pdf(wi, wo),
         };
         if p.is_finite() && p > 0.0 {
             p
         } else {
             0.0
         }
+    }
+
+    #[inline]
+    fn is_reciprocal(&self) -> bool {
+        true
     }
 }
 
@@ -507,11 +564,18 @@ impl Builtin {
             ]),
         }
     }
+}
+
+impl Brdf for Builtin {
+    #[inline]
+    fn eval(&self, wi: Vec3, wo: Vec3) -> Rgb {
+        Builtin::eval(*self, wi, wo)
+    }
 
     /// Samples `wi` for the given `wo` (lobes in the module table); `u` is three uniform numbers in
     /// [0, 1).
     #[inline]
-    pub fn sample(self, u: [f32; 3], wo: Vec3) -> Option<BsdfSample> {
+    fn sample(&self, wo: Vec3, u: [f32; 3]) -> Option<BsdfSample> {
         let wo = valid_wo(wo)?;
         let p = self.lobe_probabilities(wo);
         let k = choose(&p, u[2]);
@@ -523,12 +587,12 @@ impl Builtin {
             Builtin::Velvet if k == 0 => square_to_cosine_hemisphere(uv),
             Builtin::Velvet => sample_phong_lobe(wo, builtin::VELVET_RETRO_N, uv),
         };
-        finish(wi, self.pdf(wo, wi), self.eval(wi, wo))
+        finish(wi, self.pdf(wi, wo), self.eval(wi, wo))
     }
 
-    /// Density of [`Builtin::sample`] at `wi` per unit solid angle.
+    /// Density of `sample` at `wi` per unit solid angle.
     #[inline]
-    pub fn pdf(self, wo: Vec3, wi: Vec3) -> f32 {
+    fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
         let Some((wi, wo)) = crate::angles::upper_hemisphere_pair(wi, wo) else {
             return 0.0;
         };
@@ -551,6 +615,11 @@ impl Builtin {
         } else {
             0.0
         }
+    }
+
+    #[inline]
+    fn is_reciprocal(&self) -> bool {
+        true
     }
 }
 
@@ -579,7 +648,7 @@ mod tests {
     #[test]
     fn lambert_weight_is_the_albedo() {
         let m = Lambert { kd: [0.2, 0.5, 0.9] };
-        let s = m.sample([0.3, 0.6, 0.1], Vec3::new(0.1, 0.2, 0.9)).unwrap();
+        let s = m.sample(Vec3::new(0.1, 0.2, 0.9), [0.3, 0.6, 0.1]).unwrap();
         for c in 0..3 {
             assert!((s.weight[c] - m.kd[c]).abs() < 1e-5);
         }

@@ -16,8 +16,8 @@
 //! let proxy = Proxy::new(0.2, [GgxLobe { weight: 0.8, alpha: 0.1 }, GgxLobe::NONE]).unwrap();
 //! let wo = Vec3::new(0.3, 0.0, 0.9).normalize();
 //! let brdf = |wi: Vec3, wo: Vec3| nbrdf::builtin::Builtin::TwoLobeMetal.eval(wi, wo);
-//! let s = proxy.sample([0.4, 0.7, 0.5], wo, brdf).unwrap();
-//! assert_eq!(s.pdf, proxy.pdf(wo, s.wi));
+//! let s = proxy.sample(wo, [0.4, 0.7, 0.5], brdf).unwrap();
+//! assert_eq!(s.pdf, proxy.pdf(s.wi, wo));
 //! let f = brdf(s.wi, wo);
 //! assert!((s.weight[1] - f[1] * s.wi.z / s.pdf).abs() <= 1e-5 * s.weight[1]);
 //! ```
@@ -154,7 +154,7 @@ impl Proxy {
     /// reflects below the horizon or `wo` is invalid. `u` is three uniform numbers in [0, 1): two for the
     /// direction, one for the lobe.
     #[inline]
-    pub fn sample_wi(&self, u: [f32; 3], wo: Vec3) -> Option<Vec3> {
+    pub fn sample_wi(&self, wo: Vec3, u: [f32; 3]) -> Option<Vec3> {
         let wo = valid_wo(wo)?;
         let uv = [u[0], u[1]];
         let wi = match self.choose(u[2]) {
@@ -168,7 +168,7 @@ impl Proxy {
     /// D_wo(h; α_k) / (4 wo·h)` (Heitz 2018, Sec. 2, with the reflection Jacobian of Walter et al. 2007,
     /// Eq. 14). 0 below the horizon or for invalid input.
     #[inline]
-    pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+    pub fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
         let Some((wi, wo)) = crate::angles::upper_hemisphere_pair(wi, wo) else {
             return 0.0;
         };
@@ -188,10 +188,10 @@ impl Proxy {
     /// Samples the proxy and evaluates `brdf(wi, wo)` for the weight `f cos θi / pdf`, with the mixture
     /// pdf of [`Proxy::pdf`].
     #[inline]
-    pub fn sample(&self, u: [f32; 3], wo: Vec3, brdf: impl FnOnce(Vec3, Vec3) -> Rgb) -> Option<BsdfSample> {
+    pub fn sample(&self, wo: Vec3, u: [f32; 3], brdf: impl FnOnce(Vec3, Vec3) -> Rgb) -> Option<BsdfSample> {
         let wo = valid_wo(wo)?;
-        let wi = self.sample_wi(u, wo)?;
-        finish(wi, self.pdf(wo, wi), brdf(wi, wo))
+        let wi = self.sample_wi(wo, u)?;
+        finish(wi, self.pdf(wi, wo), brdf(wi, wo))
     }
 }
 
@@ -213,6 +213,6 @@ mod tests {
         let wi = Vec3::new(0.3, -0.2, 0.9).normalize();
         // Within the rounding of normalising `wi` again.
         let want = wi.z * crate::math::INV_PI;
-        assert!((Proxy::COSINE.pdf(Vec3::Z, wi) - want).abs() <= 2e-7 * want);
+        assert!((Proxy::COSINE.pdf(wi, Vec3::Z) - want).abs() <= 2e-7 * want);
     }
 }

@@ -29,7 +29,9 @@ use alloc::vec::Vec;
 use serde::Deserialize;
 
 use crate::angles::{half_diff_vectors, unit};
+use crate::brdf::{Brdf, BsdfSample};
 use crate::math::{load_pair, sanitize};
+use crate::sampling::{fit_proxy, Proxy};
 use crate::{Error, Rgb, Vec3, BLACK};
 
 /// Widest layer accepted: the size of the evaluator's stack buffers (the published networks are 21
@@ -86,6 +88,8 @@ pub struct NbrdfNetwork {
     evaluator: Vec<f32>,
     /// The layers as the kernels see them (`layers[l].tiny`, kept contiguous).
     tiny: Vec<TinyLayer>,
+    /// The sampling proxy fitted to the network at construction.
+    proxy: Proxy,
 }
 
 /// The file as serde sees it; everything is validated afterwards so that each fault gets its own error.
@@ -268,12 +272,14 @@ impl NbrdfNetwork {
             });
         }
         let tiny = layers.iter().map(|l| l.tiny).collect();
-        Ok(NbrdfNetwork {
-            name: doc.name,
-            layers,
-            evaluator,
-            tiny,
-        })
+        let mut net = NbrdfNetwork { name: doc.name, layers, evaluator, tiny, proxy: Proxy::COSINE };
+        net.proxy = fit_proxy(|wi, wo| net.eval(wi, wo));
+        Ok(net)
+    }
+
+    /// The proxy [`Brdf::sample`] draws from: [`fit_proxy`] on the network, fitted once at load.
+    pub fn proxy(&self) -> &Proxy {
+        &self.proxy
     }
 
     /// The material name of the file (`""` where it has none).
@@ -400,6 +406,31 @@ fn input(wi: Vec3, wo: Vec3) -> Option<[f32; INPUTS]> {
         [0.0, 0.0, cos_h, cos_h * wi.x, wi.y, cos_h * wi.z]
     };
     v.iter().all(|c| c.is_finite()).then_some(v)
+}
+
+
+/// The network, sampled through its proxy. Not reciprocal: its input, the difference vector in the
+/// half-vector frame, changes under the swap of `wi` and `wo`, and nothing in training ties the two.
+impl Brdf for NbrdfNetwork {
+    #[inline]
+    fn eval(&self, wi: Vec3, wo: Vec3) -> Rgb {
+        NbrdfNetwork::eval(self, wi, wo)
+    }
+
+    #[inline]
+    fn sample(&self, wo: Vec3, u: [f32; 3]) -> Option<BsdfSample> {
+        self.proxy.sample(wo, u, |wi, wo| NbrdfNetwork::eval(self, wi, wo))
+    }
+
+    #[inline]
+    fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
+        self.proxy.pdf(wi, wo)
+    }
+
+    #[inline]
+    fn is_reciprocal(&self) -> bool {
+        false
+    }
 }
 
 #[cfg(test)]

@@ -42,7 +42,7 @@ pub fn encode(model: &Model, position_table: Option<&[f32]>) -> Result<Vec<u8>> 
             _ => Vec::new(),
         },
     };
-    let prepared: Vec<_> = points.iter().map(|p| core.prepare(p)).collect();
+    let prepared = points.iter().map(|p| core.prepare(p)).collect::<core::result::Result<Vec<_>, _>>()?;
     let proxy = core.fit_proxy(&prepared);
     Ok(nbrdf::file::encode(&header.with_proxy(proxy), &weights, position_table)?)
 }
@@ -106,7 +106,7 @@ mod tests {
                 let buf = ModelBuf::from_bytes(&encode(&model, None).unwrap()).unwrap();
                 let core = buf.model();
                 for s in 0..n {
-                    let prepared = core.prepare(&pos[s * np..(s + 1) * np]);
+                    let prepared = core.prepare(&pos[s * np..(s + 1) * np]).unwrap();
                     let theirs = core.eval(&prepared, wi[s], wo[s]);
                     for c in 0..3 {
                         let (a, b) = (ours[s][c], theirs[c]);

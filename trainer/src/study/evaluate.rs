@@ -73,7 +73,8 @@ fn point_input(model: &Model<'_>, ds: &Dataset, tri: u32, b1: f32, b2: f32, posi
 }
 
 fn prepare_at(model: &Model<'_>, ds: &Dataset, s: &SurfaceSample) -> Prepared {
-    model.prepare(&point_input(model, ds, s.hit.triangle, s.hit.b1, s.hit.b2, s.position))
+    // `point_input` has the model's length, so the fallback (black) is never taken.
+    model.prepare(&point_input(model, ds, s.hit.triangle, s.hit.b1, s.hit.b2, s.position)).unwrap_or_default()
 }
 
 /// Evaluates the model file `model_path` on the test split of `ds` (see the module docs).
@@ -126,7 +127,7 @@ pub fn evaluate(
         let [b1, b2] = s.barycentric[i];
         point_input(&model, ds, s.triangle[i], b1, b2, Vec3::from_array(s.position[i]))
     };
-    let recip_prepared: Vec<Prepared> = recip_idx.iter().map(|&i| model.prepare(&input(i))).collect();
+    let recip_prepared = recip_idx.iter().map(|&i| model.prepare(&input(i))).collect::<std::result::Result<Vec<_>, _>>()?;
     let pairs: Vec<DirectionPair> = recip_idx
         .iter()
         .enumerate()
@@ -135,7 +136,7 @@ pub fn evaluate(
     let reciprocity = reciprocity_rmse(&pairs, |k, wi, wo| eval(&recip_prepared[k], wi, wo));
 
     let energy_inputs: Vec<Vec<f32>> = energy_idx.iter().map(|&i| input(i)).collect();
-    let energy_prepared: Vec<Prepared> = energy_inputs.iter().map(|p| model.prepare(p)).collect();
+    let energy_prepared = energy_inputs.iter().map(|p| model.prepare(p)).collect::<std::result::Result<Vec<_>, _>>()?;
     let (prepare_ns_per_point, prepare_many_ns_per_point) = time_prepare(&model, &energy_inputs.concat());
     let light_pairs: Vec<LightPair> = energy_idx
         .iter()
@@ -168,11 +169,11 @@ fn time_prepare(model: &Model<'_>, points: &[f32]) -> (Option<f64>, Option<f64>)
     }
     let n = points.len() / k;
     let rounds = (16_384 / n).max(1);
-    let mut out = vec![model.prepare(&points[..k]); n];
+    let mut out = vec![Prepared::default(); n];
     let mut sink = 0.0f32;
     let single = ns_per_round(rounds, |_| {
         for (i, o) in out.iter_mut().enumerate() {
-            *o = model.prepare(std::hint::black_box(&points[i * k..(i + 1) * k]));
+            *o = model.prepare(std::hint::black_box(&points[i * k..(i + 1) * k])).unwrap_or_default();
         }
         sink += out[n / 2].diffuse()[0];
     }) / n as f64;
@@ -305,7 +306,7 @@ mod tests {
         m16.position_features([0, 1, 2], [0.2, 0.3, 0.5], &mut f16_feat).unwrap();
         assert_eq!(f32_feat, f16_feat);
         let (wi, wo) = (Vec3::new(0.3, 0.1, 0.9).normalize(), Vec3::new(-0.5, 0.2, 0.7).normalize());
-        let (a, b) = (m32.eval(&m32.prepare(&f32_feat), wi, wo), m16.eval(&m16.prepare(&f16_feat), wi, wo));
+        let (a, b) = (m32.eval(&m32.prepare(&f32_feat).unwrap(), wi, wo), m16.eval(&m16.prepare(&f16_feat).unwrap(), wi, wo));
         for c in 0..3 {
             assert!((a[c] - b[c]).abs() <= 1e-2 * a[c].abs().max(1e-2), "{a:?} vs {b:?}");
         }
@@ -313,7 +314,7 @@ mod tests {
         // the same file.
         let wide = ModelBuf::from_bytes(&f16_file).unwrap();
         let mw = wide.model();
-        assert_eq!(mw.eval(&mw.prepare(&f16_feat), wi, wo).map(f32::to_bits), b.map(f32::to_bits));
+        assert_eq!(mw.eval(&mw.prepare(&f16_feat).unwrap(), wi, wo).map(f32::to_bits), b.map(f32::to_bits));
         assert_eq!(to_f16(&wide).unwrap(), f16_file);
     }
 }
