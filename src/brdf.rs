@@ -30,8 +30,8 @@ pub struct BsdfSample {
 /// A BRDF a renderer can evaluate and importance-sample.
 ///
 /// `sample` and `pdf` describe the same density: for every sample `s` of `sample(wo, u)`,
-/// `pdf(s.wi, wo) == s.pdf` and `s.weight == eval(s.wi, wo) · s.wi.z / s.pdf`, so the weight is an
-/// unbiased estimator weight. The trait is object safe (`&dyn Brdf` works) and needs no allocation.
+/// `pdf(s.wi, wo) == s.pdf` and `s.weight == eval(s.wi, wo) · s.wi.z / s.pdf` (to the rounding of
+/// normalising a `wo` that is not exactly unit), so the weight is an unbiased estimator weight. The trait is object safe (`&dyn Brdf` works) and needs no allocation.
 ///
 /// ```
 /// use nbrdf::{parametric::Phong, Brdf, Vec3};

@@ -1,0 +1,532 @@
+//! The BRDF handle: loading files and bytes, the parametric and built-in constructors, what a handle
+//! reports about itself, and freeing it.
+
+use std::ffi::{c_char, CStr};
+use std::path::PathBuf;
+
+use nbrdf_core::builtin::Builtin;
+use nbrdf_core::file::ModelKind;
+use nbrdf_core::measured::{MerlTable, NbrdfNetwork};
+use nbrdf_core::parametric::{
+    Disney, FresnelMicrofacet, Lambert, Parametric, ParametricKind, Phong, TorranceSparrow, MAX_OBJECT, MAX_RAW,
+};
+use nbrdf_core::{Brdf, Model, ModelBuf, Prepared};
+
+use crate::error::{fail, guard, NbrdfStatus, Result};
+
+/// A loaded BRDF: a `.nbrdf` model, a MERL table, an NBRDF-json network, a parametric model or a
+/// built-in material. Opaque; immutable once made, so one handle may be used by many threads at once.
+/// Free it with [`nbrdf_free`].
+pub struct NbrdfBrdf {
+    pub(crate) brdf: Source,
+    /// The prepared state of a model without point input, made once at load.
+    pub(crate) uniform: Option<Prepared>,
+}
+
+pub(crate) enum Source {
+    Model(ModelBuf),
+    /// A model over the caller's bytes, which the caller keeps alive until `nbrdf_free`.
+    Borrowed(Model<'static>),
+    Parametric(Parametric),
+    Builtin(Builtin),
+    Merl(MerlTable),
+    NbrdfJson(NbrdfNetwork),
+}
+
+impl NbrdfBrdf {
+    /// The model of a model handle.
+    pub(crate) fn model(&self) -> Option<Model<'_>> {
+        match &self.brdf {
+            Source::Model(buf) => Some(buf.model()),
+            Source::Borrowed(m) => Some(*m),
+            _ => None,
+        }
+    }
+
+    /// The BRDF of a handle that is the same at every point.
+    pub(crate) fn fixed(&self) -> Option<&(dyn Brdf + Sync)> {
+        Some(match &self.brdf {
+            Source::Parametric(p) => p,
+            Source::Builtin(b) => b,
+            Source::Merl(t) => t,
+            Source::NbrdfJson(n) => n,
+            Source::Model(_) | Source::Borrowed(_) => return None,
+        })
+    }
+
+    fn new(brdf: Source) -> Result<Self> {
+        let mut h = NbrdfBrdf { brdf, uniform: None };
+        if let Some(m) = h.model() {
+            if m.position_len() == 0 {
+                h.uniform = Some(m.prepare(&[])?);
+            }
+        }
+        Ok(h)
+    }
+}
+
+/// What kind of BRDF a handle holds.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum NbrdfKind {
+    /// A `.nbrdf` model file (neural or parametric network).
+    Model = 0,
+    /// A MERL `.binary` table (nearest-bin lookup).
+    Merl = 1,
+    /// An NBRDF-json network (Sztrajman et al. 2021).
+    NbrdfJson = 2,
+    /// An analytic model with fixed parameters.
+    Parametric = 3,
+    /// A built-in procedural material.
+    Builtin = 4,
+}
+
+/// The parametric models (the paper's Sec. 4.1.1).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum NbrdfParametricKind {
+    /// Lambert: `kd[3]`.
+    Lambert = 0,
+    /// The energy-preserving modified Phong "RP": `kd[3], ks[3], n` with `kd + ks <= 1`.
+    Phong = 1,
+    /// Torrance-Sparrow: `kd[3], ks[3], alpha`.
+    TorranceSparrow = 2,
+    /// The FMBRDF: `rho[3], ks, alpha, beta, eta, norm`.
+    Fmbrdf = 3,
+    /// Disney (Burley 2012): `base_color[3], subsurface, metallic, specular, specular_tint,
+    /// roughness, sheen, sheen_tint, clearcoat, clearcoat_gloss`.
+    Disney = 4,
+}
+
+impl NbrdfParametricKind {
+    fn core(self) -> ParametricKind {
+        match self {
+            NbrdfParametricKind::Lambert => ParametricKind::Lambert,
+            NbrdfParametricKind::Phong => ParametricKind::Phong,
+            NbrdfParametricKind::TorranceSparrow => ParametricKind::TorranceSparrow,
+            NbrdfParametricKind::Fmbrdf => ParametricKind::FresnelMicrofacet,
+            NbrdfParametricKind::Disney => ParametricKind::Disney,
+        }
+    }
+}
+
+/// What [`nbrdf_info`] reports.
+#[repr(C)]
+#[derive(Clone, Copy, Debug)]
+pub struct NbrdfInfo {
+    /// What the handle holds.
+    pub kind: NbrdfKind,
+    /// Whether `f(wi, wo) = f(wo, wi)` by construction (parametric models, models on the reciprocity
+    /// map Θ, MERL tables).
+    pub reciprocal: bool,
+    /// Floats [`nbrdf_prepare`](crate::nbrdf_prepare) expects per point: 0 for a BRDF that is the
+    /// same everywhere, `k` for an intrinsic encoding, 3 (the point) for an extrinsic one.
+    pub position_len: u32,
+    /// Stored parameters: network weights (and per-object parameters), table entries, or the model's
+    /// parameters.
+    pub n_parameters: u64,
+}
+
+/// A path from a C string: its bytes as they are on Unix, UTF-8 elsewhere.
+fn path_of(path: *const c_char) -> Result<PathBuf> {
+    if path.is_null() {
+        return fail(NbrdfStatus::NullPointer, "path is null");
+    }
+    // SAFETY: non-null, and the caller passes a NUL-terminated string.
+    let bytes = unsafe { CStr::from_ptr(path) }.to_bytes();
+    #[cfg(unix)]
+    {
+        use std::os::unix::ffi::OsStrExt;
+        Ok(PathBuf::from(std::ffi::OsStr::from_bytes(bytes)))
+    }
+    #[cfg(not(unix))]
+    match std::str::from_utf8(bytes) {
+        Ok(s) => Ok(PathBuf::from(s)),
+        Err(_) => fail(NbrdfStatus::InvalidValue, "path is not UTF-8"),
+    }
+}
+
+/// `len` bytes at `bytes` (null allowed for 0).
+///
+/// # Safety
+/// `bytes` addresses `len` readable bytes that outlive the returned slice.
+unsafe fn bytes_of<'a>(bytes: *const u8, len: usize) -> Result<&'a [u8]> {
+    if len == 0 {
+        return Ok(&[]);
+    }
+    if bytes.is_null() {
+        return fail(NbrdfStatus::NullPointer, "bytes is null");
+    }
+    // SAFETY: the caller's contract.
+    Ok(unsafe { std::slice::from_raw_parts(bytes, len) })
+}
+
+/// `len` floats at `values` (null allowed for 0).
+///
+/// # Safety
+/// As [`bytes_of`], for floats.
+pub(crate) unsafe fn floats_of<'a>(values: *const f32, len: usize, what: &str) -> Result<&'a [f32]> {
+    if len == 0 {
+        return Ok(&[]);
+    }
+    if values.is_null() {
+        return fail(NbrdfStatus::NullPointer, format!("{what} is null"));
+    }
+    if !(values as usize).is_multiple_of(std::mem::align_of::<f32>()) {
+        return fail(NbrdfStatus::Misaligned, format!("{what} is not 4-byte aligned"));
+    }
+    // SAFETY: the caller's contract; non-null and aligned.
+    Ok(unsafe { std::slice::from_raw_parts(values, len) })
+}
+
+/// Stores a new handle in `*out`.
+///
+/// # Safety
+/// `out` is null or writable.
+unsafe fn put(out: *mut *mut NbrdfBrdf, make: impl FnOnce() -> Result<Source>) -> Result<()> {
+    if out.is_null() {
+        return fail(NbrdfStatus::NullPointer, "out is null");
+    }
+    let h = NbrdfBrdf::new(make()?)?;
+    // SAFETY: non-null and writable by the caller's contract.
+    unsafe { out.write(Box::into_raw(Box::new(h))) };
+    Ok(())
+}
+
+/// Loads a BRDF file, chosen by extension: `.nbrdf` (a model), `.json` (an NBRDF-json network) or
+/// `.binary` (a MERL table). The file is validated (sizes, checksum, finite values) and copied; it
+/// can be deleted afterwards. Thread safe.
+///
+/// # Safety
+/// `path` is a NUL-terminated string; `out` is writable.
+#[no_mangle]
+pub unsafe extern "C" fn nbrdf_load(path: *const c_char, out: *mut *mut NbrdfBrdf) -> NbrdfStatus {
+    guard(|| {
+        let path = path_of(path)?;
+        let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+        // SAFETY: the caller's contract.
+        unsafe {
+            put(out, || match ext.as_str() {
+                "nbrdf" => Ok(Source::Model(ModelBuf::load(&path)?)),
+                "json" => Ok(Source::NbrdfJson(NbrdfNetwork::load(&path)?)),
+                "binary" => Ok(Source::Merl(MerlTable::read(&path)?)),
+                _ => fail(
+                    NbrdfStatus::InvalidValue,
+                    format!("{}: unknown BRDF file type (expected .nbrdf, .json or .binary)", path.display()),
+                ),
+            })
+        }
+    })
+}
+
+/// A `.nbrdf` model from `len` bytes of the caller, copied (the bytes may be freed afterwards).
+/// Thread safe.
+///
+/// # Safety
+/// `bytes` addresses `len` readable bytes; `out` is writable.
+#[no_mangle]
+pub unsafe extern "C" fn nbrdf_model_from_bytes(bytes: *const u8, len: usize, out: *mut *mut NbrdfBrdf) -> NbrdfStatus {
+    // SAFETY: the caller's contract.
+    guard(|| unsafe { put(out, || Ok(Source::Model(ModelBuf::from_bytes(bytes_of(bytes, len)?)?))) })
+}
+
+/// A `.nbrdf` model over `len` bytes of the caller, borrowed without a copy (embedded models,
+/// memory-mapped files): `bytes` must be 4-byte aligned (`NBRDF_STATUS_MISALIGNED` otherwise) and stay
+/// alive and unchanged until [`nbrdf_free`]. f16 files are evaluated row by row as they are read.
+/// Thread safe.
+///
+/// # Safety
+/// `bytes` addresses `len` readable bytes that outlive the handle; `out` is writable.
+#[no_mangle]
+pub unsafe extern "C" fn nbrdf_model_borrow(bytes: *const u8, len: usize, out: *mut *mut NbrdfBrdf) -> NbrdfStatus {
+    guard(|| {
+        // SAFETY: the caller keeps the bytes alive until nbrdf_free, which drops the handle.
+        let bytes: &'static [u8] = unsafe { bytes_of(bytes, len)? };
+        if !(bytes.as_ptr() as usize).is_multiple_of(4) {
+            return fail(NbrdfStatus::Misaligned, "bytes must be 4-byte aligned to be borrowed (nbrdf_model_from_bytes copies instead)");
+        }
+        // SAFETY: the caller's contract.
+        unsafe { put(out, || Ok(Source::Borrowed(Model::from_bytes(bytes)?))) }
+    })
+}
+
+/// A MERL table from the `len` bytes of a `.binary` file (copied). Thread safe.
+///
+/// # Safety
+/// `bytes` addresses `len` readable bytes; `out` is writable.
+#[no_mangle]
+pub unsafe extern "C" fn nbrdf_merl_from_bytes(bytes: *const u8, len: usize, out: *mut *mut NbrdfBrdf) -> NbrdfStatus {
+    // SAFETY: the caller's contract.
+    guard(|| unsafe { put(out, || Ok(Source::Merl(MerlTable::from_bytes(bytes_of(bytes, len)?)?))) })
+}
+
+/// An NBRDF-json network from `len` bytes of JSON text (UTF-8, no NUL needed). Thread safe.
+///
+/// # Safety
+/// `json` addresses `len` readable bytes; `out` is writable.
+#[no_mangle]
+pub unsafe extern "C" fn nbrdf_nbrdf_json_from_bytes(json: *const u8, len: usize, out: *mut *mut NbrdfBrdf) -> NbrdfStatus {
+    // SAFETY: the caller's contract.
+    guard(|| unsafe { put(out, || Ok(Source::NbrdfJson(NbrdfNetwork::from_json_bytes(bytes_of(json, len)?)?))) })
+}
+
+/// A parametric model from its parameters in natural units, `n` floats in the order
+/// [`NbrdfParametricKind`] lists (e.g. Phong: `kd[3], ks[3], n`). Errors on a wrong count, a
+/// non-finite value, albedos outside [0, 1], Phong's `kd + ks > 1`, a roughness `alpha <= 0`.
+/// Thread safe.
+///
+/// # Safety
+/// `params` addresses `n` floats; `out` is writable.
+#[no_mangle]
+pub unsafe extern "C" fn nbrdf_parametric(
+    kind: NbrdfParametricKind,
+    params: *const f32,
+    n: usize,
+    out: *mut *mut NbrdfBrdf,
+) -> NbrdfStatus {
+    guard(|| {
+        // SAFETY: the caller's contract.
+        let v = unsafe { floats_of(params, n, "params")? };
+        let want = match kind {
+            NbrdfParametricKind::Lambert => 3,
+            NbrdfParametricKind::Phong | NbrdfParametricKind::TorranceSparrow => 7,
+            NbrdfParametricKind::Fmbrdf => 8,
+            NbrdfParametricKind::Disney => 12,
+        };
+        if v.len() != want {
+            return fail(NbrdfStatus::BufferSize, format!("{kind:?} takes {want} parameters, got {}", v.len()));
+        }
+        if let Some(i) = v.iter().position(|x| !x.is_finite()) {
+            return fail(NbrdfStatus::InvalidValue, format!("{kind:?} parameter {i} is not finite"));
+        }
+        let unit = |range: std::ops::Range<usize>, what: &str| -> Result<()> {
+            match v[range.clone()].iter().position(|x| !(0.0..=1.0).contains(x)) {
+                Some(i) => fail(NbrdfStatus::InvalidValue, format!("{kind:?} {what} (parameter {}) must lie in [0, 1]", range.start + i)),
+                None => Ok(()),
+            }
+        };
+        let positive = |i: usize, what: &str| -> Result<()> {
+            if v[i] > 0.0 {
+                Ok(())
+            } else {
+                fail(NbrdfStatus::InvalidValue, format!("{kind:?} {what} (parameter {i}) must be > 0"))
+            }
+        };
+        let rgb = |i: usize| [v[i], v[i + 1], v[i + 2]];
+        let p = match kind {
+            NbrdfParametricKind::Lambert => {
+                unit(0..3, "kd")?;
+                Parametric::Lambert(Lambert { kd: rgb(0) })
+            }
+            NbrdfParametricKind::Phong => Parametric::Phong(Phong::new(rgb(0), rgb(3), v[6])?),
+            NbrdfParametricKind::TorranceSparrow => {
+                unit(0..6, "kd and ks")?;
+                positive(6, "alpha")?;
+                Parametric::TorranceSparrow(TorranceSparrow { kd: rgb(0), ks: rgb(3), alpha: v[6] })
+            }
+            NbrdfParametricKind::Fmbrdf => {
+                unit(0..4, "rho and ks")?;
+                for (i, what) in [(4, "alpha"), (5, "beta"), (6, "eta"), (7, "norm")] {
+                    positive(i, what)?;
+                }
+                Parametric::FresnelMicrofacet(FresnelMicrofacet {
+                    rho: rgb(0),
+                    ks: v[3],
+                    alpha: v[4],
+                    beta: v[5],
+                    eta: v[6],
+                    norm: v[7],
+                })
+            }
+            NbrdfParametricKind::Disney => {
+                unit(0..12, "parameters")?;
+                Parametric::Disney(Disney {
+                    base_color: rgb(0),
+                    subsurface: v[3],
+                    metallic: v[4],
+                    specular: v[5],
+                    specular_tint: v[6],
+                    roughness: v[7],
+                    sheen: v[8],
+                    sheen_tint: v[9],
+                    clearcoat: v[10],
+                    clearcoat_gloss: v[11],
+                })
+            }
+        };
+        // SAFETY: the caller's contract.
+        unsafe { put(out, || Ok(Source::Parametric(p))) }
+    })
+}
+
+/// A parametric model from raw network outputs, as a parametric `.nbrdf` model's network predicts them
+/// (`docs/models.md`: every raw value is mapped into its parameter's range, so any finite input is
+/// valid): `n_raw` raw values and `n_object` per-object parameters (the FMBRDF's normalisation; 0 for
+/// the others). Thread safe.
+///
+/// # Safety
+/// `raw` addresses `n_raw` floats and `object` `n_object`; `out` is writable.
+#[no_mangle]
+pub unsafe extern "C" fn nbrdf_parametric_from_raw(
+    kind: NbrdfParametricKind,
+    raw: *const f32,
+    n_raw: usize,
+    object: *const f32,
+    n_object: usize,
+    out: *mut *mut NbrdfBrdf,
+) -> NbrdfStatus {
+    guard(|| {
+        let k = kind.core();
+        // SAFETY: the caller's contract.
+        let (raw, object) = unsafe { (floats_of(raw, n_raw, "raw")?, floats_of(object, n_object, "object")?) };
+        if raw.len() != k.n_raw() || object.len() != k.n_object() {
+            return fail(
+                NbrdfStatus::BufferSize,
+                format!("{kind:?} takes {} raw values and {} object parameters, got {} and {}", k.n_raw(), k.n_object(), raw.len(), object.len()),
+            );
+        }
+        debug_assert!(raw.len() <= MAX_RAW && object.len() <= MAX_OBJECT);
+        if let Some(i) = raw.iter().chain(object).position(|x| !x.is_finite()) {
+            return fail(NbrdfStatus::InvalidValue, format!("{kind:?} raw value {i} is not finite"));
+        }
+        // SAFETY: the caller's contract.
+        unsafe { put(out, || Ok(Source::Parametric(Parametric::from_raw(k, raw, object)))) }
+    })
+}
+
+/// A built-in material by id: `"two-lobe-metal"`, `"clear-coat"` or `"velvet"`. Thread safe.
+///
+/// # Safety
+/// `id` is a NUL-terminated string; `out` is writable.
+#[no_mangle]
+pub unsafe extern "C" fn nbrdf_builtin(id: *const c_char, out: *mut *mut NbrdfBrdf) -> NbrdfStatus {
+    guard(|| {
+        if id.is_null() {
+            return fail(NbrdfStatus::NullPointer, "id is null");
+        }
+        // SAFETY: non-null and NUL-terminated by the caller's contract.
+        let id = unsafe { CStr::from_ptr(id) }.to_string_lossy();
+        let Some(b) = Builtin::from_id(&id) else {
+            let known: Vec<&str> = Builtin::ALL.iter().map(|b| b.id()).collect();
+            return fail(NbrdfStatus::InvalidValue, format!("unknown built-in material {id:?} (known: {})", known.join(", ")));
+        };
+        // SAFETY: the caller's contract.
+        unsafe { put(out, || Ok(Source::Builtin(b))) }
+    })
+}
+
+/// Frees a handle (null is allowed and does nothing). No other thread may be using it.
+///
+/// # Safety
+/// `brdf` is null or a handle from this library not freed before.
+#[no_mangle]
+pub unsafe extern "C" fn nbrdf_free(brdf: *mut NbrdfBrdf) {
+    if !brdf.is_null() {
+        // SAFETY: made by Box::into_raw in `put` and not freed before (the caller's contract). A
+        // panic in a destructor cannot happen (plain data), but stays inside the library anyway.
+        let _ = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| drop(unsafe { Box::from_raw(brdf) })));
+    }
+}
+
+/// Returns the handle, or the null-pointer failure.
+///
+/// # Safety
+/// `brdf` is null or a live handle.
+pub(crate) unsafe fn handle<'a>(brdf: *const NbrdfBrdf) -> Result<&'a NbrdfBrdf> {
+    // SAFETY: the caller's contract.
+    match unsafe { brdf.as_ref() } {
+        Some(h) => Ok(h),
+        None => fail(NbrdfStatus::NullPointer, "brdf is null"),
+    }
+}
+
+/// What the handle holds (see [`NbrdfInfo`]). Thread safe.
+///
+/// # Safety
+/// `brdf` is a live handle; `out` is writable.
+#[no_mangle]
+pub unsafe extern "C" fn nbrdf_info(brdf: *const NbrdfBrdf, out: *mut NbrdfInfo) -> NbrdfStatus {
+    guard(|| {
+        // SAFETY: the caller's contract.
+        let h = unsafe { handle(brdf)? };
+        if out.is_null() {
+            return fail(NbrdfStatus::NullPointer, "out is null");
+        }
+        let info = match &h.brdf {
+            Source::Model(_) | Source::Borrowed(_) => {
+                let m = h.model().expect("a model handle");
+                let object = match m.header().kind {
+                    ModelKind::Parametric(k) => k.n_object(),
+                    _ => 0,
+                };
+                NbrdfInfo {
+                    kind: NbrdfKind::Model,
+                    reciprocal: m.is_reciprocal(),
+                    position_len: m.position_len() as u32,
+                    n_parameters: (m.header().n_weights() + object) as u64,
+                }
+            }
+            Source::Merl(t) => NbrdfInfo { kind: NbrdfKind::Merl, reciprocal: true, position_len: 0, n_parameters: t.raw().len() as u64 },
+            Source::NbrdfJson(n) => {
+                let w = n.widths();
+                let params = w.windows(2).map(|p| (p[0] + 1) * p[1]).sum::<usize>();
+                NbrdfInfo { kind: NbrdfKind::NbrdfJson, reciprocal: n.is_reciprocal(), position_len: 0, n_parameters: params as u64 }
+            }
+            Source::Parametric(p) => NbrdfInfo {
+                kind: NbrdfKind::Parametric,
+                reciprocal: p.is_reciprocal(),
+                position_len: 0,
+                n_parameters: (p.kind().n_raw() + p.kind().n_object()) as u64,
+            },
+            Source::Builtin(b) => NbrdfInfo { kind: NbrdfKind::Builtin, reciprocal: b.is_reciprocal(), position_len: 0, n_parameters: 0 },
+        };
+        // SAFETY: non-null and writable by the caller's contract.
+        unsafe { out.write(info) };
+        Ok(())
+    })
+}
+
+/// The per-point position input of an intrinsically encoded model at triangle `tri` (vertex indices)
+/// with barycentric weights `bary`, interpolated from the per-vertex table the file carries; `out`
+/// receives `out_len` = `position_len` floats to pass to [`nbrdf_prepare`](crate::nbrdf_prepare).
+/// Errors for a handle that is not such a model or an index beyond the table. Thread safe.
+///
+/// # Safety
+/// `brdf` is a live handle; `tri` addresses 3 values, `bary` 3 and `out` `out_len`.
+#[no_mangle]
+pub unsafe extern "C" fn nbrdf_position_features(
+    brdf: *const NbrdfBrdf,
+    tri: *const u32,
+    bary: *const f32,
+    out: *mut f32,
+    out_len: usize,
+) -> NbrdfStatus {
+    guard(|| {
+        // SAFETY: the caller's contract.
+        let h = unsafe { handle(brdf)? };
+        let Some(m) = h.model() else {
+            return fail(NbrdfStatus::InvalidValue, "not a model: only intrinsically encoded models have position features");
+        };
+        if tri.is_null() || out.is_null() {
+            return fail(NbrdfStatus::NullPointer, "tri or out is null");
+        }
+        if !(tri as usize).is_multiple_of(4) {
+            return fail(NbrdfStatus::Misaligned, "tri is not 4-byte aligned");
+        }
+        // SAFETY: non-null, 3 values by the caller's contract.
+        let tri = unsafe { [*tri, *tri.add(1), *tri.add(2)] };
+        // SAFETY: the caller's contract.
+        let bary = unsafe { floats_of(bary, 3, "bary")? };
+        if out_len != m.position_len() {
+            return fail(NbrdfStatus::BufferSize, format!("out has {out_len} floats; this model's position input has {}", m.position_len()));
+        }
+        if !(out as usize).is_multiple_of(4) {
+            return fail(NbrdfStatus::Misaligned, "out is not 4-byte aligned");
+        }
+        let mut feat = vec![0.0f32; out_len];
+        m.position_features(tri, [bary[0], bary[1], bary[2]], &mut feat)?;
+        // SAFETY: out addresses out_len writable floats (caller's contract), aligned, checked non-null.
+        unsafe { std::ptr::copy_nonoverlapping(feat.as_ptr(), out, out_len) };
+        Ok(())
+    })
+}

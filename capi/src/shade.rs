@@ -1,0 +1,343 @@
+//! Shading: a BRDF prepared at a surface point into storage the caller owns, then evaluated,
+//! importance-sampled and its density queried, one direction pair at a time or many as arrays.
+
+use std::ffi::c_void;
+use std::mem::{align_of, size_of};
+
+use nbrdf_core::model::ModelAt;
+use nbrdf_core::{Brdf, BsdfSample, Prepared, Vec3};
+
+use crate::error::{fail, guard, NbrdfStatus, Result};
+use crate::handle::{floats_of, handle, NbrdfBrdf};
+
+/// Bytes of point storage that are always enough ([`nbrdf_point_size`] is the exact need): for
+/// storage on the stack, `_Alignas(16) unsigned char point[NBRDF_POINT_MAX_SIZE];`.
+pub const NBRDF_POINT_MAX_SIZE: usize = 4096;
+
+/// Alignment that is always enough for point storage.
+pub const NBRDF_POINT_MAX_ALIGN: usize = 16;
+
+/// What `nbrdf_prepare` writes into the caller's storage.
+#[repr(C)]
+struct Point {
+    /// [`MAGIC`]: the storage was written by `nbrdf_prepare`.
+    magic: u64,
+    /// The handle it was prepared for.
+    owner: *const NbrdfBrdf,
+    prepared: Prepared,
+}
+
+const MAGIC: u64 = u64::from_le_bytes(*b"nbrdfPt1");
+
+const _: () = assert!(size_of::<Point>() <= NBRDF_POINT_MAX_SIZE && align_of::<Point>() <= NBRDF_POINT_MAX_ALIGN);
+
+/// Bytes of storage [`nbrdf_prepare`] writes a point into (at most [`NBRDF_POINT_MAX_SIZE`]).
+#[no_mangle]
+pub extern "C" fn nbrdf_point_size() -> usize {
+    size_of::<Point>()
+}
+
+/// Alignment point storage needs (at most [`NBRDF_POINT_MAX_ALIGN`]; `malloc` gives enough).
+#[no_mangle]
+pub extern "C" fn nbrdf_point_align() -> usize {
+    align_of::<Point>()
+}
+
+/// Prepares `brdf` at a surface point: `position` holds `position_len` floats ([`crate::NbrdfInfo`]:
+/// the intrinsic features, or the point for an extrinsic encoding, or nothing), and the result goes
+/// into `storage` (`storage_size` >= [`nbrdf_point_size`] bytes aligned to [`nbrdf_point_align`]).
+/// Everything that depends on the point only is computed here once; evaluations at the point pass
+/// `storage`. A BRDF that is the same everywhere needs no point (pass null to the evaluations), but
+/// preparing one with `position_len` 0 works too. The storage holds plain data: copy it freely, no
+/// free needed; it is valid as long as the handle. Thread safe (distinct storage per thread).
+///
+/// # Safety
+/// `brdf` is a live handle; `position` addresses `position_len` floats; `storage` addresses
+/// `storage_size` writable bytes.
+#[no_mangle]
+pub unsafe extern "C" fn nbrdf_prepare(
+    brdf: *const NbrdfBrdf,
+    position: *const f32,
+    position_len: usize,
+    storage: *mut c_void,
+    storage_size: usize,
+) -> NbrdfStatus {
+    guard(|| {
+        // SAFETY: the caller's contract.
+        let h = unsafe { handle(brdf)? };
+        // SAFETY: the caller's contract.
+        let p = unsafe { floats_of(position, position_len, "position")? };
+        if storage.is_null() {
+            return fail(NbrdfStatus::NullPointer, "storage is null");
+        }
+        if storage_size < size_of::<Point>() {
+            return fail(NbrdfStatus::BufferSize, format!("storage has {storage_size} bytes; a point needs {} (nbrdf_point_size)", size_of::<Point>()));
+        }
+        if !(storage as usize).is_multiple_of(align_of::<Point>()) {
+            return fail(NbrdfStatus::Misaligned, format!("storage must be {}-byte aligned (nbrdf_point_align)", align_of::<Point>()));
+        }
+        let prepared = match h.model() {
+            Some(m) => {
+                if p.len() != m.position_len() {
+                    return fail(NbrdfStatus::BufferSize, format!("position has {} floats; this model takes {}", p.len(), m.position_len()));
+                }
+                m.prepare(p)?
+            }
+            None if p.is_empty() => Prepared::default(),
+            None => return fail(NbrdfStatus::BufferSize, format!("position has {} floats; this BRDF takes none", p.len())),
+        };
+        // SAFETY: non-null, large enough and aligned, checked above.
+        unsafe { storage.cast::<Point>().write(Point { magic: MAGIC, owner: brdf, prepared }) };
+        Ok(())
+    })
+}
+
+/// The BRDF of `h` at `point` (null: the BRDF is the same everywhere).
+// On the stack for one call; boxing the prepared model would allocate per call.
+#[allow(clippy::large_enum_variant)]
+enum At<'a> {
+    Fixed(&'a (dyn Brdf + Sync)),
+    Model(ModelAt<'a>),
+}
+
+impl At<'_> {
+    fn brdf(&self) -> &dyn Brdf {
+        match self {
+            At::Fixed(b) => *b,
+            At::Model(m) => m,
+        }
+    }
+}
+
+/// Resolves `point` for `h`.
+///
+/// # Safety
+/// `point` is null or addresses storage of at least `nbrdf_point_size` bytes.
+unsafe fn at<'a>(h: &'a NbrdfBrdf, point: *const c_void) -> Result<At<'a>> {
+    let prepared = if point.is_null() {
+        None
+    } else {
+        if !(point as usize).is_multiple_of(align_of::<Point>()) {
+            return fail(NbrdfStatus::Misaligned, format!("point must be {}-byte aligned (nbrdf_point_align)", align_of::<Point>()));
+        }
+        let p = point.cast::<Point>();
+        // SAFETY: aligned, and at least nbrdf_point_size bytes by the caller's contract; the header
+        // is read before the state, which only storage with our magic and owner holds.
+        let (magic, owner) = unsafe { ((*p).magic, (*p).owner) };
+        if magic != MAGIC || !std::ptr::eq(owner, h) {
+            return fail(NbrdfStatus::InvalidPoint, "point was not prepared by nbrdf_prepare for this BRDF");
+        }
+        // SAFETY: written by nbrdf_prepare as a Point (magic and owner match).
+        Some(unsafe { (*p).prepared })
+    };
+    if let Some(b) = h.fixed() {
+        return Ok(At::Fixed(b));
+    }
+    let model = h.model().expect("a handle is fixed or a model");
+    match prepared.or(h.uniform) {
+        Some(prepared) => Ok(At::Model(ModelAt { model, prepared })),
+        None => fail(NbrdfStatus::InvalidPoint, "this model varies over the surface: pass a point from nbrdf_prepare"),
+    }
+}
+
+/// Three floats at `v`.
+///
+/// # Safety
+/// `v` is null or addresses 3 readable floats.
+unsafe fn vec3(v: *const f32, what: &str) -> Result<Vec3> {
+    // SAFETY: the caller's contract.
+    let s = unsafe { floats_of(v, 3, what)? };
+    Ok(Vec3::new(s[0], s[1], s[2]))
+}
+
+/// Checks an output pointer of floats.
+fn out_floats(out: *mut f32, what: &str) -> Result<()> {
+    if out.is_null() {
+        return fail(NbrdfStatus::NullPointer, format!("{what} is null"));
+    }
+    if !(out as usize).is_multiple_of(align_of::<f32>()) {
+        return fail(NbrdfStatus::Misaligned, format!("{what} is not 4-byte aligned"));
+    }
+    Ok(())
+}
+
+/// `f(wi, wo)` into `rgb[3]` (1/sr, cosine not included; 0 below the horizon or for invalid
+/// directions, never NaN). `point` is storage from [`nbrdf_prepare`], or null for a BRDF that is the
+/// same everywhere. Thread safe.
+///
+/// # Safety
+/// `brdf` is a live handle; `point` is null or prepared storage; `wi`, `wo` address 3 floats and `rgb`
+/// 3 writable floats.
+#[no_mangle]
+pub unsafe extern "C" fn nbrdf_eval(
+    brdf: *const NbrdfBrdf,
+    point: *const c_void,
+    wi: *const f32,
+    wo: *const f32,
+    rgb: *mut f32,
+) -> NbrdfStatus {
+    guard(|| {
+        // SAFETY: the caller's contract, for every pointer.
+        let (b, wi, wo) = unsafe { (at(handle(brdf)?, point)?, vec3(wi, "wi")?, vec3(wo, "wo")?) };
+        out_floats(rgb, "rgb")?;
+        let f = b.brdf().eval(wi, wo);
+        // SAFETY: checked non-null and aligned; 3 writable floats by the caller's contract.
+        unsafe { std::ptr::copy_nonoverlapping(f.as_ptr(), rgb, 3) };
+        Ok(())
+    })
+}
+
+/// `n` directions as three arrays (structure of arrays).
+#[repr(C)]
+#[derive(Clone, Copy, Debug)]
+pub struct NbrdfDirections {
+    /// `n` x components.
+    pub x: *const f32,
+    /// `n` y components.
+    pub y: *const f32,
+    /// `n` z components.
+    pub z: *const f32,
+}
+
+/// `n` RGB values as three arrays (structure of arrays).
+#[repr(C)]
+#[derive(Clone, Copy, Debug)]
+pub struct NbrdfRgbArrays {
+    /// `n` red values.
+    pub r: *mut f32,
+    /// `n` green values.
+    pub g: *mut f32,
+    /// `n` blue values.
+    pub b: *mut f32,
+}
+
+/// Whether `[a, a + n)` and `[b, b + n)` floats overlap.
+fn overlaps(a: *const f32, b: *const f32, n: usize) -> bool {
+    let (a, b, len) = (a as usize, b as usize, n * size_of::<f32>());
+    a < b + len && b < a + len
+}
+
+/// `f(wi[i], wo[i])` for `i < n` at one point, into `out` (as [`nbrdf_eval`], bit for bit; models run
+/// in packets, faster than one call per pair). The outputs must not overlap the inputs or each other
+/// (`NBRDF_STATUS_INVALID_VALUE`). Thread safe.
+///
+/// # Safety
+/// `brdf` is a live handle; `point` is null or prepared storage; each array addresses `n` floats
+/// (readable for `wi`, `wo`, writable for `out`).
+#[no_mangle]
+pub unsafe extern "C" fn nbrdf_eval_many(
+    brdf: *const NbrdfBrdf,
+    point: *const c_void,
+    n: usize,
+    wi: NbrdfDirections,
+    wo: NbrdfDirections,
+    out: NbrdfRgbArrays,
+) -> NbrdfStatus {
+    guard(|| {
+        // SAFETY: the caller's contract.
+        let b = unsafe { at(handle(brdf)?, point)? };
+        if n == 0 {
+            return Ok(());
+        }
+        // SAFETY: each array addresses n floats by the caller's contract (checked non-null, aligned).
+        let (wi, wo) = unsafe {
+            (
+                [floats_of(wi.x, n, "wi.x")?, floats_of(wi.y, n, "wi.y")?, floats_of(wi.z, n, "wi.z")?],
+                [floats_of(wo.x, n, "wo.x")?, floats_of(wo.y, n, "wo.y")?, floats_of(wo.z, n, "wo.z")?],
+            )
+        };
+        let outs = [out.r, out.g, out.b];
+        for (o, what) in outs.iter().zip(["out.r", "out.g", "out.b"]) {
+            out_floats(*o, what)?;
+        }
+        for (i, o) in outs.iter().enumerate() {
+            let inputs = wi.iter().chain(&wo).map(|s| s.as_ptr());
+            if inputs.chain(outs[..i].iter().map(|p| p.cast_const())).any(|p| overlaps(p, *o, n)) {
+                return fail(NbrdfStatus::InvalidValue, "an output array overlaps an input or another output");
+            }
+        }
+        // SAFETY: non-null, aligned, n writable floats each, disjoint from each other and the inputs.
+        let [r, g, bl] = outs.map(|o| unsafe { std::slice::from_raw_parts_mut(o, n) });
+        match &b {
+            At::Model(m) => m.model.eval_many_soa(&m.prepared, wi, wo, [r, g, bl]),
+            At::Fixed(f) => {
+                for i in 0..n {
+                    let v = f.eval(Vec3::new(wi[0][i], wi[1][i], wi[2][i]), Vec3::new(wo[0][i], wo[1][i], wo[2][i]));
+                    (r[i], g[i], bl[i]) = (v[0], v[1], v[2]);
+                }
+            }
+        }
+        Ok(())
+    })
+}
+
+/// A direction sampled by [`nbrdf_sample`].
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default)]
+pub struct NbrdfSample {
+    /// The sampled direction toward the light, unit, upper hemisphere.
+    pub wi: [f32; 3],
+    /// `f(wi, wo) cos θi / pdf`: what the path's throughput is multiplied by.
+    pub weight: [f32; 3],
+    /// Density of `wi` per unit solid angle; 0 when no direction was produced (then `wi` and `weight`
+    /// are 0 too).
+    pub pdf: f32,
+}
+
+/// Samples `wi` for the view `wo` from three uniform numbers `u` in [0, 1): the BRDF's own lobes
+/// (parametric models), or the proxy stored in the model file or fitted at load (neural models, MERL
+/// tables, NBRDF-json networks). `out->pdf` is 0 when no direction was produced (`wo` below the
+/// horizon, or a lobe reflected below it); otherwise `out->pdf` equals `nbrdf_pdf(out->wi, wo)` (to rounding when `wo` is not exactly unit).
+/// Thread safe.
+///
+/// # Safety
+/// `brdf` is a live handle; `point` is null or prepared storage; `wo`, `u` address 3 floats; `out` is
+/// writable.
+#[no_mangle]
+pub unsafe extern "C" fn nbrdf_sample(
+    brdf: *const NbrdfBrdf,
+    point: *const c_void,
+    wo: *const f32,
+    u: *const f32,
+    out: *mut NbrdfSample,
+) -> NbrdfStatus {
+    guard(|| {
+        // SAFETY: the caller's contract.
+        let (b, wo, u) = unsafe { (at(handle(brdf)?, point)?, vec3(wo, "wo")?, vec3(u, "u")?) };
+        if out.is_null() {
+            return fail(NbrdfStatus::NullPointer, "out is null");
+        }
+        let s = match b.brdf().sample(wo, u.to_array()) {
+            Some(BsdfSample { wi, weight, pdf }) => NbrdfSample { wi: wi.to_array(), weight, pdf },
+            None => NbrdfSample::default(),
+        };
+        // SAFETY: non-null and writable by the caller's contract.
+        unsafe { out.write(s) };
+        Ok(())
+    })
+}
+
+/// Density of [`nbrdf_sample`] at `wi` for the view `wo`, per unit solid angle, into `*pdf`. Thread
+/// safe.
+///
+/// # Safety
+/// `brdf` is a live handle; `point` is null or prepared storage; `wi`, `wo` address 3 floats; `pdf` is
+/// writable.
+#[no_mangle]
+pub unsafe extern "C" fn nbrdf_pdf(
+    brdf: *const NbrdfBrdf,
+    point: *const c_void,
+    wi: *const f32,
+    wo: *const f32,
+    pdf: *mut f32,
+) -> NbrdfStatus {
+    guard(|| {
+        // SAFETY: the caller's contract.
+        let (b, wi, wo) = unsafe { (at(handle(brdf)?, point)?, vec3(wi, "wi")?, vec3(wo, "wo")?) };
+        out_floats(pdf, "pdf")?;
+        let p: f32 = b.brdf().pdf(wi, wo);
+        // SAFETY: checked non-null and aligned; writable by the caller's contract.
+        unsafe { pdf.write(p) };
+        Ok(())
+    })
+}
