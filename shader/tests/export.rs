@@ -116,3 +116,38 @@ fn bad_input_gets_an_error_naming_the_problem() {
     let e = nbrdf_shader::export_file(std::path::Path::new("/nonexistent/m.nbrdf"), &Options::default()).unwrap_err();
     assert!(e.to_string().starts_with("/nonexistent/m.nbrdf: "), "{e}");
 }
+
+/// The cost table of README.md ("Accuracy against cost", GPU columns): the paper's nine variants
+/// (intrinsic k = 32, 4 angle octaves, Θ) with weights in a storage buffer, and the NBRDF-json shape
+/// inline. Prints the rows; asserts that the instruction counts are what a shader of that size holds.
+#[test]
+fn cost_of_the_papers_architectures() {
+    use nbrdf::file::{ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity};
+    use nbrdf::parametric::ParametricKind;
+    let position = PositionEncoding::Intrinsic { k: 32 };
+    let mut rows: Vec<(String, ModelHeader)> = Vec::new();
+    for k in [ParametricKind::Phong, ParametricKind::TorranceSparrow, ParametricKind::FresnelMicrofacet, ParametricKind::Disney] {
+        rows.push((k.name().into(), ModelHeader::paper(ModelKind::Parametric(k), false, Reciprocity::None, position, 0)));
+    }
+    for (name, kind, enhanced) in [
+        ("Single MLP", ModelKind::SingleMlp, false),
+        ("Additive Separate", ModelKind::AdditiveSeparate, false),
+        ("Additive Shared", ModelKind::AdditiveShared, false),
+        ("Additive Separate (enhanced)", ModelKind::AdditiveSeparate, true),
+        ("Additive Shared (enhanced)", ModelKind::AdditiveShared, true),
+    ] {
+        rows.push((name.into(), ModelHeader::paper(kind, enhanced, Reciprocity::Exact, position, 4)));
+    }
+    println!("| model | SPIR-V instructions of nbrdf_eval (static) | multiply-adds per eval | weights |");
+    for (name, h) in rows {
+        let m = common::model(&name, h, Precision::F32, 1);
+        let shader = export(&name, &m.bytes, &Options::default()).unwrap();
+        let c = Cost::of(&shader).unwrap();
+        assert!(c.macs > 10_000 && c.eval_instructions > 500, "{name}: {c:?}");
+        println!("| {name} | {} | {} | buffer, {} f32 |", c.eval_instructions, c.macs, shader.weights.len());
+    }
+    let shader = export("nbrdf-json", &common::json_network(3), &Options::default()).unwrap();
+    let c = Cost::of(&shader).unwrap();
+    assert_eq!(c.macs, 6 * 21 + 21 * 21 + 21 * 3);
+    println!("| NBRDF-json 6-21-21-3 | {} | {} | inline |", c.eval_instructions, c.macs);
+}
