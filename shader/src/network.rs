@@ -221,7 +221,7 @@ mod tests {
 
     #[test]
     fn literals_read_back_as_the_same_f32() {
-        for w in [0.1f32, -1e-7, 3.4028235e38, 1.0, -0.0, 1.17549435e-38] {
+        for w in [0.1f32, -1e-7, 3.4028235e38, 1.0, -0.0, f32::MIN_POSITIVE] {
             let s = lit(w);
             assert_eq!(s.trim_end_matches('f').parse::<f32>().unwrap().to_bits(), w.to_bits(), "{s}");
         }

@@ -59,9 +59,7 @@ pub fn weights(h: &ModelHeader, seed: u64) -> Vec<f32> {
             }
         }
     }
-    for _ in 0..h.n_object() {
-        w.push(1.5);
-    }
+    w.extend(std::iter::repeat_n(1.5, h.n_object()));
     w
 }
 
