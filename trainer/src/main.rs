@@ -98,6 +98,20 @@ enum Command {
         #[arg(long)]
         resume: bool,
     },
+    /// Write a fitted model (or an NBRDF-json network) as a self-contained GPU shader (docs/shader.md)
+    ExportShader {
+        /// The .nbrdf model or NBRDF-json network
+        model: PathBuf,
+        /// wgsl, glsl, hlsl, msl or spirv
+        #[arg(long, default_value = "wgsl")]
+        lang: String,
+        /// The shader file; a storage buffer's weights go beside it as FILE.weights.bin
+        #[arg(long)]
+        out: PathBuf,
+        /// inline, buffer or buffer:GROUP,BINDING (default: inline up to 16384 network weights)
+        #[arg(long)]
+        weights: Option<String>,
+    },
     /// List every model variant with its parameter count
     Models {
         #[arg(long, default_value = "intrinsic:32")]
@@ -262,6 +276,7 @@ fn run(cli: Cli) -> trainer::Result<()> {
                 out.display()
             );
         }
+        Command::ExportShader { model, lang, out, weights } => commands::export_shader::run(&model, &lang, &out, weights.as_deref())?,
         Command::Models { position } => {
             print!("{}", commands::models::table(commands::parse_position(&position)?));
         }

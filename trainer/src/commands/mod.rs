@@ -2,6 +2,7 @@
 
 pub mod bench_step;
 pub mod data;
+pub mod export_shader;
 pub mod fit;
 pub mod models;
 
