@@ -188,9 +188,18 @@ fn run(args: Args) -> Result<(), String> {
         "cosine" => Sampling::Cosine,
         s => return Err(format!("--sampling `{s}`: expected native or cosine")),
     };
+    // Every size and the output are checked before any work.
+    if args.spp > MAX_SPP {
+        return Err(format!("--spp {}: at most {MAX_SPP} samples per pixel", args.spp));
+    }
+    if args.max_depth > MAX_DEPTH {
+        return Err(format!("--max-depth {}: at most {MAX_DEPTH} bounces", args.max_depth));
+    }
+    check_writable(&args.out)?;
     let fit_start = std::time::Instant::now();
     let material = brdf_of(&args.brdf)?.with_sampling(sampling);
     let fit_secs = fit_start.elapsed().as_secs_f64();
+    material.check_mesh(&geometry.mesh).map_err(|e| format!("--brdf on --mesh {}: {e}", args.mesh))?;
     let lights: Vec<DirectionalLight> = args.light.iter().map(|l| light_of(l)).collect::<Result<_, _>>()?;
     let env = match (&args.env, args.env_color) {
         (Some(p), _) => Some(Environment::load_exr(p).map_err(|e| format!("environment: {e}"))?),
@@ -205,7 +214,7 @@ fn run(args: Args) -> Result<(), String> {
         return Err(String::from("--fov: must lie in (0, 180) degrees"));
     }
     let camera = Camera::look_at(args.eye, args.target, args.up, args.fov.to_radians(), args.width, args.height)
-        .map_err(|e| format!("camera: {e}"))?;
+        .map_err(|e| format!("--width {} --height {}: {e}", args.width, args.height))?;
     let scene = Scene { geometry: &geometry, material: &material, lights: &lights, env: env.as_ref(), camera: &camera };
     let options = Options { spp: args.spp.max(1), max_depth: args.max_depth, seed: args.seed, force_all: args.force_all, ..Options::default() };
 
@@ -233,6 +242,29 @@ fn run(args: Args) -> Result<(), String> {
     nbrdf::image::write_png_srgb(&png, &out.image, args.exposure).map_err(|e| e.to_string())?;
     println!("wrote {} and {}", args.out.display(), png.display());
     Ok(())
+}
+
+/// Most samples per pixel: beyond this a render takes days at any size.
+const MAX_SPP: u32 = 1 << 20;
+/// Most bounces per path.
+const MAX_DEPTH: u32 = 1024;
+
+/// Fails unless `out` can be written: its folder exists and accepts a new file (probed and removed),
+/// so that a long render never ends in an unwritable path.
+fn check_writable(out: &std::path::Path) -> Result<(), String> {
+    let dir = match out.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => std::path::Path::new("."),
+    };
+    if !dir.is_dir() {
+        return Err(format!("--out {}: the folder {} does not exist", out.display(), dir.display()));
+    }
+    if out.is_dir() {
+        return Err(format!("--out {}: is a folder", out.display()));
+    }
+    tempfile::NamedTempFile::new_in(dir)
+        .map(drop)
+        .map_err(|e| format!("--out {}: cannot write in {}: {e}", out.display(), dir.display()))
 }
 
 fn main() -> ExitCode {

@@ -222,3 +222,37 @@ fn proxy_sampling_has_far_lower_variance_on_a_specular_material() {
         assert!(va < 0.2 * vb, "channel {c}: variance proxy {va} vs cosine {vb}");
     }
 }
+
+#[test]
+fn sizes_beyond_the_limits_are_errors_before_any_allocation() {
+    use nbrdf::scene::camera::{MAX_PIXELS, MAX_SIDE};
+    let look = |w, h| Camera::look_at(Vec3::new(0.0, 0.0, 3.0), Vec3::ZERO, Vec3::Y, 0.7, w, h);
+    assert!(look(1024, 768).is_ok());
+    for (w, h, needle) in [(u32::MAX, 16, "width"), (16, MAX_SIDE as u32 + 1, "height"), (20_000, 20_000, "pixels")] {
+        let err = look(w, h).unwrap_err().to_string();
+        assert!(err.contains(needle), "{w}×{h}: {err}");
+    }
+    assert!(matches!(look(16_384, 16_384), Err(nbrdf::Error::TooLarge { max, .. }) if max == MAX_PIXELS));
+}
+
+#[test]
+fn a_model_fitted_on_one_mesh_refuses_another() {
+    use nbrdf::file::{encode, ModelHeader, ModelKind, PositionEncoding, Reciprocity};
+    // An intrinsic model with the per-vertex table of a 4-vertex mesh.
+    let h = ModelHeader::paper(ModelKind::SingleMlp, false, Reciprocity::Exact, PositionEncoding::Intrinsic { k: 2 }, 2);
+    let w: Vec<f32> = (0..h.n_weights()).map(|i| (i % 11) as f32 * 1e-2).collect();
+    let table: Vec<f32> = (0..4 * 2).map(|i| i as f32 * 0.1).collect();
+    let buf = nbrdf::ModelBuf::from_bytes(&encode(&h, &w, Some(&table)).unwrap()).unwrap();
+    let material = Material::model(buf).unwrap();
+    let sphere = BuiltinMesh::Sphere.mesh();
+    let err = material.check_mesh(&sphere).unwrap_err().to_string();
+    assert!(err.contains("another mesh") && err.contains('4'), "{err}");
+    let tet = Mesh::new(
+        vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z],
+        vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]],
+    )
+    .unwrap();
+    material.check_mesh(&tet).unwrap();
+    // Materials without a table fit every mesh.
+    Material::builtin(Builtin::Velvet).check_mesh(&sphere).unwrap();
+}

@@ -115,6 +115,23 @@ impl Material {
         Ok(Material { source: Source::Model { buf, uniform }, sampling: Sampling::Native, what })
     }
 
+    /// Checks that the material can shade `mesh`: a model with a per-vertex position table must have
+    /// been fitted on a mesh with as many vertices (otherwise its features would be read from the
+    /// wrong vertices and shade wrongly, or black). Other materials fit every mesh.
+    pub fn check_mesh(&self, mesh: &Mesh) -> Result<(), Error> {
+        if let Source::Model { buf, .. } = &self.source {
+            let n = buf.header().n_vertices as usize;
+            if n > 0 && n != mesh.positions.len() {
+                return Err(Error::SizeMismatch {
+                    what: "mesh vertices (the model's per-vertex table was fitted on another mesh)",
+                    expected: n,
+                    found: mesh.positions.len(),
+                });
+            }
+        }
+        Ok(())
+    }
+
     /// The same material sampled with `sampling`.
     pub fn with_sampling(mut self, sampling: Sampling) -> Self {
         self.sampling = sampling;

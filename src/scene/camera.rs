@@ -10,6 +10,12 @@ use glam::{Mat3, Vec2};
 
 use super::Ray;
 
+/// Largest image side a camera accepts (pixels).
+pub const MAX_SIDE: usize = 32_768;
+
+/// Largest image a camera accepts: 64 Mpixel, 768 MB as the f32 RGB image a render holds.
+pub const MAX_PIXELS: usize = 1 << 26;
+
 /// A calibrated pinhole camera and its image size.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Camera {
@@ -31,6 +37,15 @@ impl Camera {
     pub fn new(width: u32, height: u32, k: Mat3, r: Mat3, t: Vec3) -> Result<Self, Error> {
         if width == 0 || height == 0 {
             return Err(Error::InvalidValue { what: "camera image size", reason: "width and height must be positive" });
+        }
+        // Checked before any image is allocated: an absurd size is an error, never an allocation abort.
+        for (what, v) in [("camera image width", width), ("camera image height", height)] {
+            if v as usize > MAX_SIDE {
+                return Err(Error::TooLarge { what, found: v as usize, max: MAX_SIDE });
+            }
+        }
+        if width as usize * height as usize > MAX_PIXELS {
+            return Err(Error::TooLarge { what: "camera image pixels (width × height)", found: width as usize * height as usize, max: MAX_PIXELS });
         }
         if !(k.is_finite() && r.is_finite() && t.is_finite()) {
             return Err(Error::NonFinite { what: "camera K, R or t", index: 0 });
