@@ -6,6 +6,11 @@ use clap::{Parser, Subcommand};
 use trainer::commands;
 use trainer::train::{TrainOptions, PAPER_BATCH_PIXELS};
 
+/// Most pixels per batch (the paper's is 2^15/3 colour values' worth; this bounds the activations' memory).
+const MAX_BATCH: usize = 1 << 20;
+/// Most pixels of the built-in toy set (~170 bytes each).
+const MAX_TOY: usize = 10_000_000;
+
 // Training allocates and frees batch-sized tensors every step; the system allocator returns them to the
 // OS and page-faults them back in, mimalloc keeps them (issue 4 "Speed").
 #[global_allocator]
@@ -243,6 +248,19 @@ fn run(cli: Cli) -> trainer::Result<()> {
                 m.angle_frequencies,
                 m.direction_layers,
             )?;
+            // Numbers checked before any work, naming the flag and what is allowed.
+            if !(lr.is_finite() && lr > 0.0) {
+                return Err(trainer::Error::Invalid(format!("--lr {lr}: must be finite and positive")));
+            }
+            if !(lr_final.is_finite() && lr_final >= 0.0) {
+                return Err(trainer::Error::Invalid(format!("--lr-final {lr_final}: must be finite and non-negative")));
+            }
+            if batch == 0 || batch > MAX_BATCH {
+                return Err(trainer::Error::Invalid(format!("--batch {batch}: allowed 1..={MAX_BATCH} pixels")));
+            }
+            if toy.is_some_and(|n| n == 0 || n > MAX_TOY) {
+                return Err(trainer::Error::Invalid(format!("--toy {}: allowed 1..={MAX_TOY} pixels", toy.unwrap_or(0))));
+            }
             let (obs, table) = match (data, diligent, toy) {
                 (_, _, Some(n)) => (trainer::toy::observations(n, config.position, seed), None),
                 (None, None, None) => {

@@ -22,10 +22,22 @@ pub fn parse_reciprocity(s: &str) -> Result<Reciprocity> {
 /// Parses `uniform`, `intrinsic:K` or `extrinsic:F`.
 pub fn parse_position(s: &str) -> Result<PositionEncoding> {
     let bad = || Error::Invalid(format!("unknown position encoding {s:?}; expected uniform, intrinsic:K or extrinsic:F"));
+    // A number out of range is named as such, with what is allowed (not as an unknown encoding).
+    let number = |v: &str, what: &str, max: u64| -> Result<u64> {
+        let n: u64 = v.parse().map_err(|_| bad())?;
+        if n == 0 && what == "eigenfunctions" || n > max {
+            return Err(Error::Invalid(format!("position encoding {s:?}: {n} {what}; allowed 1..={max}")));
+        }
+        Ok(n)
+    };
     match s.split_once(':') {
         None if s == "uniform" => Ok(PositionEncoding::Uniform),
-        Some(("intrinsic", k)) => Ok(PositionEncoding::Intrinsic { k: k.parse().map_err(|_| bad())? }),
-        Some(("extrinsic", f)) => Ok(PositionEncoding::Extrinsic { frequencies: f.parse().map_err(|_| bad())? }),
+        Some(("intrinsic", k)) => {
+            Ok(PositionEncoding::Intrinsic { k: number(k, "eigenfunctions", nbrdf::file::MAX_INTRINSIC as u64)? as u16 })
+        }
+        Some(("extrinsic", f)) => Ok(PositionEncoding::Extrinsic {
+            frequencies: number(f, "frequencies", nbrdf::file::MAX_FREQUENCIES as u64)? as u8,
+        }),
         _ => Err(bad()),
     }
 }
@@ -50,6 +62,12 @@ pub fn parse_config(
     }
     if direction_layers.is_some() && matches!(kind, Kind::Parametric(_)) {
         return Err(Error::Invalid("--direction-layers applies to the purely neural models".into()));
+    }
+    if angle_frequencies > nbrdf::file::MAX_FREQUENCIES {
+        return Err(Error::Invalid(format!(
+            "--angle-frequencies {angle_frequencies}: allowed 0..={} (the model file's limit)",
+            nbrdf::file::MAX_FREQUENCIES
+        )));
     }
     let mut c = Config::paper(kind, enhanced, parse_reciprocity(reciprocity)?, parse_position(position)?);
     c.angle_frequencies = angle_frequencies;

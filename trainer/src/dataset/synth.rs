@@ -96,6 +96,24 @@ impl SynthArgs {
         if self.views == 0 || self.train_views > self.views {
             return Err(err("--views/--train-views", "need at least one view and no more training views than views"));
         }
+        // Sizes are checked before anything is allocated or written: an absurd count is an error
+        // naming the flag, never an allocation abort hours in.
+        for (what, v) in [("--views", self.views), ("--train-lights", self.train_lights), ("--test-lights", self.test_lights)] {
+            if v > MAX_COUNT {
+                return Err(Error::TooLarge { what, found: v, max: MAX_COUNT });
+            }
+        }
+        let test_views = self.views - self.train_views;
+        let images = self.train_views * self.train_lights + test_views * self.test_lights;
+        if images > MAX_IMAGES {
+            let what = "images (training views × --train-lights + test views × --test-lights)";
+            return Err(Error::TooLarge { what, found: images, max: MAX_IMAGES });
+        }
+        let bytes = images as f64 * (self.size as f64).powi(2) * BYTES_PER_PIXEL;
+        if bytes > MAX_BYTES {
+            let what = "bytes on disk (images × --size² × 12, estimated)";
+            return Err(Error::TooLarge { what, found: bytes as usize, max: MAX_BYTES as usize });
+        }
         if !(self.sigma.is_finite() && self.sigma >= 0.0) {
             return Err(err("--sigma", "must be finite and non-negative"));
         }
@@ -108,6 +126,15 @@ impl SynthArgs {
         Ok(())
     }
 }
+
+/// Most views, and most lights per view.
+const MAX_COUNT: usize = 10_000;
+/// Most images in a data set.
+const MAX_IMAGES: usize = 200_000;
+/// Bytes a pixel takes on disk, a generous estimate (RGB f32 EXR before compression).
+const BYTES_PER_PIXEL: f64 = 12.0;
+/// Most bytes a data set may take on disk.
+const MAX_BYTES: f64 = 200e9;
 
 /// `splitmix64` finaliser (Steele et al. 2014): decorrelated per-view seeds from one seed.
 fn mix(seed: u64, salt: u64) -> u64 {
