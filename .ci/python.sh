@@ -18,6 +18,18 @@ if ! "$py" -m pip install -q maturin pytest numpy mitsuba; then
     exit 1
 fi
 
+# Mitsuba's LLVM variants need libLLVM 16 or newer (Dr.Jit refuses 14; 15 aborted in its AVX-512 code
+# generation): install one where apt can, else the tests of those variants skip with the reason.
+have_llvm16() {
+    for f in /usr/lib/*/libLLVM-1[6-9]*.so* /usr/lib/*/libLLVM-[2-9][0-9]*.so*; do [ -e "$f" ] && return 0; done
+    return 1
+}
+if ! have_llvm16 && command -v apt-get >/dev/null 2>&1 && [ "$(id -u)" = 0 ]; then
+    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libllvm19 >/dev/null 2>&1 \
+        || { apt-get update -qq >/dev/null 2>&1 && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libllvm19 >/dev/null 2>&1; } \
+        || echo "note: libllvm19 could not be installed; the llvm_ad_rgb tests will say why they skip"
+fi
+
 # The dev profile with the test profile's settings (opt-level 2, no LTO, line tables): the Mitsuba
 # and chi-square tests evaluate millions of queries, too slow unoptimised, and the release profile's
 # opt-level 3 and debug info cost a clean CI build minutes more. (`maturin --profile test` would make a

@@ -53,6 +53,7 @@ def main() -> None:
     ap.add_argument("--steps", type=int, default=1500, help="training steps without --model")
     ap.add_argument("--mesh", default="sphere", help="sphere, torus, grooved, or an OBJ/PLY file")
     ap.add_argument("--env", type=Path, help="lat-long OpenEXR environment, +y up")
+    ap.add_argument("--eye", default="0.6,0.9,3.6", help="camera position x,y,z (it looks at the origin)")
     ap.add_argument("--size", type=int, default=256)
     ap.add_argument("--spp", type=int, default=128)
     ap.add_argument("--variant", default="llvm_ad_rgb", help="an *_rgb variant: llvm_ad_rgb or scalar_rgb")
@@ -71,7 +72,7 @@ def main() -> None:
         "sensor": {
             "type": "perspective",
             "fov": 35.0,
-            "to_world": mi.ScalarTransform4f().look_at(origin=[0.6, 0.9, 3.6], target=[0, 0, 0], up=[0, 1, 0]),
+            "to_world": mi.ScalarTransform4f().look_at(origin=[float(x) for x in args.eye.split(",")], target=[0, 0, 0], up=[0, 1, 0]),
             "film": {"type": "hdrfilm", "width": args.size, "height": args.size, "pixel_format": "rgb"},
             "sampler": {"type": "independent", "sample_count": args.spp},
         },

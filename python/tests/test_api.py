@@ -4,6 +4,7 @@ exceptions (never a crash), and the trainer's synth, fit and metrics."""
 from __future__ import annotations
 
 import threading
+import time
 
 import numpy as np
 import pytest
@@ -136,23 +137,58 @@ def test_non_finite_and_below_horizon_directions_give_documented_zeros(fitted):
 
 
 def test_calls_release_the_gil(fitted):
-    """Two Python threads evaluating at once get the values of one thread alone."""
+    """While one thread evaluates a large batch, Python code keeps running in another (it could not if
+    the call held the GIL), and two threads evaluating at once get the values of one alone."""
     m = nbrdf.Model.load(fitted)
     rng = np.random.default_rng(5)
-    wi, wo = unit_rows(rng, 20000), unit_rows(rng, 20000)
-    want = m.eval(wi, wo)
-    got = [None, None]
+    wi, wo = unit_rows(rng, 1_000_000), unit_rows(rng, 1_000_000)
+    want = m.eval(wi[:20000], wo[:20000])
+    done = threading.Event()
+    got = []
 
-    def work(i):
-        got[i] = m.eval(wi, wo)
+    def work():
+        start = time.perf_counter()
+        got.append(m.eval(wi, wo))
+        got.append(time.perf_counter() - start)
+        done.set()
 
-    threads = [threading.Thread(target=work, args=(i,)) for i in range(2)]
+    t = threading.Thread(target=work)
+    last = time.perf_counter()
+    longest = 0.0
+    t.start()
+    while not done.is_set():
+        now = time.perf_counter()
+        longest, last = max(longest, now - last), now
+    t.join()
+    # Holding the GIL, the call would stop this loop for all of its duration.
+    assert got[1] > 0.1 and longest < got[1] / 2, (longest, got[1])
+    np.testing.assert_array_equal(got[0][:20000], want)
+    both = [None, None]
+    threads = [threading.Thread(target=lambda i=i: both.__setitem__(i, m.eval(wi[:20000], wo[:20000]))) for i in range(2)]
     for t in threads:
         t.start()
     for t in threads:
         t.join()
-    for g in got:
+    for g in both:
         np.testing.assert_array_equal(g, want)
+
+
+def test_progress_bars_only_on_a_terminal(monkeypatch):
+    class Stream:
+        def __init__(self, tty):
+            self.tty = tty
+
+        def isatty(self):
+            return self.tty
+
+    monkeypatch.setattr("sys.stderr", Stream(True))
+    assert nbrdf._interactive()
+    monkeypatch.setattr("sys.stderr", Stream(False))  # a pipe, a file, a notebook's stream
+    assert not nbrdf._interactive()
+    monkeypatch.setattr("sys.stderr", object())  # a stream without isatty
+    assert not nbrdf._interactive()
+    monkeypatch.setattr("sys.stderr", None)  # pythonw
+    assert not nbrdf._interactive()
 
 
 def test_from_spec_matches_the_constructors():
