@@ -182,6 +182,37 @@ impl Model {
         })
     }
 
+    /// Two (N, 3) direction arguments (or a direction and `u`) and the points of the call.
+    fn inputs(
+        &self,
+        (a, a_name): (&Bound<'_, PyAny>, &str),
+        (b, b_name): (&Bound<'_, PyAny>, &str),
+        points: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<(Vec<Vec3>, Vec<Vec3>, At)> {
+        let (a, b) = (arrays::vec3s(a, a_name)?, arrays::vec3s(b, b_name)?);
+        let n = arrays::same_len(&[(a_name, a.len()), (b_name, b.len())])?;
+        let at = self.at(points, n)?;
+        Ok((a, b, at))
+    }
+
+    /// `each(brdf, i)` for every pair `i < n` with the BRDF at its point, without the GIL, in parallel
+    /// chunks.
+    fn per_pair<T: Clone + Default + Send>(
+        &self,
+        py: Python<'_>,
+        at: &At,
+        n: usize,
+        each: impl Fn(&dyn Brdf, usize) -> T + Sync,
+    ) -> PyResult<Vec<T>> {
+        py.detach(|| {
+            par_fill(n, |r, out| {
+                let start = r.start;
+                self.for_each(at, r, |b, i| out[i - start] = each(b, i))
+            })
+        })
+        .map_err(error::core)
+    }
+
     pub(crate) fn kind(&self) -> &'static str {
         match &self.source {
             Source::Model(_) => "model",
@@ -248,9 +279,7 @@ impl Model {
         points: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, numpy::PyArray2<f32>>> {
         guard(|| {
-            let (wi, wo) = (arrays::vec3s(wi, "wi")?, arrays::vec3s(wo, "wo")?);
-            let n = arrays::same_len(&[("wi", wi.len()), ("wo", wo.len())])?;
-            let at = self.at(points, n)?;
+            let (wi, wo, at) = self.inputs((wi, "wi"), (wo, "wo"), points)?;
             let f = py.detach(|| self.eval_pairs(&at, &wi, &wo)).map_err(error::core)?;
             Ok(arrays::out3(py, f))
         })
@@ -270,17 +299,8 @@ impl Model {
         points: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<(Bound<'py, numpy::PyArray2<f32>>, Bound<'py, numpy::PyArray2<f32>>, Bound<'py, numpy::PyArray1<f32>>)> {
         guard(|| {
-            let (wo, u) = (arrays::vec3s(wo, "wo")?, arrays::rgbs(u, "u")?);
-            let n = arrays::same_len(&[("wo", wo.len()), ("u", u.len())])?;
-            let at = self.at(points, n)?;
-            let s: Vec<Sampled> = py
-                .detach(|| {
-                    par_fill(n, |r, out| {
-                        let start = r.start;
-                        self.for_each(&at, r, |b, i| out[i - start] = b.sample(wo[i], u[i]).into())
-                    })
-                })
-                .map_err(error::core)?;
+            let (wo, u, at) = self.inputs((wo, "wo"), (u, "u"), points)?;
+            let s: Vec<Sampled> = self.per_pair(py, &at, wo.len(), |b, i| b.sample(wo[i], u[i].to_array()).into())?;
             Ok((
                 arrays::out3(py, s.iter().map(|s| s.wi).collect()),
                 arrays::out3(py, s.iter().map(|s| s.weight).collect()),
@@ -299,17 +319,8 @@ impl Model {
         points: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, numpy::PyArray1<f32>>> {
         guard(|| {
-            let (wi, wo) = (arrays::vec3s(wi, "wi")?, arrays::vec3s(wo, "wo")?);
-            let n = arrays::same_len(&[("wi", wi.len()), ("wo", wo.len())])?;
-            let at = self.at(points, n)?;
-            let p = py
-                .detach(|| {
-                    par_fill(n, |r, out| {
-                        let start = r.start;
-                        self.for_each(&at, r, |b, i| out[i - start] = b.pdf(wi[i], wo[i]))
-                    })
-                })
-                .map_err(error::core)?;
+            let (wi, wo, at) = self.inputs((wi, "wi"), (wo, "wo"), points)?;
+            let p = self.per_pair(py, &at, wi.len(), |b, i| b.pdf(wi[i], wo[i]))?;
             Ok(arrays::out1(py, p))
         })
     }
