@@ -4,12 +4,6 @@ use std::path::PathBuf;
 
 use clap::{Parser, Subcommand};
 use trainer::commands;
-use trainer::train::{TrainOptions, PAPER_BATCH_PIXELS};
-
-/// Most pixels per batch (the paper's is 2^15/3 colour values' worth; this bounds the activations' memory).
-const MAX_BATCH: usize = 1 << 20;
-/// Most pixels of the built-in toy set (~170 bytes each).
-const MAX_TOY: usize = 10_000_000;
 
 // Training allocates and frees batch-sized tensors every step; the system allocator returns them to the
 // OS and page-faults them back in, mimalloc keeps them (issue 4 "Speed").
@@ -24,28 +18,6 @@ struct Cli {
     command: Option<Command>,
 }
 
-#[derive(clap::Args, Clone)]
-struct ModelArgs {
-    /// rp, ts, fmbrdf, disney, lambert, single-mlp, additive-separate, additive-shared
-    #[arg(long)]
-    model: String,
-    /// Reciprocity strategy of the purely neural models (Sec. 4.3): none, swap or exact
-    #[arg(long, default_value = "exact")]
-    reciprocity: String,
-    /// The enhanced additive split of Eq. 8
-    #[arg(long)]
-    enhanced: bool,
-    /// Position input: uniform, intrinsic:K (K eigenfunctions) or extrinsic:F (PE of xyz, F octaves)
-    #[arg(long, default_value = "intrinsic:32")]
-    position: String,
-    /// Octaves of the angles' positional encoding
-    #[arg(long, default_value_t = trainer::models::arch::DEFAULT_ANGLE_FREQUENCIES)]
-    angle_frequencies: u8,
-    /// Layers the directions pass through (Tab. 2); the paper's default per model when absent
-    #[arg(long)]
-    direction_layers: Option<u8>,
-}
-
 #[derive(Subcommand)]
 enum Command {
     /// Runs the comparison study (Sec. 6): fits and evaluates every (scene, variant) job and writes
@@ -57,52 +29,7 @@ enum Command {
     /// Load a data set (semi-synthetic or DiLiGenT-MV) and report its views, images and samples.
     Inspect(trainer::dataset::DataArgs),
     /// Fit one model variant and write the model, checkpoint and training log
-    Fit {
-        /// Semi-synthetic data set directory (written by `trainer synth`)
-        #[arg(long, conflicts_with_all = ["toy", "diligent"])]
-        data: Option<PathBuf>,
-        /// A DiLiGenT-MV copy (the `mvpmsData` folder or its parent)
-        #[arg(long, conflicts_with = "toy")]
-        diligent: Option<PathBuf>,
-        /// DiLiGenT-MV object: bear, buddha, cow, pot2 or reading
-        #[arg(long, default_value = "bear")]
-        object: String,
-        /// Use every n-th masked pixel per image (1 = all)
-        #[arg(long, default_value_t = 1)]
-        pixel_stride: usize,
-        /// Where the intrinsic encoding's eigenpairs are cached per mesh
-        #[arg(long, default_value = "out/cache")]
-        cache: PathBuf,
-        /// Fit the built-in analytic toy set of this many pixels instead of a dataset
-        #[arg(long)]
-        toy: Option<usize>,
-        #[command(flatten)]
-        model: ModelArgs,
-        #[arg(long, default_value = "out")]
-        out: PathBuf,
-        #[arg(long, default_value_t = 20_000)]
-        steps: usize,
-        /// Pixels per batch (default: the paper's 2^15 colour values)
-        #[arg(long, default_value_t = PAPER_BATCH_PIXELS)]
-        batch: usize,
-        #[arg(long, default_value_t = 1e-3)]
-        lr: f32,
-        #[arg(long, default_value_t = 1e-4)]
-        lr_final: f32,
-        #[arg(long, default_value_t = 0)]
-        seed: u64,
-        /// Weight of the diffuse-vs-image L1 regulariser (enhanced, Sec. 4.4)
-        #[arg(long, default_value_t = 1e-2)]
-        lambda_diffuse: f32,
-        /// Weight of the specular sparsity L1 regulariser (enhanced, Sec. 4.4)
-        #[arg(long, default_value_t = 1e-3)]
-        lambda_specular: f32,
-        #[arg(long, default_value_t = 1000)]
-        checkpoint_every: usize,
-        /// Continue from the checkpoint in --out
-        #[arg(long)]
-        resume: bool,
-    },
+    Fit(commands::fit::FitArgs),
     /// Write a fitted model (or an NBRDF-json network) as a self-contained GPU shader (docs/shader.md)
     ExportShader {
         /// The .nbrdf model or NBRDF-json network
@@ -221,69 +148,8 @@ fn run(cli: Cli) -> trainer::Result<()> {
             trainer::dataset::synth::run(&args).map_err(trainer::Error::Core)?;
         }
         Command::Inspect(args) => trainer::dataset::inspect(&args).map_err(trainer::Error::Core)?,
-        Command::Fit {
-            data,
-            diligent,
-            object,
-            pixel_stride,
-            cache,
-            toy,
-            model: m,
-            out,
-            steps,
-            batch,
-            lr,
-            lr_final,
-            seed,
-            lambda_diffuse,
-            lambda_specular,
-            checkpoint_every,
-            resume,
-        } => {
-            let config = commands::parse_config(
-                &m.model,
-                &m.reciprocity,
-                m.enhanced,
-                &m.position,
-                m.angle_frequencies,
-                m.direction_layers,
-            )?;
-            // Numbers checked before any work, naming the flag and what is allowed.
-            if !(lr.is_finite() && lr > 0.0) {
-                return Err(trainer::Error::Invalid(format!("--lr {lr}: must be finite and positive")));
-            }
-            if !(lr_final.is_finite() && lr_final >= 0.0) {
-                return Err(trainer::Error::Invalid(format!("--lr-final {lr_final}: must be finite and non-negative")));
-            }
-            if batch == 0 || batch > MAX_BATCH {
-                return Err(trainer::Error::Invalid(format!("--batch {batch}: allowed 1..={MAX_BATCH} pixels")));
-            }
-            if toy.is_some_and(|n| n == 0 || n > MAX_TOY) {
-                return Err(trainer::Error::Invalid(format!("--toy {}: allowed 1..={MAX_TOY} pixels", toy.unwrap_or(0))));
-            }
-            let (obs, table) = match (data, diligent, toy) {
-                (_, _, Some(n)) => (trainer::toy::observations(n, config.position, seed), None),
-                (None, None, None) => {
-                    return Err(trainer::Error::Invalid("give --data DIR, --diligent PATH or --toy N".into()))
-                }
-                (dataset, diligent, None) => {
-                    let args = trainer::dataset::DataArgs { dataset, diligent, object, pixel_stride };
-                    let d = commands::data::load(&args, config.position, &cache)?;
-                    (d.obs, d.position_table)
-                }
-            };
-            let opts = TrainOptions {
-                steps,
-                batch,
-                lr,
-                lr_final,
-                seed,
-                lambda_diffuse,
-                lambda_specular,
-                checkpoint_every,
-                ..TrainOptions::default()
-            };
-            let log = commands::fit::run(config, obs, &opts, &out, resume, true, table.as_deref())?;
+        Command::Fit(args) => {
+            let (outputs, log) = commands::fit::run_args(&args, true)?;
             let last = log.loss.last().map(|l| l.1).unwrap_or(f32::NAN);
             println!(
                 "{}: {} steps, final loss {last:.4e}, {:.1} s, {:.0} pixels/s; files in {}",
@@ -291,7 +157,7 @@ fn run(cli: Cli) -> trainer::Result<()> {
                 log.steps_done,
                 log.wall_s,
                 log.samples_per_s,
-                out.display()
+                outputs.model.parent().unwrap_or(&outputs.model).display()
             );
         }
         Command::ExportShader { model, lang, out, weights } => commands::export_shader::run(&model, &lang, &out, weights.as_deref())?,

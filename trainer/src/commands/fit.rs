@@ -7,8 +7,134 @@ use candle_core::Device;
 
 use crate::models::{Config, Model};
 use crate::observations::Observations;
-use crate::train::{self, Checkpoint, RunSetup, TrainOptions};
+use crate::train::{self, Checkpoint, RunSetup, TrainOptions, PAPER_BATCH_PIXELS};
 use crate::{Error, Result};
+
+/// The model variant named on the command line (`trainer fit`, the Python package's `nbrdf.fit`).
+#[derive(clap::Args, Clone, Debug)]
+pub struct ModelArgs {
+    /// rp, ts, fmbrdf, disney, lambert, single-mlp, additive-separate, additive-shared
+    #[arg(long)]
+    pub model: String,
+    /// Reciprocity strategy of the purely neural models (Sec. 4.3): none, swap or exact
+    #[arg(long, default_value = "exact")]
+    pub reciprocity: String,
+    /// The enhanced additive split of Eq. 8
+    #[arg(long)]
+    pub enhanced: bool,
+    /// Position input: uniform, intrinsic:K (K eigenfunctions) or extrinsic:F (PE of xyz, F octaves)
+    #[arg(long, default_value = "intrinsic:32")]
+    pub position: String,
+    /// Octaves of the angles' positional encoding
+    #[arg(long, default_value_t = crate::models::arch::DEFAULT_ANGLE_FREQUENCIES)]
+    pub angle_frequencies: u8,
+    /// Layers the directions pass through (Tab. 2); the paper's default per model when absent
+    #[arg(long)]
+    pub direction_layers: Option<u8>,
+}
+
+/// Everything `trainer fit` takes. In the library so that the command line and the Python package
+/// (`nbrdf.fit`, which parses the same flags) share one definition and one body, [`run_args`].
+#[derive(clap::Args, Clone, Debug)]
+pub struct FitArgs {
+    /// Semi-synthetic data set directory (written by `trainer synth`)
+    #[arg(long, conflicts_with_all = ["toy", "diligent"])]
+    pub data: Option<PathBuf>,
+    /// A DiLiGenT-MV copy (the `mvpmsData` folder or its parent)
+    #[arg(long, conflicts_with = "toy")]
+    pub diligent: Option<PathBuf>,
+    /// DiLiGenT-MV object: bear, buddha, cow, pot2 or reading
+    #[arg(long, default_value = "bear")]
+    pub object: String,
+    /// Use every n-th masked pixel per image (1 = all)
+    #[arg(long, default_value_t = 1)]
+    pub pixel_stride: usize,
+    /// Where the intrinsic encoding's eigenpairs are cached per mesh
+    #[arg(long, default_value = "out/cache")]
+    pub cache: PathBuf,
+    /// Fit the built-in analytic toy set of this many pixels instead of a dataset
+    #[arg(long)]
+    pub toy: Option<usize>,
+    #[command(flatten)]
+    pub model: ModelArgs,
+    #[arg(long, default_value = "out")]
+    pub out: PathBuf,
+    #[arg(long, default_value_t = 20_000)]
+    pub steps: usize,
+    /// Pixels per batch (default: the paper's 2^15 colour values)
+    #[arg(long, default_value_t = PAPER_BATCH_PIXELS)]
+    pub batch: usize,
+    #[arg(long, default_value_t = 1e-3)]
+    pub lr: f32,
+    #[arg(long, default_value_t = 1e-4)]
+    pub lr_final: f32,
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Weight of the diffuse-vs-image L1 regulariser (enhanced, Sec. 4.4)
+    #[arg(long, default_value_t = 1e-2)]
+    pub lambda_diffuse: f32,
+    /// Weight of the specular sparsity L1 regulariser (enhanced, Sec. 4.4)
+    #[arg(long, default_value_t = 1e-3)]
+    pub lambda_specular: f32,
+    #[arg(long, default_value_t = 1000)]
+    pub checkpoint_every: usize,
+    /// Continue from the checkpoint in --out
+    #[arg(long)]
+    pub resume: bool,
+}
+
+/// `trainer fit`: loads the data the arguments name (or the toy set), fits, writes the files; returns
+/// Most pixels per batch: bounds the activations' memory (the paper's batch is 2^15 colour values).
+const MAX_BATCH: usize = 1 << 20;
+/// Most pixels of the built-in toy set (~170 bytes each).
+const MAX_TOY: usize = 10_000_000;
+
+/// where they went and the log. `progress` draws a bar on stderr.
+pub fn run_args(args: &FitArgs, progress: bool) -> Result<(Outputs, train::TrainLog)> {
+    let m = &args.model;
+    let config = super::parse_config(&m.model, &m.reciprocity, m.enhanced, &m.position, m.angle_frequencies, m.direction_layers)?;
+    // Numbers checked before any work, naming the flag and what is allowed.
+    let (lr, lr_final, batch) = (args.lr, args.lr_final, args.batch);
+    if !(lr.is_finite() && lr > 0.0) {
+        return Err(Error::Invalid(format!("--lr {lr}: must be finite and positive")));
+    }
+    if !(lr_final.is_finite() && lr_final >= 0.0) {
+        return Err(Error::Invalid(format!("--lr-final {lr_final}: must be finite and non-negative")));
+    }
+    if batch == 0 || batch > MAX_BATCH {
+        return Err(Error::Invalid(format!("--batch {batch}: allowed 1..={MAX_BATCH} pixels")));
+    }
+    if let Some(n) = args.toy.filter(|&n| n == 0 || n > MAX_TOY) {
+        return Err(Error::Invalid(format!("--toy {n}: allowed 1..={MAX_TOY} pixels")));
+    }
+    let (obs, table) = match (&args.data, &args.diligent, args.toy) {
+        (_, _, Some(n)) => (crate::toy::observations(n, config.position, args.seed), None),
+        (None, None, None) => return Err(Error::Invalid("give --data DIR, --diligent PATH or --toy N".into())),
+        (dataset, diligent, None) => {
+            let data = crate::dataset::DataArgs {
+                dataset: dataset.clone(),
+                diligent: diligent.clone(),
+                object: args.object.clone(),
+                pixel_stride: args.pixel_stride,
+            };
+            let d = super::data::load(&data, config.position, &args.cache)?;
+            (d.obs, d.position_table)
+        }
+    };
+    let opts = TrainOptions {
+        steps: args.steps,
+        batch: args.batch,
+        lr: args.lr,
+        lr_final: args.lr_final,
+        seed: args.seed,
+        lambda_diffuse: args.lambda_diffuse,
+        lambda_specular: args.lambda_specular,
+        checkpoint_every: args.checkpoint_every,
+        ..TrainOptions::default()
+    };
+    let log = run(config, obs, &opts, &args.out, args.resume, progress, table.as_deref())?;
+    Ok((Outputs::in_dir(&args.out, &config), log))
+}
 
 /// Where a fit writes its files.
 pub struct Outputs {

@@ -66,6 +66,10 @@ pub struct SynthArgs {
     /// Print what the renderer simulated and skipped for each view.
     #[arg(long)]
     pub verbose: bool,
+    /// Draw no progress bar (the Python package passes it where stderr is no terminal, e.g. in a
+    /// notebook, whose server may still have one).
+    #[arg(long)]
+    pub quiet: bool,
 }
 
 impl SynthArgs {
@@ -86,6 +90,7 @@ impl SynthArgs {
             light_intensity: 1.0,
             force_shadows: false,
             verbose: false,
+            quiet: false,
         }
     }
 
@@ -205,7 +210,7 @@ pub fn synthesize(args: &SynthArgs) -> Result<(DatasetFile, Vec<RenderReport>), 
             Split::Test => args.test_lights,
         })
         .sum();
-    let bar = ProgressBar::new(total as u64);
+    let bar = if args.quiet { ProgressBar::hidden() } else { ProgressBar::new(total as u64) };
     bar.set_style(
         ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} images, {elapsed} (eta {eta})")
             .expect("valid template")

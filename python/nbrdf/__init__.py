@@ -1,0 +1,283 @@
+"""nbrdf: neural BRDFs from Python (On Neural BRDFs: A Thorough Comparison of State-of-the-Art
+Approaches), over float32 numpy arrays.
+
+- ``Model``: one class for every BRDF (``Model.load`` a ``.nbrdf`` model, an NBRDF-json network or a
+  MERL table; ``merl``, ``nbrdf_json``, ``lambert``, ``phong``, ``torrance_sparrow``, ``fmbrdf``,
+  ``disney``, ``builtin``, ``from_spec``) with ``eval``, ``sample`` and ``pdf`` over (N, 3) arrays.
+- ``render`` and ``mesh``: nbrdf's own path tracer and the meshes it draws.
+- ``synth``, ``fit``, ``compare``, ``brdf_rmse``: the trainer's data sets, fitting and metrics.
+- ``nbrdf.mitsuba``: a Mitsuba 3 BSDF plugin, ``"nbrdf"``.
+
+Conventions: local shading frame with the normal on +z; ``wi`` points toward the light and ``wo``
+toward the viewer, both away from the surface; values in 1/sr without the cosine; 0 below the horizon
+and for non-finite directions. Every call releases the GIL and spreads large batches over all cores.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+from typing import Any, Dict, NamedTuple, Optional, Sequence, Tuple, Union
+
+import numpy as np
+
+from . import _nbrdf
+from ._nbrdf import (
+    Model,
+    brdf_rmse,
+    builtin,
+    disney,
+    fmbrdf,
+    kernel_level,
+    lambert,
+    merl,
+    mesh,
+    nbrdf_json,
+    parametric_from_raw,
+    phong,
+    torrance_sparrow,
+)
+
+__all__ = [
+    "Model",
+    "FitResult",
+    "brdf_rmse",
+    "builtin",
+    "compare",
+    "disney",
+    "fit",
+    "fmbrdf",
+    "from_spec",
+    "kernel_level",
+    "lambert",
+    "merl",
+    "mesh",
+    "nbrdf_json",
+    "parametric_from_raw",
+    "phong",
+    "render",
+    "synth",
+    "torrance_sparrow",
+]
+
+PathLike = Union[str, "os.PathLike[str]"]
+
+
+def _interactive() -> bool:
+    """Whether a progress bar helps: stderr is a terminal (not a pipe, a file or a notebook)."""
+    try:
+        return sys.stderr is not None and sys.stderr.isatty()
+    except (AttributeError, ValueError):
+        return False
+
+
+def _argv(options: Dict[str, Any]) -> list:
+    """Keyword arguments as the trainer's command-line flags: ``pixel_stride=2`` -> ``--pixel-stride 2``,
+    ``True`` -> a bare flag, ``False``/``None`` -> omitted."""
+    argv = []
+    for key, value in options.items():
+        if value is None or value is False:
+            continue
+        flag = "--" + key.replace("_", "-")
+        if value is True:
+            argv.append(flag)
+        else:
+            argv += [flag, os.fspath(value) if isinstance(value, os.PathLike) else str(value)]
+    return argv
+
+
+def _floats(spec: str, rest: str, n: int) -> list:
+    try:
+        values = [float(x) for x in rest.split(",")]
+    except ValueError:
+        raise ValueError(f"BRDF {spec!r}: expected {n} comma-separated numbers") from None
+    if len(values) != n:
+        raise ValueError(f"BRDF {spec!r}: expected {n} comma-separated numbers, got {len(values)}")
+    return values
+
+
+def from_spec(spec: str) -> Model:
+    """A BRDF from the path tracer's ``--brdf`` syntax: ``lambert:R,G,B``,
+    ``phong:KD_R,KD_G,KD_B,KS_R,KS_G,KS_B,N``, ``torrance-sparrow:KD×3,KS×3,ALPHA``,
+    ``fmbrdf:RHO×3,KS,ALPHA,BETA,ETA,NORM``, ``disney:BASE×3,SUBSURFACE,METALLIC,SPECULAR,SPECULAR_TINT,
+    ROUGHNESS,SHEEN,SHEEN_TINT,CLEARCOAT,CLEARCOAT_GLOSS``, ``raw:KIND:V,...``, ``builtin:ID``,
+    ``merl:FILE.binary``, ``json:FILE.json``, ``model:FILE.nbrdf``, or a file whose extension says
+    which."""
+    kind, sep, rest = spec.partition(":")
+    if not sep or (len(kind) == 1 and kind.isalpha()):  # no kind, or a Windows drive letter
+        return Model.load(spec)
+    if kind == "lambert":
+        return lambert(_floats(spec, rest, 3))
+    if kind == "phong":
+        v = _floats(spec, rest, 7)
+        return phong(v[0:3], v[3:6], v[6])
+    if kind == "torrance-sparrow":
+        v = _floats(spec, rest, 7)
+        return torrance_sparrow(v[0:3], v[3:6], v[6])
+    if kind == "fmbrdf":
+        v = _floats(spec, rest, 8)
+        return fmbrdf(v[0:3], *v[3:8])
+    if kind == "disney":
+        v = _floats(spec, rest, 12)
+        return disney(v[0:3], *v[3:12])
+    if kind == "raw":
+        pkind, sep, values = rest.partition(":")
+        if not sep:
+            raise ValueError(f"BRDF {spec!r}: expected raw:KIND:V,...")
+        v = [float(x) for x in values.split(",")]
+        n_object = 1 if pkind == "fmbrdf" else 0
+        return parametric_from_raw(pkind, v[: len(v) - n_object], v[len(v) - n_object :])
+    if kind == "builtin":
+        return builtin(rest)
+    if kind == "merl":
+        return merl(rest)
+    if kind == "json":
+        return nbrdf_json(rest)
+    if kind == "model":
+        return Model.load(rest)
+    raise ValueError(f"BRDF {spec!r}: unknown kind {kind!r}")
+
+
+def render(
+    brdf: Model,
+    *,
+    mesh: PathLike = "sphere",
+    eye: Sequence[float] = (0.0, 0.6, 3.4),
+    target: Sequence[float] = (0.0, 0.0, 0.0),
+    up: Sequence[float] = (0.0, 1.0, 0.0),
+    fov: float = 40.0,
+    width: int = 128,
+    height: int = 128,
+    lights: Sequence[Tuple[Sequence[float], Sequence[float]]] = (),
+    env_color: Optional[Sequence[float]] = None,
+    env: Optional[PathLike] = None,
+    spp: int = 16,
+    max_depth: int = 8,
+    seed: int = 0,
+    sampling: str = "native",
+) -> Tuple[np.ndarray, np.ndarray]:
+    """Path-traces ``mesh`` ("sphere", "torus", "grooved" or an OBJ/PLY file, scaled into the unit
+    sphere) with ``brdf``, as ``cargo run --example path_tracer`` does: a pinhole camera at ``eye``
+    looking at ``target`` (vertical field of view ``fov`` degrees), directional ``lights`` given as
+    ``(direction toward the light, RGB intensity)``, and a constant environment ``env_color`` or a
+    lat-long OpenEXR map ``env`` (+y up). ``sampling`` is "native" (the BRDF's lobes or fitted proxy) or
+    "cosine". Returns the mean radiance per pixel and the variance of that mean, both
+    (height, width, 3) float32; rows run top to bottom."""
+    return _nbrdf.render(
+        brdf,
+        os.fspath(mesh),
+        [float(x) for x in eye],
+        [float(x) for x in target],
+        [float(x) for x in up],
+        float(fov),
+        int(width),
+        int(height),
+        [([float(x) for x in d], [float(x) for x in c]) for d, c in lights],
+        None if env_color is None else [float(x) for x in env_color],
+        None if env is None else os.fspath(env),
+        int(spp),
+        int(max_depth),
+        int(seed),
+        sampling,
+    )
+
+
+def synth(
+    out: PathLike,
+    *,
+    mesh: PathLike = "sphere",
+    material: str = "two-lobe-metal",
+    size: int = 256,
+    views: int = 20,
+    train_views: int = 10,
+    train_lights: int = 30,
+    test_lights: int = 12,
+    sigma: float = 1e-3,
+    seed: int = 0,
+    fov: float = 40.0,
+    light_intensity: float = 1.0,
+    force_shadows: bool = False,
+    progress: Optional[bool] = None,
+) -> Path:
+    """Renders a semi-synthetic data set (Sec. 5.3; ``trainer synth``): ``mesh`` ("sphere", "torus",
+    "grooved" or an OBJ/PLY file) with the ground-truth ``material`` (a built-in id, a MERL ``.binary``,
+    an NBRDF-json ``.json`` or ``lambert:R,G,B``), seen from ``views`` cameras, each lit by directional
+    lights, with Gaussian noise ``sigma``. Writes ``out/dataset.json`` with its images and returns
+    ``out``. ``progress``: draw a bar on stderr (default: only where stderr is a terminal)."""
+    options = dict(
+        out=out, mesh=mesh, material=material, size=size, views=views, train_views=train_views,
+        train_lights=train_lights, test_lights=test_lights, sigma=sigma, seed=seed, fov=fov,
+        light_intensity=light_intensity, force_shadows=force_shadows,
+        quiet=not (_interactive() if progress is None else progress),
+    )
+    return Path(_nbrdf.synth(_argv(options)))
+
+
+class FitResult(NamedTuple):
+    """What ``fit`` returns: the fitted model file and the training log (``<name>.log.json``)."""
+
+    model: Path
+    log: Dict[str, Any]
+
+
+def fit(
+    model: str,
+    *,
+    data: Optional[PathLike] = None,
+    toy: Optional[int] = None,
+    diligent: Optional[PathLike] = None,
+    object: str = "bear",
+    out: PathLike = "out",
+    steps: int = 20_000,
+    batch: Optional[int] = None,
+    lr: float = 1e-3,
+    lr_final: float = 1e-4,
+    seed: int = 0,
+    reciprocity: str = "exact",
+    enhanced: bool = False,
+    position: str = "intrinsic:32",
+    angle_frequencies: Optional[int] = None,
+    direction_layers: Optional[int] = None,
+    lambda_diffuse: float = 1e-2,
+    lambda_specular: float = 1e-3,
+    checkpoint_every: int = 1000,
+    resume: bool = False,
+    pixel_stride: int = 1,
+    cache: PathLike = "out/cache",
+    progress: Optional[bool] = None,
+) -> FitResult:
+    """Fits one model variant (Sec. 4.1; ``trainer fit``) and writes ``<variant>.nbrdf``, a checkpoint
+    and a JSON log into ``out``. ``model`` is rp, ts, fmbrdf, disney, lambert, single-mlp,
+    additive-separate or additive-shared; the data is a ``synth`` folder (``data``), a DiLiGenT-MV copy
+    (``diligent`` and ``object``) or the analytic toy set of ``toy`` pixels. ``position`` is uniform,
+    intrinsic:K or extrinsic:F. Unset options take the trainer's defaults (``batch``: the paper's 2^15
+    colour values). ``progress``: draw a bar on stderr (default: only where stderr is a terminal).
+    Returns the model file and the log."""
+    import json
+
+    options = dict(
+        data=data, toy=toy, diligent=diligent, object=object, out=out, steps=steps, batch=batch, lr=lr,
+        lr_final=lr_final, seed=seed, model=model, reciprocity=reciprocity, enhanced=enhanced,
+        position=position, angle_frequencies=angle_frequencies, direction_layers=direction_layers,
+        lambda_diffuse=lambda_diffuse, lambda_specular=lambda_specular,
+        checkpoint_every=checkpoint_every, resume=resume, pixel_stride=pixel_stride, cache=cache,
+    )
+    show = _interactive() if progress is None else bool(progress)
+    path, log = _nbrdf.fit(_argv(options), show)
+    return FitResult(Path(path), json.loads(log))
+
+
+def compare(
+    reference: np.ndarray,
+    test: np.ndarray,
+    mask: Optional[np.ndarray] = None,
+    *,
+    lpips_weights: Optional[PathLike] = None,
+) -> Dict[str, Any]:
+    """The study's image metrics (Sec. 6, Tab. 1) of a **linear** RGB rendering ``test`` against
+    ``reference``, both (H, W, 3) float32, over the object pixels ``mask`` ((H, W) bool) where given:
+    ``psnr`` (dB on sRGB, inf when equal), ``dssim``, ``lpips`` (AlexNet v0.1; None where its weights
+    are missing, the reason in ``lpips_na``) and ``flip`` (mean HDR-FLIP). The LPIPS weights are read
+    from ``lpips_weights``, else ``$NBRDF_DATA/lpips/alexnet-lpips-v0.1.safetensors``."""
+    return _nbrdf.compare(reference, test, mask, None if lpips_weights is None else os.fspath(lpips_weights))

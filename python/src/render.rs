@@ -1,0 +1,130 @@
+//! The core's path tracer and meshes from Python: `render` draws one mesh with a BRDF the way
+//! `examples/path_tracer.rs` does (and returns each pixel's Monte Carlo variance, so that renderings
+//! of other renderers can be compared within their error), `mesh` hands the same triangles to
+//! another renderer.
+
+use std::path::PathBuf;
+
+use numpy::ndarray::{Array2, Array3};
+use numpy::{IntoPyArray, PyArray2, PyArray3};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+
+use nbrdf::pathtrace::{render as trace, Environment, Material, Options, Sampling, Scene};
+use nbrdf::scene::{builtin::BuiltinMesh, Camera, DirectionalLight, Geometry, Mesh};
+use nbrdf::{ModelBuf, Vec3};
+
+use crate::brdf::{Model, Source};
+use crate::error::{self, guard};
+
+/// A built-in mesh id as it is, a file scaled into the unit sphere (as the path tracer example does).
+fn load_mesh(spec: &str) -> Result<Mesh, nbrdf::Error> {
+    match BuiltinMesh::from_id(spec) {
+        Some(b) => Ok(b.mesh()),
+        None => Ok(Mesh::load(spec)?.normalized().0),
+    }
+}
+
+/// A material of the renderer from a BRDF (models are copied: the renderer owns its material).
+fn material(brdf: &Model) -> Result<Material, nbrdf::Error> {
+    Ok(match &brdf.source {
+        Source::Model(buf) => Material::model(ModelBuf::from_bytes(buf.as_bytes())?)?,
+        Source::Parametric(p) => Material::parametric(*p),
+        Source::Builtin(b) => Material::builtin(*b),
+        Source::Merl(t) => Material::merl(t.clone()),
+        Source::NbrdfJson(n) => Material::nbrdf_json(n.clone()),
+    })
+}
+
+/// The vertices (V, 3) float32, unit vertex normals (V, 3) float32 and counter-clockwise triangles
+/// (T, 3) uint32 of `mesh` ("sphere", "torus", "grooved", or an OBJ/PLY file, scaled into the unit
+/// sphere): the geometry `render` draws, for another renderer to draw too.
+#[pyfunction]
+#[allow(clippy::type_complexity)]
+pub(crate) fn mesh<'py>(
+    py: Python<'py>,
+    mesh: &str,
+) -> PyResult<(Bound<'py, PyArray2<f32>>, Bound<'py, PyArray2<f32>>, Bound<'py, PyArray2<u32>>)> {
+    guard(|| {
+        let spec = mesh.to_string();
+        let m = py.detach(|| load_mesh(&spec)).map_err(error::core)?;
+        let v = |x: &[Vec3]| Array2::from_shape_vec((x.len(), 3), x.iter().flat_map(|p| p.to_array()).collect()).expect("3 per row");
+        let t = Array2::from_shape_vec((m.triangles.len(), 3), m.triangles.iter().flatten().copied().collect()).expect("3 per row");
+        Ok((v(&m.positions).into_pyarray(py), v(&m.normals).into_pyarray(py), t.into_pyarray(py)))
+    })
+}
+
+/// Path-traces `mesh` with `brdf` (see `nbrdf.render` in the package for the arguments); returns the
+/// mean radiance per pixel and the variance of that mean, both (height, width, 3) float32.
+#[pyfunction]
+#[pyo3(signature = (brdf, mesh, eye, target, up, fov, width, height, lights, env_color, env, spp, max_depth, seed, sampling))]
+#[allow(clippy::too_many_arguments, clippy::type_complexity)]
+pub(crate) fn render<'py>(
+    py: Python<'py>,
+    brdf: &Model,
+    mesh: &str,
+    eye: [f32; 3],
+    target: [f32; 3],
+    up: [f32; 3],
+    fov: f32,
+    width: u32,
+    height: u32,
+    lights: Vec<([f32; 3], [f32; 3])>,
+    env_color: Option<[f32; 3]>,
+    env: Option<PathBuf>,
+    spp: u32,
+    max_depth: u32,
+    seed: u64,
+    sampling: &str,
+) -> PyResult<(Bound<'py, PyArray3<f32>>, Bound<'py, PyArray3<f32>>)> {
+    guard(|| {
+        let sampling = match sampling {
+            "native" => Sampling::Native,
+            "cosine" => Sampling::Cosine,
+            s => return Err(PyValueError::new_err(format!("sampling {s:?}: expected \"native\" or \"cosine\""))),
+        };
+        if !(fov > 0.0 && fov < 180.0) {
+            return Err(PyValueError::new_err(format!("fov {fov}: must lie in (0, 180) degrees")));
+        }
+        if width == 0 || height == 0 || width > 16384 || height > 16384 {
+            return Err(PyValueError::new_err(format!("image size {width}×{height}: each side must lie in 1..=16384")));
+        }
+        let lights: Vec<DirectionalLight> = lights
+            .iter()
+            .map(|(d, c)| {
+                if c.iter().any(|x| !(x.is_finite() && *x >= 0.0)) {
+                    return Err(PyValueError::new_err(format!("light intensity {c:?}: must be finite and >= 0")));
+                }
+                DirectionalLight::new(Vec3::from_array(*d), *c)
+                    .ok_or_else(|| PyValueError::new_err(format!("light direction {d:?}: zero or not finite")))
+            })
+            .collect::<PyResult<_>>()?;
+        if env_color.is_some_and(|c| c.iter().any(|x| !(x.is_finite() && *x >= 0.0))) {
+            return Err(PyValueError::new_err("env_color: radiance must be finite and >= 0"));
+        }
+        if lights.is_empty() && env_color.is_none() && env.is_none() {
+            return Err(PyValueError::new_err("no light: give lights, env_color or env"));
+        }
+        let mesh = mesh.to_string();
+        let rendered = py
+            .detach(|| -> Result<_, nbrdf::Error> {
+                let geometry = Geometry::new(load_mesh(&mesh)?)?;
+                let material = material(brdf)?.with_sampling(sampling);
+                let env = match (&env, env_color) {
+                    (Some(p), _) => Some(Environment::load_exr(p)?),
+                    (None, Some(c)) => Some(Environment::Constant(c)),
+                    (None, None) => None,
+                };
+                let camera =
+                    Camera::look_at(Vec3::from_array(eye), Vec3::from_array(target), Vec3::from_array(up), fov.to_radians(), width, height)?;
+                let scene = Scene { geometry: &geometry, material: &material, lights: &lights, env: env.as_ref(), camera: &camera };
+                let options = Options { spp: spp.max(1), max_depth, seed, ..Options::default() };
+                Ok(trace(&scene, &options, &|_| {}))
+            })
+            .map_err(error::core)?;
+        let (w, h) = (width as usize, height as usize);
+        let image = Array3::from_shape_vec((h, w, 3), rendered.image.data.into_flattened()).expect("h×w pixels");
+        let variance = Array3::from_shape_vec((h, w, 3), rendered.variance.into_flattened()).expect("h×w pixels");
+        Ok((image.into_pyarray(py), variance.into_pyarray(py)))
+    })
+}

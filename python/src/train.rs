@@ -1,0 +1,164 @@
+//! The trainer's work from Python: `synth` and `fit` take the command line's own flags (the package
+//! turns keyword arguments into them, so defaults and checks are the CLI's, defined once in the
+//! trainer library), `compare` and `brdf_rmse` are the study's metrics.
+
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+
+use clap::Parser;
+use numpy::{PyReadonlyArray2, PyUntypedArrayMethods};
+use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use nbrdf::image::RgbImage;
+use trainer::commands::fit::FitArgs;
+use trainer::dataset::synth::SynthArgs;
+use trainer::metrics::{brdf_rmse::cube_root_rmse, ImageMetrics, Lpips, MaybeMetric};
+
+use crate::arrays;
+use crate::error::{self, guard};
+
+#[derive(Parser)]
+#[command(name = "nbrdf.synth", no_binary_name = true)]
+struct SynthCli {
+    #[command(flatten)]
+    args: SynthArgs,
+}
+
+#[derive(Parser)]
+#[command(name = "nbrdf.fit", no_binary_name = true)]
+struct FitCli {
+    #[command(flatten)]
+    args: FitArgs,
+}
+
+/// Parses `argv` as the flags of a trainer command; clap's message on failure.
+fn parse<T: Parser>(argv: Vec<String>) -> PyResult<T> {
+    T::try_parse_from(argv).map_err(|e| PyValueError::new_err(e.render().to_string().trim_end().to_string()))
+}
+
+/// `trainer synth` with the flags `argv`; returns the data set's folder.
+#[pyfunction]
+pub(crate) fn synth(py: Python<'_>, argv: Vec<String>) -> PyResult<PathBuf> {
+    guard(|| {
+        let cli: SynthCli = parse(argv)?;
+        py.detach(|| trainer::dataset::synth::synthesize(&cli.args)).map_err(error::core)?;
+        Ok(cli.args.out)
+    })
+}
+
+/// `trainer fit` with the flags `argv`; returns the model file and the training log as JSON text.
+#[pyfunction]
+pub(crate) fn fit(py: Python<'_>, argv: Vec<String>, progress: bool) -> PyResult<(PathBuf, String)> {
+    guard(|| {
+        let cli: FitCli = parse(argv)?;
+        let (outputs, log) = py.detach(|| trainer::commands::fit::run_args(&cli.args, progress)).map_err(error::trainer)?;
+        let log = serde_json::to_string(&log).map_err(|e| PyValueError::new_err(e.to_string()))?;
+        Ok((outputs.model, log))
+    })
+}
+
+/// LPIPS networks loaded so far, by weights path (`None`: the default), with the reason where one
+/// could not be: loading takes longer than a comparison.
+#[allow(clippy::type_complexity)]
+static LPIPS: Mutex<Vec<(Option<PathBuf>, Result<Lpips, String>)>> = Mutex::new(Vec::new());
+
+fn lpips(path: Option<&Path>) -> Result<Lpips, String> {
+    let mut cache = LPIPS.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some((_, l)) = cache.iter().find(|(p, _)| p.as_deref() == path) {
+        return l.clone();
+    }
+    let l = Lpips::load_or_na(path);
+    cache.push((path.map(Path::to_path_buf), l.clone()));
+    l
+}
+
+/// An (H, W, 3) float32 image.
+fn image(x: &Bound<'_, PyAny>, name: &str) -> PyResult<RgbImage> {
+    let a = x.cast::<numpy::PyArray3<f32>>().map_err(|_| {
+        PyValueError::new_err(format!("{name} must be a float32 array of shape (H, W, 3) (linear RGB)"))
+    })?;
+    let shape = a.shape().to_vec();
+    if shape[2] != 3 || shape[0] == 0 || shape[1] == 0 {
+        return Err(PyValueError::new_err(format!("{name} must have shape (H, W, 3) with H, W > 0; got {shape:?}")));
+    }
+    let data: Vec<f32> = numpy::PyArrayMethods::readonly(a).as_array().iter().copied().collect();
+    let pixels = data.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+    RgbImage::from_data(shape[1] as u32, shape[0] as u32, pixels).map_err(error::core)
+}
+
+/// The study's image metrics of a **linear** test rendering against the reference (masked the way
+/// the study masks, `trainer::metrics`): a dict of psnr (dB on sRGB; inf when equal), dssim, lpips
+/// (None, with the reason in lpips_na, where the weights are missing or the image is too small) and
+/// flip (mean HDR-FLIP).
+#[pyfunction]
+#[pyo3(signature = (reference, test, mask = None, lpips_weights = None))]
+pub(crate) fn compare<'py>(
+    py: Python<'py>,
+    reference: &Bound<'py, PyAny>,
+    test: &Bound<'py, PyAny>,
+    mask: Option<&Bound<'py, PyAny>>,
+    lpips_weights: Option<PathBuf>,
+) -> PyResult<Bound<'py, PyDict>> {
+    guard(|| {
+        let (r, t) = (image(reference, "reference")?, image(test, "test")?);
+        if (r.width, r.height) != (t.width, t.height) {
+            return Err(PyValueError::new_err(format!(
+                "reference is {}×{} but test is {}×{} (width×height)",
+                r.width, r.height, t.width, t.height
+            )));
+        }
+        let mask: Option<Vec<bool>> = match mask {
+            None => None,
+            Some(m) => {
+                let m: PyReadonlyArray2<'py, bool> =
+                    m.extract().map_err(|_| PyTypeError::new_err("mask must be a bool array of shape (H, W)"))?;
+                if m.shape() != [r.height as usize, r.width as usize] {
+                    return Err(PyValueError::new_err(format!(
+                        "mask has shape {:?}; the images are ({}, {})",
+                        m.shape(),
+                        r.height,
+                        r.width
+                    )));
+                }
+                Some(m.as_array().iter().copied().collect())
+            }
+        };
+        let m = py.detach(|| {
+            let net = lpips(lpips_weights.as_deref());
+            ImageMetrics::evaluate(&r, &t, mask.as_deref(), &net)
+        });
+        let d = PyDict::new(py);
+        d.set_item("psnr", m.psnr)?;
+        d.set_item("dssim", m.dssim)?;
+        match m.lpips {
+            MaybeMetric::Value(v) => d.set_item("lpips", v)?,
+            MaybeMetric::NotAvailable { na } => {
+                d.set_item("lpips", py.None())?;
+                d.set_item("lpips_na", na)?;
+            }
+        }
+        d.set_item("flip", m.flip)?;
+        Ok(d)
+    })
+}
+
+/// The study's BRDF-space error: RMSE of the cube roots of (N, 3) float32 values, over the rows
+/// `keep` marks (all when None). Returns (rmse, rows used).
+#[pyfunction]
+#[pyo3(signature = (predicted, reference, keep = None))]
+pub(crate) fn brdf_rmse(
+    py: Python<'_>,
+    predicted: &Bound<'_, PyAny>,
+    reference: &Bound<'_, PyAny>,
+    keep: Option<Vec<bool>>,
+) -> PyResult<(f64, usize)> {
+    guard(|| {
+        let (p, r) = (arrays::rgbs(predicted, "predicted")?, arrays::rgbs(reference, "reference")?);
+        let keep = keep.unwrap_or_else(|| vec![true; p.len()]);
+        arrays::same_len(&[("predicted", p.len()), ("reference", r.len()), ("keep", keep.len())])?;
+        let e = py.detach(|| cube_root_rmse(&p, &r, &keep));
+        Ok((e.value, e.samples))
+    })
+}
