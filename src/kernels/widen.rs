@@ -3,9 +3,8 @@
 //! file to f32 at load (`Model::to_f32`, which `ModelBuf` runs).
 //!
 //! Written here rather than taken from `half`'s `convert_to_f32_slice`: that converts 8 values per
-//! `vcvtph2ps` (F16C), and a 100 000-weight network took it 26 µs on this project's Zen 4 machine
-//! against 12 µs for 16 per AVX-512 `vcvtph2ps` (the rate at which the f32 copy is written to L2).
-//! Both are exact (every f16 value is an f32 value), so the level changes time, never bits.
+//! `vcvtph2ps` (F16C), half the rate of 16 per AVX-512 `vcvtph2ps` (docs/speed.md). Both are exact
+//! (every f16 value is an f32 value), so the level changes time, never bits.
 
 #[cfg(target_arch = "x86_64")]
 use super::Level;
