@@ -168,6 +168,16 @@ pub(super) unsafe fn packet_dense<W: Load>(l: &Dense<'_, W>, out: *mut f32, os: 
     unsafe { Avx2::packet_dense(l, out, os) }
 }
 
+/// `dst[i] = src[i]` widened ([`x86::widen_f16`]): the f16 conversion behind `kernels::widen_f16`.
+///
+/// # Safety
+/// The CPU has this level; `src` and `dst` have the same length.
+#[target_feature(enable = "avx2,fma,f16c")]
+pub(super) unsafe fn widen_f16(src: &[half::f16], dst: &mut [f32]) {
+    // SAFETY: the contract, passed on.
+    unsafe { x86::widen_f16::<Avx2>(src, dst) }
+}
+
 /// The mask selecting lanes `0..m`.
 #[inline]
 #[target_feature(enable = "avx2")]

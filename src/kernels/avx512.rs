@@ -169,6 +169,16 @@ pub(super) unsafe fn packet_dense<W: Load>(l: &Dense<'_, W>, out: *mut f32, os: 
     unsafe { Avx512::packet_dense(l, out, os) }
 }
 
+/// `dst[i] = src[i]` widened ([`x86::widen_f16`]): the f16 conversion behind `kernels::widen_f16`.
+///
+/// # Safety
+/// The CPU has this level; `src` and `dst` have the same length.
+#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,fma,f16c,popcnt")]
+pub(super) unsafe fn widen_f16(src: &[half::f16], dst: &mut [f32]) {
+    // SAFETY: the contract, passed on.
+    unsafe { x86::widen_f16::<Avx512>(src, dst) }
+}
+
 /// One query through a whole [`Chain`] (see there): its 128 activations stay in 8 registers from one
 /// layer to the next, their nonzero entries compressed straight from there (`compress8`), and the
 /// tail's nonzero entries are compressed once for layer 0 and the skip layer. Each layer is

@@ -86,8 +86,8 @@ pub(super) unsafe trait X86: Lanes {
     /// of their weight rows to `offs`, in order, and returns their number.
     ///
     /// # Safety
-    /// `x` holds `n` values; `xs` and `offs` have room for `n` rounded up to `N`, plus `N`, entries
-    /// (whole vectors are stored); `n * row_bytes < 2^31`.
+    /// `x` holds `n` values; `xs` and `offs` have room for `n` rounded up to `N` entries (whole vectors
+    /// are stored); `n * row_bytes < 2^31`.
     unsafe fn compress(x: *const f32, n: usize, row_bytes: u32, xs: *mut f32, offs: *mut u32) -> usize;
 
     /// Writes inputs `x[q * stride + i]`, `i < n`, of the [`PACKET`] queries feature-major to
@@ -111,8 +111,7 @@ pub(super) unsafe trait X86: Lanes {
     /// # Safety
     /// As `sparse_one`, for both queries (`oa`, `ob` their outputs).
     #[inline(always)]
-    unsafe fn sparse_pair(init: *const f32, b: &SparseBlock, oa: *mut f32, ob: *mut f32, q: usize) -> bool {
-        let _ = (init, b, oa, ob, q);
+    unsafe fn sparse_pair(_init: *const f32, _b: &SparseBlock, _oa: *mut f32, _ob: *mut f32, _q: usize) -> bool {
         false
     }
 }
@@ -385,7 +384,7 @@ pub(super) unsafe fn one<L: X86, W: Load>(l: &Dense<'_, W>, out: *mut f32) {
             let chunk = (s.n - i0).min(GATHER);
             let relu = l.relu && Some(si) == last_seg && i0 + chunk == s.n;
             // SAFETY: `chunk` inputs and rows from `i0` lie in the checked segment; the lists have room
-            // for `GATHER` rounded up plus a vector; `src` and `out` hold `n`.
+            // for `GATHER` rounded up to a vector; `src` and `out` hold `n`.
             unsafe {
                 let len = L::compress(s.x.as_ptr().add(i0), chunk, row_bytes, xp, op);
                 let base = s.rows.as_ptr().add(i0 * n).cast::<u8>();
@@ -497,7 +496,7 @@ unsafe fn packet_tile<L: X86, W: Load, const QT: usize, const K: usize, const MA
 /// As [`packet_tile`], with `l.n_out == NO`.
 #[inline(always)]
 unsafe fn packet_narrow<L: X86, W: Load, const NO: usize>(l: &Dense<'_, W>, p: &Pass<'_, W>, out: *mut f32, os: usize) {
-    const { assert!(PACKET <= 16) };
+    const { assert!(L::N <= 16 && PACKET.is_multiple_of(L::N)) };
     // SAFETY (whole body): as in `packet_tile`: `init` and each query's outputs hold `NO` values,
     // every input read lies in `xt`'s listed pieces, each row holds `NO` weights.
     unsafe {
@@ -832,5 +831,21 @@ pub(super) unsafe fn relu_store<L: X86, const K: usize>(acc: [L::V; K], relu: bo
     for (k, a) in acc.iter().enumerate() {
         // SAFETY: see the contract.
         unsafe { L::store(o.add(L::N * k), relu_if::<L>(*a, relu)) };
+    }
+}
+
+/// `dst[i] = src[i]` widened, `N` values per `vcvtph2ps` ([`X86::load_f16`]), the tail as scalars.
+///
+/// # Safety
+/// `src` and `dst` have the same length; the CPU has `L`'s level.
+#[inline(always)]
+pub(super) unsafe fn widen_f16<L: X86>(src: &[half::f16], dst: &mut [f32]) {
+    let body = src.len() / L::N * L::N;
+    for i in (0..body).step_by(L::N) {
+        // SAFETY: `i + N ≤ body ≤` both lengths; unaligned loads and stores.
+        unsafe { L::store(dst.as_mut_ptr().add(i), L::load_f16(src.as_ptr().add(i))) };
+    }
+    for i in body..src.len() {
+        dst[i] = src[i].to_f32();
     }
 }
