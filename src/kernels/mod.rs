@@ -4,16 +4,18 @@
 //! What is here: the layer description ([`Dense`], [`Chain`]) and its table of kernels per weight type
 //! ([`Weight`], [`Kernels`], [`kernels`]); the levels, their detection and `NBRDF_KERNEL`
 //! ([`Level`], [`detected`], [`level`], [`set_level`]); `lanes.rs`, the portable and NEON kernels
-//! written once over a small lane trait; `x86.rs`, the hand-tiled AVX2 and AVX-512 kernels;
-//! `neon.rs`, the aarch64 lanes; `widen.rs`, the f16-to-f32 conversion of weight slices
-//! ([`widen_f16`]). Vectorised code that is not a dense layer lives with what it computes and
+//! written once over a small lane trait, and `neon.rs`, the aarch64 lanes; `x86.rs`, the AVX2 and
+//! AVX-512 kernels written once over that trait extended for x86 (masked loads, f16 loads, nonzero
+//! masks), with `avx2.rs` and `avx512.rs` holding each level's lanes, its entry points and what exists
+//! at one level only (AVX-512: the chain kernel, the paired sparse walk); `widen.rs`, the f16-to-f32
+//! conversion of weight slices ([`widen_f16`]). Vectorised code that is not a dense layer lives with what it computes and
 //! dispatches on [`level`]: Θ for 16 pairs in `angles`, the vector sin/cos in `encoding`, the output
 //! maps in `math`, the tiny NBRDF-json network kernel in `measured::nbrdf_json`.
 //!
 //! One kernel computes one layer `y_o = init_o + Σ_s Σ_i x_s[i] M_s[i][o]` (then ReLU for hidden layers)
 //! for either one query ([`Kernels::one`]) or a packet of [`PACKET`] queries ([`Kernels::packet`]).
-//! The packet kernel keeps a tile of `PACKET ×` (16 or 32) outputs in registers and reads each weight row
-//! once per packet, so the weights stream from cache once per packet instead of once per query.
+//! The packet kernel keeps a tile of queries × outputs in registers and reads each weight row once
+//! per packet, so the weights stream from cache once per packet instead of once per query.
 //! [`Kernels::chain`] runs one query through a whole 128-wide network in one call (AVX-512).
 //!
 //! Levels: [`Level::Avx512`] and [`Level::Avx2`] (x86-64, with FMA and F16C: half weights are widened
@@ -33,6 +35,10 @@
 //! the ReLU (`max(acc, 0)` returns `+0`) and by every output map.
 //! Levels differ from each other by rounding only (FMA versus multiply-then-add).
 
+#[cfg(target_arch = "x86_64")]
+mod avx2;
+#[cfg(target_arch = "x86_64")]
+mod avx512;
 mod lanes;
 #[cfg(target_arch = "aarch64")]
 mod neon;
@@ -44,10 +50,10 @@ use core::sync::atomic::{AtomicU8, Ordering};
 
 pub use widen::widen_f16;
 #[cfg(target_arch = "x86_64")]
-pub(crate) use x86::{mask16, transpose16};
+pub(crate) use avx512::{mask16, transpose16};
 
 /// Queries per packet of the batched kernels: 16, so that one weight vector (one f16 conversion)
-/// serves 16 FMAs in the AVX-512 kernel (8 left f16 17% slower than f32; 16: within 2%).
+/// serves 16 FMAs in the AVX-512 kernel (docs/speed.md: 8 left f16 weights behind f32 ones).
 pub const PACKET: usize = 16;
 
 /// An instruction-set level of the kernels.
@@ -400,7 +406,7 @@ pub struct ChainLayer<'a, W> {
 /// [`Kernels::packet`]); what it saves is between the layers: the activations stay in registers, their
 /// nonzero entries are compressed straight from there, the tail's nonzero entries are compressed once
 /// for layer 0 and the skip layer, and there is one call and one bounds check per query instead of one
-/// per layer (together ~15% of a paper-size single query).
+/// per layer.
 #[derive(Clone, Copy, Debug)]
 pub struct Chain<'a, W> {
     /// The tail inputs (at most [`CHAIN_TAIL_MAX`]).
@@ -509,7 +515,7 @@ pub trait Weight: Copy + Send + Sync + 'static {
 
 /// The body of [`Weight::table`] for weight type `$w`: its kernels at each level of this target.
 macro_rules! table {
-    ($w:ty, $avx2:ident, $avx512:ident) => {
+    ($w:ty) => {
         #[inline]
         fn table(level: Level) -> &'static Kernels<$w> {
             static PORTABLE: Kernels<$w> =
@@ -517,10 +523,10 @@ macro_rules! table {
             #[cfg(target_arch = "aarch64")]
             static NEON: Kernels<$w> = Kernels { one: neon::one::<$w>, packet: neon::packet::<$w>, chain: None };
             #[cfg(target_arch = "x86_64")]
-            static AVX2: Kernels<$w> = Kernels { one: x86::$avx2::one, packet: x86::$avx2::packet, chain: None };
+            static AVX2: Kernels<$w> = Kernels { one: avx2::one::<$w>, packet: avx2::packet::<$w>, chain: None };
             #[cfg(target_arch = "x86_64")]
             static AVX512: Kernels<$w> =
-                Kernels { one: x86::$avx512::one, packet: x86::$avx512::packet, chain: Some(x86::$avx512::chain) };
+                Kernels { one: avx512::one::<$w>, packet: avx512::packet::<$w>, chain: Some(avx512::chain::<$w>) };
             // Never hand out a level above the detected one, whatever the caller asked for.
             match level.min(detected()) {
                 Level::Portable => &PORTABLE,
@@ -553,7 +559,7 @@ impl Weight for f32 {
         dst[..n].copy_from_slice(&src[..n]);
     }
 
-    table!(f32, avx2_f32, avx512_f32);
+    table!(f32);
 }
 
 impl Weight for half::f16 {
@@ -567,15 +573,14 @@ impl Weight for half::f16 {
         None
     }
 
-    /// Through [`widen_f16`]: one level check per slice and 16 values per `vcvtph2ps`. Per element
-    /// (`to_f32` in a loop: an out-of-line call with its own feature check each) the biases of a
-    /// paper-size network took a quarter of an f16 single query.
+    /// Through [`widen_f16`]: one level check per slice and 16 values per `vcvtph2ps`, where `to_f32`
+    /// in a loop is an out-of-line call with its own feature check per element.
     #[inline(always)]
     fn widen(src: &[half::f16], dst: &mut [f32]) {
         widen_f16(src, dst);
     }
 
-    table!(half::f16, avx2_f16, avx512_f16);
+    table!(half::f16);
 }
 
 /// Says, past the test harness's output capture, that a check was skipped for want of `level` on this
@@ -901,14 +906,14 @@ pub(crate) mod tests {
         let w = random(128 * 220, 29, 0.4);
         let h: alloc::vec::Vec<half::f16> = w.iter().map(|&v| half::f16::from_f32(v)).collect();
         if detected() >= Level::Avx2 {
-            check_sparse::<f32>(&w[..], x86::avx2_f32::packet_sparse, x86::avx2_f32::packet_dense);
-            check_sparse::<half::f16>(&h[..], x86::avx2_f16::packet_sparse, x86::avx2_f16::packet_dense);
+            check_sparse::<f32>(&w[..], avx2::packet_sparse, avx2::packet_dense);
+            check_sparse::<half::f16>(&h[..], avx2::packet_sparse, avx2::packet_dense);
         } else {
             skipped("sparse packets at avx2", Level::Avx2);
         }
         if detected() >= Level::Avx512 {
-            check_sparse::<f32>(&w[..], x86::avx512_f32::packet_sparse, x86::avx512_f32::packet_dense);
-            check_sparse::<half::f16>(&h[..], x86::avx512_f16::packet_sparse, x86::avx512_f16::packet_dense);
+            check_sparse::<f32>(&w[..], avx512::packet_sparse, avx512::packet_dense);
+            check_sparse::<half::f16>(&h[..], avx512::packet_sparse, avx512::packet_dense);
         } else {
             skipped("sparse packets at avx512", Level::Avx512);
         }

@@ -2,10 +2,10 @@
 //! kernels (`lanes.rs`), every f16 bias ([`super::Weight::widen`]) and the widening of an f16 model
 //! file to f32 at load (`Model::to_f32`, which `ModelBuf` runs).
 //!
-//! Written here rather than taken from `half`'s `convert_to_f32_slice`: that converts 8 values per
-//! `vcvtph2ps` (F16C), and a 100 000-weight network took it 26 µs on this project's Zen 4 machine
-//! against 12 µs for 16 per AVX-512 `vcvtph2ps` (the rate at which the f32 copy is written to L2).
-//! Both are exact (every f16 value is an f32 value), so the level changes time, never bits.
+//! The x86 levels run one loop over their lanes (`x86::widen_f16`: 16 values per AVX-512 `vcvtph2ps`,
+//! 8 per AVX2 one), written here rather than taken from `half`'s `convert_to_f32_slice`, which
+//! converts 8 values per `vcvtph2ps` at every level (docs/speed.md). All are exact (every f16 value is
+//! an f32 value), so the level changes time, never bits.
 
 #[cfg(target_arch = "x86_64")]
 use super::Level;
@@ -27,56 +27,13 @@ pub fn widen_f16(src: &[half::f16], dst: &mut [f32]) {
     match super::level() {
         // SAFETY: `level()` is at most the detected level, so the CPU has the level's features;
         // both slices hold `n` values.
-        Level::Avx512 => return unsafe { x86::avx512(src, dst) },
+        Level::Avx512 => return unsafe { super::avx512::widen_f16(src, dst) },
         // SAFETY: as above (the AVX2 level includes F16C).
-        Level::Avx2 => return unsafe { x86::avx2(src, dst) },
+        Level::Avx2 => return unsafe { super::avx2::widen_f16(src, dst) },
         _ => {}
     }
     for (d, s) in dst.iter_mut().zip(src) {
         *d = s.to_f32();
-    }
-}
-
-#[cfg(target_arch = "x86_64")]
-mod x86 {
-    use core::arch::x86_64::*;
-
-    /// 16 values per `vcvtph2ps`, the tail as scalars.
-    ///
-    /// # Safety
-    /// The CPU has AVX-512 F; `src` and `dst` have the same length.
-    #[target_feature(enable = "avx512f")]
-    pub(super) unsafe fn avx512(src: &[half::f16], dst: &mut [f32]) {
-        let body = src.len() / 16 * 16;
-        for i in (0..body).step_by(16) {
-            // SAFETY: `i + 16 ≤ body ≤` both lengths; unaligned loads and stores.
-            unsafe {
-                let h = _mm256_loadu_si256(src.as_ptr().add(i).cast());
-                _mm512_storeu_ps(dst.as_mut_ptr().add(i), _mm512_cvtph_ps(h));
-            }
-        }
-        for i in body..src.len() {
-            dst[i] = src[i].to_f32();
-        }
-    }
-
-    /// 8 values per `vcvtph2ps`, the tail as scalars.
-    ///
-    /// # Safety
-    /// The CPU has AVX and F16C; `src` and `dst` have the same length.
-    #[target_feature(enable = "avx,f16c")]
-    pub(super) unsafe fn avx2(src: &[half::f16], dst: &mut [f32]) {
-        let body = src.len() / 8 * 8;
-        for i in (0..body).step_by(8) {
-            // SAFETY: `i + 8 ≤ body ≤` both lengths; unaligned loads and stores.
-            unsafe {
-                let h = _mm_loadu_si128(src.as_ptr().add(i).cast());
-                _mm256_storeu_ps(dst.as_mut_ptr().add(i), _mm256_cvtph_ps(h));
-            }
-        }
-        for i in body..src.len() {
-            dst[i] = src[i].to_f32();
-        }
     }
 }
 
@@ -103,13 +60,13 @@ mod tests {
             if super::super::detected() >= super::Level::Avx2 {
                 dst.fill(f32::NAN);
                 // SAFETY: the CPU has the AVX2 level (F16C); equal lengths.
-                unsafe { super::x86::avx2(src, &mut dst) };
+                unsafe { super::super::avx2::widen_f16(src, &mut dst) };
                 check("avx2", &dst);
             }
             if super::super::detected() >= super::Level::Avx512 {
                 dst.fill(f32::NAN);
                 // SAFETY: the CPU has AVX-512; equal lengths.
-                unsafe { super::x86::avx512(src, &mut dst) };
+                unsafe { super::super::avx512::widen_f16(src, &mut dst) };
                 check("avx512", &dst);
             }
             for l in [super::Level::Avx2, super::Level::Avx512] {
