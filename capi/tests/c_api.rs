@@ -27,12 +27,28 @@ fn lib_dir() -> PathBuf {
     std::env::current_exe().unwrap().parent().unwrap().to_path_buf()
 }
 
+/// `libnbrdf.a` as this source tree builds it. A staticlib is no dependency of the tests, so cargo
+/// may not have built it for this run: build it (same profile and target folder; cargo has released
+/// its lock by the time tests run) unless it is newer than every source.
+fn built_library() -> PathBuf {
+    let lib = lib_dir().join("libnbrdf.a");
+    let status = Command::new(env!("CARGO"))
+        .args(["build", "-q", "-p", "nbrdf-capi"])
+        .args(if cfg!(debug_assertions) { &[][..] } else { &["--release"][..] })
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .status()
+        .expect("cargo runs");
+    assert!(status.success(), "cargo build -p nbrdf-capi failed");
+    // `cargo build` puts the fresh library one level up from this test's deps/ folder.
+    let built = lib_dir().parent().unwrap().join("libnbrdf.a");
+    if built.exists() { built } else { lib }
+}
+
 /// Compiles `source` (C or C++ by `cpp`) against the static library; `None` (with a SKIPPED line)
 /// where the host has no such compiler.
 fn compile(source: &str, cpp: bool, flags: &[&str], out: &Path) -> Option<PathBuf> {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let lib = lib_dir().join("libnbrdf.a");
-    assert!(lib.exists(), "{} missing: cargo builds the library before its tests", lib.display());
+    let lib = built_library();
     let compiler = cc::Build::new()
         .cargo_metadata(false)
         .cpp(cpp)
