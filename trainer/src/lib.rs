@@ -5,23 +5,22 @@
 //! - [`dataset`]: the semi-synthetic renderer (`synth`), dataset loading, DiLiGenT-MV.
 //! - [`models`]: candle twins of every core model (docs/models.md).
 //! - [`observations`]: the training pixels, [`toy`]: an analytic stand-in for tests and benchmarks.
-//! - [`loss`], [`objective`], [`adam`], [`train`]: Eq. 9 and 10 (composed, and fused with the output
-//!   head into one op), the optimiser, the fitting loop with checkpoints.
+//! - [`engine`]: the training step (forward, Eq. 9 and 10, backward as one op over row blocks), its
+//!   dense products at every CPU level, the composed loss it is checked against, Adam.
+//! - [`train`]: the fitting loop with checkpoints.
 //! - [`intrinsic`]: Laplace–Beltrami eigenfunctions for the intrinsic position encoding.
 //! - [`metrics`]: PSNR, DSSIM, LPIPS, HDR-FLIP, BRDF-space RMSE, reciprocity and energy (Sec. 6).
 //! - [`commands`]: the bodies of the `fit`, `models` and `bench-step` subcommands.
 //! - [`study`]: the comparison of Sec. 6 (fit and evaluate every variant, write the report).
 
-pub mod adam;
 mod bits;
 pub mod commands;
 pub mod dataset;
+pub mod engine;
 pub mod error;
 pub mod intrinsic;
-pub mod loss;
 pub mod metrics;
 pub mod models;
-pub mod objective;
 pub mod observations;
 pub mod study;
 pub mod toy;

@@ -72,15 +72,6 @@ enum Command {
         /// Only the architectures whose name contains one of these (comma-separated)
         #[arg(long, value_delimiter = ',')]
         only: Vec<String>,
-        /// Run each network layer by layer (one fused op per layer) instead of as one op, to time the
-        /// difference
-        #[arg(long)]
-        per_layer: bool,
-        /// Run the networks and the objective as separate ops (each network's activations of the
-        /// whole batch kept for its backward pass) instead of one fused step per block of rows, to
-        /// time the difference
-        #[arg(long)]
-        unfused_step: bool,
     },
 }
 
@@ -164,10 +155,8 @@ fn run(cli: Cli) -> trainer::Result<()> {
         Command::Models { position } => {
             print!("{}", commands::models::table(commands::parse_position(&position)?));
         }
-        Command::BenchStep { batch, steps, position, json, torch, torch_script, rounds, only, per_layer, unfused_step } => {
+        Command::BenchStep { batch, steps, position, json, torch, torch_script, rounds, only } => {
             use commands::bench_step as bench;
-            trainer::models::network::set_whole_network(!per_layer);
-            trainer::models::step::set_fused_step(!unfused_step);
             let position = commands::parse_position(&position)?;
             let mut configs = bench::default_configs(position);
             if !only.is_empty() {

@@ -14,8 +14,8 @@ use indicatif::{ProgressBar, ProgressStyle};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use crate::adam::{Adam, AdamParams};
-use crate::loss;
+use crate::engine::adam::{Adam, AdamParams};
+use crate::engine::{batch_loss, loss, Batch};
 use crate::models::{Config, Inputs, Model, RawBatch, Reciprocity};
 use crate::observations::{Filtered, Observations};
 use crate::{Error, Result};
@@ -66,6 +66,11 @@ impl Default for TrainOptions {
 }
 
 impl TrainOptions {
+    /// The Sec. 4.4 regularisers' weights.
+    pub fn regularisers(&self) -> crate::engine::Regularisers {
+        crate::engine::Regularisers { lambda_diffuse: self.lambda_diffuse, lambda_specular: self.lambda_specular }
+    }
+
     /// Learning rate of step `t`.
     pub fn lr_at(&self, t: usize) -> f32 {
         let frac = t as f32 / self.steps.max(1) as f32;
@@ -159,15 +164,6 @@ impl Targets {
     }
 }
 
-/// A batch drawn for one step.
-pub struct Batch {
-    pub inputs: Inputs,
-    /// `[B, 3]`: `L_i cos θ_l`.
-    pub incident: Tensor,
-    /// `[B, 3]`: `γ(L_GT)`.
-    pub target: Tensor,
-}
-
 /// The batch of step `step`: indices drawn uniformly with replacement and the swap coin flips, both from
 /// the `(seed, step)` stream.
 fn draw_batch(config: &Config, obs: &Observations, targets: &Targets, opts: &TrainOptions, step: usize, device: &Device) -> Result<Batch> {
@@ -191,8 +187,6 @@ fn draw_batch(config: &Config, obs: &Observations, targets: &Targets, opts: &Tra
     let inputs = Inputs::build(config, &RawBatch { position: &position, wi: &wi, wo: &wo, swap }, device)?;
     Ok(Batch { inputs, incident: Tensor::from_vec(inc, (b, 3), device)?, target: Tensor::from_vec(tgt, (b, 3), device)? })
 }
-
-pub use crate::objective::objective;
 
 /// Tells mimalloc (the binary's allocator) never to return freed memory to the OS.
 ///
@@ -289,7 +283,7 @@ pub fn fit(model: &Model, obs: &Observations, opts: &TrainOptions, setup: RunSet
     };
     while step < opts.steps {
         let batch = draw_batch(&model.config, obs, &targets, opts, step, &device)?;
-        let loss_t = objective(model, &batch, opts)?;
+        let loss_t = batch_loss(model, &batch, opts.regularisers())?;
         let loss = loss_t.to_scalar::<f32>()?;
         if !loss.is_finite() {
             return Err(Error::NonFinite { step, what: "loss", last_good });
@@ -342,7 +336,7 @@ mod tests {
     fn mean_loss(model: &Model, obs: &Observations, opts: &TrainOptions) -> f32 {
         let o = TrainOptions { batch: obs.len(), ..opts.clone() };
         let b = draw_batch(&model.config, obs, &Targets::new(obs), &o, 0, &Device::Cpu).unwrap();
-        objective(model, &b, &o).unwrap().to_scalar::<f32>().unwrap()
+        batch_loss(model, &b, o.regularisers()).unwrap().to_scalar::<f32>().unwrap()
     }
 
     /// A short fit lowers the loss of every variant (parametric and purely neural, each reciprocity

@@ -24,9 +24,10 @@ use candle_core::Device;
 use nbrdf::parametric::{Parametric, ParametricKind};
 use nbrdf::Vec3;
 
-use crate::adam::{Adam, AdamParams};
+use crate::engine::adam::{Adam, AdamParams};
 use crate::models::{arch::layers, parametric::initial_object, Config, Inputs, Kind, Model, PositionEncoding, RawBatch};
-use crate::train::{objective, Batch, TrainOptions};
+use crate::engine::{batch_loss, Batch};
+use crate::train::TrainOptions;
 use crate::{toy, Error, Result};
 
 /// Timing of one architecture.
@@ -62,7 +63,7 @@ fn time_config(config: &Config, batch: usize, steps: usize, rounds: usize, mut t
     let inputs = Inputs::build(config, &RawBatch { position: &obs.position, wi: &obs.wi, wo: &obs.wo, swap: None }, &device)?;
     let ms_inputs = t0.elapsed().as_secs_f64() * 1e3;
     let incident: Vec<f32> = obs.wi.iter().flat_map(|w| [w.z; 3]).collect();
-    let target: Vec<f32> = obs.radiance.iter().flatten().map(|&v| crate::loss::gamma(v)).collect();
+    let target: Vec<f32> = obs.radiance.iter().flatten().map(|&v| crate::engine::loss::gamma(v)).collect();
     let b = Batch {
         inputs,
         incident: candle_core::Tensor::from_vec(incident, (batch, 3), &device)?,
@@ -72,7 +73,7 @@ fn time_config(config: &Config, batch: usize, steps: usize, rounds: usize, mut t
     let vars = model.vars();
     let mut adam = Adam::new(&vars, AdamParams::default());
     let mut step = || -> Result<()> {
-        let loss = objective(&model, &b, &opts)?;
+        let loss = batch_loss(&model, &b, opts.regularisers())?;
         let g = Adam::gradients(&vars, &loss.backward()?)?;
         adam.step(&vars, &g, 1e-4)?;
         Ok(())

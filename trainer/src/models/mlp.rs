@@ -3,9 +3,8 @@
 //! Each layer holds its matrix `[in][out]` and its bias `[1][out]` as two `Var`s whose buffers are the
 //! layer's two blocks of the model file, so export is a copy ([`Mlp::write_weights`]).
 //!
-//! A network runs as one op ([`super::network::network`]), or layer by layer as fused ops
-//! ([`super::fused::linear`]: GEMM, bias and ReLU forward, and a hand-written backward); never as a
-//! composition of candle ops, whose backward costs several passes per layer (issue 8).
+//! [`Mlp::forward`] composes candle ops: the definition that the training engine's fused step
+//! (`crate::engine::step`) must meet, and what tests compare it with; training never runs it.
 
 use candle_core::{DType, Device, Result, Tensor, Var};
 use rand::{Rng, RngExt};
@@ -32,16 +31,16 @@ impl Linear {
         Ok(Linear { weight, bias, n_in })
     }
 
-    /// `x M + 1 b`, through a ReLU when `relu`; `ones` is `[N, 1]` of ones for the batch.
+    /// `x M + 1 b`, through a ReLU when `relu` with PyTorch's gradient convention (0 at the kink, as
+    /// the engine's backward pass; candle's own `relu` passes it at exactly 0): `z ⊙ [z > 0]` with a
+    /// constant mask. `ones` is `[N, 1]` of ones for the batch, the input of a uniform material's layer.
     pub fn forward(&self, x: &Tensor, ones: &Tensor, relu: bool) -> Result<Tensor> {
-        if self.n_in == 0 {
-            // A position-only network of a uniform material: the layer is its bias, broadcast as
-            // `ones · b` so that its gradient is the GEMM `onesᵀ dy` (candle's broadcast backward
-            // reduces with the much slower `sum_keepdim`).
-            let b = ones.matmul(self.bias.as_tensor())?;
-            return if relu { b.relu() } else { Ok(b) };
+        let z = if self.n_in == 0 { ones.matmul(self.bias.as_tensor())? } else { x.matmul(self.weight.as_tensor())?.broadcast_add(self.bias.as_tensor())? };
+        if !relu {
+            return Ok(z);
         }
-        super::fused::linear(x, self.weight.as_tensor(), self.bias.as_tensor(), relu)
+        let mask = z.detach().gt(0f32)?.to_dtype(DType::F32)?;
+        z * mask
     }
 }
 
@@ -72,32 +71,14 @@ impl Mlp {
 
     /// The layer that reads `[h, x]`: `S` when it is a hidden layer after the first and the network has
     /// an input to re-read.
-    fn skip(&self) -> Option<usize> {
+    pub fn skip(&self) -> Option<usize> {
         let skip = self.desc.skip as usize;
         (skip >= 1 && skip < self.desc.hidden as usize && self.desc.n_in > 0).then_some(skip)
-    }
-
-    /// What the whole-network ops need to know of this network.
-    pub fn net_shape(&self) -> super::network::NetShape {
-        super::network::NetShape { layers: layers(&self.desc), hidden: self.desc.hidden as usize, skip: self.skip() }
-    }
-
-    /// The weights as the whole-network ops take them: the matrices and the biases, each flattened and
-    /// concatenated in file order (their `cat` hands each layer's gradient back to its own variables).
-    pub fn flat(&self) -> Result<(Tensor, Tensor)> {
-        let flat = |v: &Var| v.as_tensor().flatten_all();
-        let w = Tensor::cat(&self.layers.iter().map(|l| flat(&l.weight)).collect::<Result<Vec<_>>>()?, 0)?;
-        let b = Tensor::cat(&self.layers.iter().map(|l| flat(&l.bias)).collect::<Result<Vec<_>>>()?, 0)?;
-        Ok((w, b))
     }
 
     /// The network output: ReLU hidden layers, the skip input `[h, x]` at layer `S`, a linear output
     /// layer (or the last activation for a trunk with `n_out = 0`).
     pub fn forward(&self, x: &Tensor, ones: &Tensor) -> Result<Tensor> {
-        if super::network::whole_network() && self.desc.n_in > 0 && !self.layers.is_empty() {
-            let (w, b) = self.flat()?;
-            return super::network::network(x, &w, &b, self.net_shape());
-        }
         let (hidden, skip) = (self.desc.hidden as usize, self.skip());
         let mut h = x.clone();
         for (l, layer) in self.layers.iter().enumerate() {

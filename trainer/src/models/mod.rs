@@ -1,16 +1,13 @@
 //! Candle twins of every core model (docs/models.md): the same networks, wiring and output
 //! nonlinearities, with weights held as candle `Var`s in file order so that export is a copy.
+//! [`Model::forward`] composes plain candle ops, the definition the training engine
+//! (`crate::engine`) must meet; the engine trains these variables.
 
 pub mod activation;
 pub mod arch;
-pub mod features;
-pub mod dense;
-pub mod fused;
-pub mod network;
-pub mod additive_shared;
-pub mod step;
-pub mod mlp;
 pub mod export;
+pub mod features;
+pub mod mlp;
 pub mod parametric;
 
 use candle_core::{Device, Result, Tensor, Var};
@@ -136,16 +133,10 @@ impl Model {
                 Raw::Additive { d: n[0].forward(&x.position, &x.ones)?, s: n[1].forward(&x.joint, &x.ones)? }
             }
             Kind::AdditiveShared => {
-                if network::whole_network() && n[0].desc.n_in > 0 {
-                    let both = additive_shared::additive_shared(&x.position, &x.angles, &n[0], &n[1], &n[2])?;
-                    let m_d = n[1].desc.n_out as usize;
-                    Raw::Additive { d: both.narrow(1, 0, m_d)?, s: both.narrow(1, m_d, both.dim(1)? - m_d)? }
-                } else {
-                    let trunk = n[0].forward(&x.position, &x.ones)?;
-                    let d = n[1].forward(&trunk, &x.ones)?;
-                    let s = n[2].forward(&Tensor::cat(&[&trunk, &x.angles], 1)?, &x.ones)?;
-                    Raw::Additive { d, s }
-                }
+                let trunk = n[0].forward(&x.position, &x.ones)?;
+                let d = n[1].forward(&trunk, &x.ones)?;
+                let s = n[2].forward(&Tensor::cat(&[&trunk, &x.angles], 1)?, &x.ones)?;
+                Raw::Additive { d, s }
             }
         })
     }

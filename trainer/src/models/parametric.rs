@@ -117,7 +117,7 @@ impl CustomOp2 for ParametricOp {
 
 /// One sample's backward pass through the formula: `d_raw ← upᵀ ∂f/∂raw` and `d_object += upᵀ ∂f/∂object`
 /// for the gradient `up` of its BRDF value, from the core's dual-number evaluation at (`wi`, `wo`).
-pub(super) fn backward_sample(kind: ParametricKind, raw: &[f32], object: &[f32], [wi, wo]: [Vec3; 2], up: [f32; 3], d_raw: &mut [f32], d_object: &mut [f32]) {
+pub(crate) fn backward_sample(kind: ParametricKind, raw: &[f32], object: &[f32], [wi, wo]: [Vec3; 2], up: [f32; 3], d_raw: &mut [f32], d_object: &mut [f32]) {
     let d = Parametric::eval_grad(kind, raw, object, wi, wo);
     let dot = |v: [f32; 3]| up[0] * v[0] + up[1] * v[1] + up[2] * v[2];
     for (o, dj) in d_raw.iter_mut().zip(&d.d_raw) {

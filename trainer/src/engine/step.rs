@@ -1,16 +1,14 @@
-//! The loss of a training batch and its gradient in the weights as one candle op that runs the
-//! forward pass, the objective and the backward pass on each block of rows in turn (issue 8): for the
-//! Single MLP and for the Additive Shared model, the two architectures whose networks feed the
-//! objective directly.
+//! The training step: the loss of a batch and its gradient in the weights as one candle op that runs
+//! the forward pass, the objective and the backward pass on each block of rows in turn, for every
+//! model. The only way the trainer computes a gradient; `Model::forward` and [`super::loss`] composed
+//! from candle ops are its definition, which trainer/tests/engine.rs checks it against.
 //!
-//! Why: the objective of a batch is a sum over its samples, so a block's gradient in the weights needs
-//! nothing of the other blocks. As network ops followed by the objective op, every hidden activation
-//! of the batch (six `[2^15, 128]` matrices for the Single MLP, 96 MiB; eight for the Additive
-//! Shared model) went to memory in the forward pass and came back in the backward one, as did the
-//! networks' output and its gradient; here a task runs its 1024 rows forward, through the objective
-//! and backward while its activations (3–4 MiB) stay in its core's caches. The sums are the unfused
-//! path's, bit for bit: the same row blocks ([`super::network::FORWARD_ROWS`], [`BACKWARD_ROWS`],
-//! [`super::fused::ROW_BLOCK`]) in the same order; trainer/tests/fused.rs compares the two.
+//! Why one op: the objective of a batch is a sum over its samples, so a block's gradient in the
+//! weights needs nothing of the other blocks. A task runs its 1024 rows forward, through the objective
+//! and backward while its activations (3–4 MiB) stay in its core's caches, where separate ops sent
+//! every hidden activation of the batch (six `[2^15, 128]` matrices for the Single MLP, 96 MiB) to
+//! memory and back. The sums run over fixed row blocks ([`FORWARD_ROWS`], [`BACKWARD_ROWS`],
+//! [`ROW_BLOCK`]) added in block order, so a step rounds the same way for any number of threads.
 
 use std::sync::{Arc, Mutex};
 
@@ -18,34 +16,18 @@ use candle_core::{CpuStorage, CustomOp3, Layout, Result, Shape, Tensor};
 use rayon::prelude::*;
 
 use super::dense::{Mat, Shared};
-use super::fused::{add_in_order, data, dims2, ROW_BLOCK};
-use super::additive_shared::Three;
-use super::mlp::Mlp;
-use super::network::{Dst, Net, NetShape, BACKWARD_ROWS, FORWARD_ROWS, SWEEP_ROWS};
-use crate::objective::{self, BatchConstants, Constants, Head};
-use super::parametric;
+use super::network::{shape_of, Dst, Net, NetShape, BACKWARD_ROWS, FORWARD_ROWS, SWEEP_ROWS};
+use super::objective::{self, BatchConstants, Constants, Head};
+use super::op::{add_in_order, data, dims2, ROW_BLOCK};
+use super::trunked::Trunked;
+use super::{Batch, Regularisers};
+use crate::models::{parametric, Kind, Mlp, Model};
 use nbrdf::parametric::{Parametric, ParametricKind};
 use nbrdf::Vec3;
 
-// A task's rows must be one block of the objective's sums, so that the loss is the unfused op's.
+// A task's rows must be one block of the objective's sums, so that the loss does not depend on the
+// number of threads.
 const _: () = assert!(BACKWARD_ROWS == ROW_BLOCK && BACKWARD_ROWS.is_multiple_of(FORWARD_ROWS));
-
-thread_local! {
-    /// Whether [`crate::objective::objective`] on this thread runs the step of a Single MLP or an
-    /// Additive Shared model as this op.
-    static FUSED_STEP: std::cell::Cell<bool> = const { std::cell::Cell::new(true) };
-}
-
-/// Chooses, for objectives built on this thread, between this op (`true`, the default) and the
-/// network op followed by the objective op; tests compare the two.
-pub fn set_fused_step(on: bool) {
-    FUSED_STEP.with(|f| f.set(on));
-}
-
-/// Whether objectives built on this thread use this op (see [`set_fused_step`]).
-pub fn fused_step() -> bool {
-    FUSED_STEP.with(|f| f.get())
-}
 
 /// The networks of a fused step.
 enum Nets {
@@ -53,17 +35,17 @@ enum Nets {
     /// MLP (one network on the joint input), Additive Separate (the diffuse network on the position
     /// encoding, the specular one on the joint input).
     Parallel(Vec<(NetShape, bool)>),
-    /// The Additive Shared model: trunk on the position `x`, diffuse head, specular head on `[t, a]`.
-    Shared([NetShape; 3]),
+    /// A trunk on the position `x` and its heads ([`Trunked`]): the Additive Shared model (diffuse
+    /// head, specular head on `[t, a]`), a Single MLP whose directions enter late (one head on `[t, a]`).
+    Trunked(Vec<NetShape>),
     /// A parametric model: the network on the position `x` predicts the raw parameters of `kind`
     /// at each sample's direction pair, `n_object` per-object parameters follow the weights in `p`.
     Parametric { shape: NetShape, kind: ParametricKind, pairs: Arc<Vec<[Vec3; 2]>> },
 }
 
-/// The op over `(x [N, n_x], a [N, n_a], p)`: the network input (the Additive Shared trunk's position
-/// encoding), the angle encoding (read by the Additive Shared specular head only) and the networks'
-/// weights, laid out as [`super::network::network`] (one network) or
-/// [`super::additive_shared::additive_shared`] (three) take them. The batch's constants ride along.
+/// The op over `(x [N, n_x], a [N, n_a], p)`: the network input (a trunk's position encoding), the
+/// angle encoding (read by a trunk's specular head only) and the networks' weights, each network's
+/// matrices then its biases ([`flat`]). The batch's constants ride along.
 /// Its value is the loss; its gradient in `p`, computed with it, waits for the backward pass.
 struct Step {
     nets: Nets,
@@ -313,14 +295,16 @@ impl Step {
                     },
                 )
             }
-            Nets::Shared(shapes) => {
-                let three = Three::new([&shapes[0], &shapes[1], &shapes[2]], p, n_x, n_a, op)?;
-                if three.widths().1 != k {
-                    candle_core::bail!("{op}: heads of {} outputs for a head of {k}", three.widths().1)
+            Nets::Trunked(shapes) => {
+                let tr = Trunked::new(&shapes.iter().collect::<Vec<_>>(), p, n_x, n_a, op)?;
+                if tr.m() != k {
+                    candle_core::bail!("{op}: heads of {} outputs for a head of {k}", tr.m())
                 }
-                let (wt, width, n_t) = (three.transposed(), three.width(), three.trunk.m());
+                let (wt, width, n_t) = (tr.transposed(), tr.width(), tr.trunk.m());
                 // Every trunk layer's buffer (the last is `t`), then each head's hidden layers'.
-                let parts = [shapes[0].widths(), shapes[1].inner_widths(), shapes[2].inner_widths()];
+                let no_d = Vec::new();
+                let d_inner = if shapes.len() == 3 { shapes[1].inner_widths() } else { no_d };
+                let parts = [shapes[0].widths(), d_inner, shapes[shapes.len() - 1].inner_widths()];
                 let (lt, ld, widths) = (parts[0].len(), parts[1].len(), parts.concat());
                 run_tasks(
                     n,
@@ -333,9 +317,9 @@ impl Step {
                         let dst: Vec<Dst> = (0..widths.len()).map(|i| sc.dst(i, widths[i], r_task)).collect();
                         let out = Dst { at: Shared(sc.u.as_mut_ptr().add(r_task * k)), ld: k };
                         let (xm, am) = (Mat::new(x, n_x).at(r, 0), Mat::new(a, n_a).at(r, 0));
-                        three.forward_rows(rows, xm, am, (&dst[..lt], &dst[lt..lt + ld], &dst[lt + ld..]), out);
+                        tr.forward_rows(rows, xm, am, (&dst[..lt], &dst[lt..lt + ld], &dst[lt + ld..]), out);
                     },
-                    |dp| unsafe { three.zero_biases(dp) },
+                    |dp| unsafe { tr.zero_biases(dp) },
                     |sc, start, rows, s0, first, dp| unsafe {
                         let acts: Vec<Mat> = (0..widths.len()).map(|i| sc.mat(i, widths[i], s0)).collect();
                         let (acts_t, rest) = acts.split_at(lt);
@@ -343,7 +327,7 @@ impl Step {
                         let (xm, am) = (Mat::new(x, n_x).at(start + s0, 0), Mat::new(a, n_a).at(start + s0, 0));
                         let dy = Mat::new(&sc.du, k).at(s0, 0);
                         let dt = sc.dt.as_mut_ptr();
-                        three.backward_rows(&wt, rows, (acts_t, acts_d, acts_s), xm, am, dy, dp, first, (&mut sc.g, &mut sc.below), dt);
+                        tr.backward_rows(&wt, rows, (acts_t, acts_d, acts_s), xm, am, dy, dp, first, (&mut sc.g, &mut sc.below), dt);
                     },
                 )
             }
@@ -353,55 +337,38 @@ impl Step {
     }
 }
 
-/// The weights of `nets` as the op takes them: each network's matrices, then its biases, in turn.
-fn flat(nets: &[&Mlp]) -> Result<Tensor> {
-    let mut parts = Vec::with_capacity(2 * nets.len());
+/// The weights of `nets` as the op takes them: each network's matrices, then its biases, in turn
+/// (their `cat` hands each layer's gradient back to its own variables).
+fn flat(nets: &[Mlp]) -> Result<Tensor> {
+    let mut parts = Vec::with_capacity(4 * nets.len());
     for net in nets {
-        let (w, b) = net.flat()?;
-        parts.extend([w, b]);
+        let flat = |v: &candle_core::Var| v.as_tensor().flatten_all();
+        parts.extend(net.layers.iter().map(|l| flat(&l.weight)).collect::<Result<Vec<_>>>()?);
+        parts.extend(net.layers.iter().map(|l| flat(&l.bias)).collect::<Result<Vec<_>>>()?);
     }
     Tensor::cat(&parts, 0)
 }
 
-/// The loss of a batch and its gradient in the weights, as one op (the module docs): a Single MLP
-/// `net` on its input `x` with the softplus head.
-pub fn single_mlp_loss(net: &Mlp, x: &Tensor, incident: &Tensor, target: &Tensor, valid: &Tensor) -> Result<Tensor> {
-    let x = x.contiguous()?;
-    step(Nets::Parallel(vec![(net.net_shape(), false)]), Head::Softplus, &x, &x, &flat(&[net])?, [incident, target, valid])
-}
-
-/// [`single_mlp_loss`] for a parametric model: the network `net` on the position encoding `x`
-/// predicts the raw parameters of `kind`, evaluated at the batch's direction `pairs` with the
-/// per-object parameters `object` (none for most models) by the core's formula.
-#[allow(clippy::too_many_arguments)]
-pub fn parametric_loss(net: &Mlp, kind: ParametricKind, object: Option<&Tensor>, pairs: &Arc<Vec<[Vec3; 2]>>, x: &Tensor, incident: &Tensor, target: &Tensor, valid: &Tensor) -> Result<Tensor> {
-    let mut p = flat(&[net])?;
-    if let Some(o) = object {
-        p = Tensor::cat(&[&p, &o.flatten_all()?], 0)?;
-    }
-    let x = x.contiguous()?;
-    let nets = Nets::Parametric { shape: net.net_shape(), kind, pairs: pairs.clone() };
-    step(nets, Head::Brdf, &x, &x, &p, [incident, target, valid])
-}
-
-/// [`single_mlp_loss`] for the Additive Separate model: the diffuse network on the position encoding
-/// `x`, the specular one on the joint input `joint`, with an additive (or enhanced) `head`.
-#[allow(clippy::too_many_arguments)]
-pub fn additive_separate_loss(diffuse: &Mlp, specular: &Mlp, head: Head, x: &Tensor, joint: &Tensor, incident: &Tensor, target: &Tensor, valid: &Tensor) -> Result<Tensor> {
-    let nets = Nets::Parallel(vec![(diffuse.net_shape(), false), (specular.net_shape(), true)]);
-    step(nets, head, &x.contiguous()?, &joint.contiguous()?, &flat(&[diffuse, specular])?, [incident, target, valid])
-}
-
-/// [`single_mlp_loss`] for the Additive Shared model: the trunk on the position encoding `x`, the
-/// heads on its features and the angle encoding `a`, with an additive (or enhanced) `head`.
-#[allow(clippy::too_many_arguments)]
-pub fn additive_shared_loss(trunk: &Mlp, diffuse: &Mlp, specular: &Mlp, head: Head, x: &Tensor, a: &Tensor, incident: &Tensor, target: &Tensor, valid: &Tensor) -> Result<Tensor> {
-    let p = flat(&[trunk, diffuse, specular])?;
-    let nets = Nets::Shared([trunk.net_shape(), diffuse.net_shape(), specular.net_shape()]);
-    step(nets, head, &x.contiguous()?, &a.contiguous()?, &p, [incident, target, valid])
-}
-
-fn step(nets: Nets, head: Head, x: &Tensor, a: &Tensor, p: &Tensor, [incident, target, valid]: [&Tensor; 3]) -> Result<Tensor> {
-    let op = Step { nets, head, batch: BatchConstants::new(incident, target, valid)?, grad: Arc::default() };
-    x.apply_op3(a, p, op)
+/// The loss of `batch` (Eq. 10, plus the Sec. 4.4 regularisers `reg` for an enhanced model) as one op
+/// whose backward pass hands every weight of `model` its gradient.
+pub fn batch_loss(model: &Model, batch: &Batch, reg: Regularisers) -> Result<Tensor> {
+    let (nets, i) = (&model.nets[..], &batch.inputs);
+    let shapes: Vec<NetShape> = nets.iter().map(shape_of).collect();
+    let additive = if model.config.has_xi() { Head::Enhanced { lambda_diffuse: reg.lambda_diffuse, lambda_specular: reg.lambda_specular } } else { Head::Additive };
+    let mut p = flat(nets)?;
+    let (ops, head, x, a) = match (model.config.kind, nets.len()) {
+        (Kind::SingleMlp, 1) => (Nets::Parallel(vec![(shapes[0].clone(), false)]), Head::Softplus, &i.joint, &i.joint),
+        (Kind::SingleMlp, 2) => (Nets::Trunked(shapes), Head::Softplus, &i.position, &i.angles),
+        (Kind::Parametric(kind), 1) => {
+            if let Some(o) = &model.object {
+                p = Tensor::cat(&[&p, &o.as_tensor().flatten_all()?], 0)?;
+            }
+            (Nets::Parametric { shape: shapes[0].clone(), kind, pairs: i.pairs.clone() }, Head::Brdf, &i.position, &i.position)
+        }
+        (Kind::AdditiveSeparate, 2) => (Nets::Parallel(vec![(shapes[0].clone(), false), (shapes[1].clone(), true)]), additive, &i.position, &i.joint),
+        (Kind::AdditiveShared, 3) => (Nets::Trunked(shapes), additive, &i.position, &i.angles),
+        (kind, n) => candle_core::bail!("fused-step: {n} networks for a {kind:?} model"),
+    };
+    let op = Step { nets: ops, head, batch: BatchConstants::new(&batch.incident, &batch.target, &i.valid)?, grad: Arc::default() };
+    x.contiguous()?.apply_op3(&a.contiguous()?, &p, op)
 }
