@@ -66,7 +66,7 @@ enum Command {
         /// The PyTorch twin script
         #[arg(long, default_value = "benches/torch_reference.py")]
         torch_script: PathBuf,
-        /// Rounds of `steps` steps per architecture (alternating with PyTorch); the best round counts
+        /// Rounds of `steps` steps per architecture (alternating with PyTorch); the median round counts
         #[arg(long, default_value_t = 3)]
         rounds: usize,
         /// Only the architectures whose name contains one of these (comma-separated)
@@ -162,12 +162,8 @@ fn run(cli: Cli) -> trainer::Result<()> {
             if !only.is_empty() {
                 configs.retain(|c| only.iter().any(|o| c.name().contains(o.as_str())));
             }
-            let t = if torch {
-                bench::run_with_torch(&configs, batch, steps, rounds, &torch_script)?
-            } else {
-                bench::run(&configs, batch, steps, rounds)?
-            };
-            bench::print_table(&t);
+            let t = bench::run(&configs, batch, steps, rounds, torch.then_some(torch_script.as_path()))?;
+            bench::print_report(&t);
             if let Some(p) = json {
                 let s = serde_json::to_vec_pretty(&t).map_err(|e| trainer::Error::io(&p, e))?;
                 std::fs::write(&p, s).map_err(|e| trainer::Error::io(&p, e))?;

@@ -25,6 +25,7 @@ use nbrdf::parametric::{Parametric, ParametricKind};
 use nbrdf::Vec3;
 
 use crate::engine::adam::{Adam, AdamParams};
+use super::bench_host::{self, Host, ProductTiming};
 use crate::models::{arch::layers, parametric::initial_object, Config, Inputs, Kind, Model, PositionEncoding, RawBatch};
 use crate::engine::{batch_loss, Batch};
 use crate::train::TrainOptions;
@@ -36,24 +37,64 @@ pub struct StepTiming {
     pub model: String,
     pub n_weights: usize,
     pub batch: usize,
-    /// Forward + backward + Adam: the mean over a round of steps, best round.
+    /// Forward + backward + Adam: the median over rounds of a round's mean step time.
     pub ms_per_step: f64,
+    /// The fastest round's.
+    pub ms_min: f64,
     /// Building the batch's network inputs on the CPU (angle map, encodings), not in `ms_per_step`.
     pub ms_inputs: f64,
-    /// PyTorch's time for the same step (`--torch`), and `ms_per_step / torch_ms_per_step`.
+    /// The flops of the step's dense products ([`product_flops`]) over the median step time.
+    pub gflops: f64,
+    /// PyTorch's median and fastest round for the same step (`--torch`), and the ratio of the medians.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub torch_ms_per_step: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub torch_ms_min: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub ratio: Option<f64>,
 }
 
-/// The issue 8 target: our step at most this fraction of PyTorch's.
-pub const TARGET_RATIO: f64 = 0.7;
+/// The goal: our step at most this fraction of PyTorch's, on the same host and thread count.
+pub const TARGET_RATIO: f64 = 0.5;
+
+/// The flops of a step's dense products for `config` at `batch` rows: per layer of `k` inputs and `m`
+/// outputs, `2·batch·k·m` forward and as many for the weight gradient, and the gradient of the
+/// layer's input where it has one to pass on (every layer but the first of a network on the batch's
+/// inputs); `2` per multiply-add, as GFLOP/s figures count.
+pub fn product_flops(config: &Config, batch: usize) -> f64 {
+    let mut total = 0.0;
+    for (i, net) in config.nets().iter().enumerate() {
+        for (l, (k, m)) in layers(net).into_iter().enumerate() {
+            // A head on a trunk passes its input's trunk part on at layer 0 too.
+            let trunk = config.nets()[0];
+            let passed = if l > 0 { k } else if i > 0 && trunk.n_out == 0 { (trunk.width as usize).min(k) } else { 0 };
+            total += 2.0 * batch as f64 * (2 * k * m + passed * m) as f64;
+        }
+    }
+    total
+}
+
+/// The median of `v` (the mean of the middle two for an even count).
+fn median(v: &[f64]) -> f64 {
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    match s.len() {
+        0 => f64::NAN,
+        n if n % 2 == 1 => s[n / 2],
+        n => 0.5 * (s[n / 2 - 1] + s[n / 2]),
+    }
+}
+
+/// How long the side that just ran is left to go idle before the other is timed: OpenMP's worker
+/// threads spin after a parallel region (the child runs with `OMP_WAIT_POLICY=PASSIVE`, but a build
+/// may ignore it) and rayon's briefly.
+const SETTLE: std::time::Duration = std::time::Duration::from_millis(300);
 
 /// Times one configuration: one warm-up step, then `rounds` rounds of `steps` steps, each round
-/// followed by the same round of PyTorch's step when `torch` is given. A side's time is its fastest
-/// round: on a shared machine a round only gets slower when other work takes the cores, so the
-/// minimum is the least disturbed estimate, and alternating rounds exposes both sides to the same load.
+/// followed by the same round of PyTorch's step when `torch` is given, each side idle while the
+/// other is timed. A side's figure is the median of its rounds' mean step times, with the fastest
+/// beside it: on a host with other work the minimum is the least disturbed estimate, the median what
+/// a user sees; alternating rounds exposes both sides to the same load.
 fn time_config(config: &Config, batch: usize, steps: usize, rounds: usize, mut torch: Option<&mut Torch>) -> Result<StepTiming> {
     crate::train::keep_freed_memory();
     let device = Device::Cpu;
@@ -80,37 +121,78 @@ fn time_config(config: &Config, batch: usize, steps: usize, rounds: usize, mut t
     };
     step()?;
     let name = config.name();
-    let (mut ours, mut theirs) = (f64::INFINITY, None::<f64>);
+    let (mut ours, mut theirs) = (Vec::new(), Vec::new());
     for _ in 0..rounds.max(1) {
         let t = Instant::now();
         for _ in 0..steps {
             step()?;
         }
-        ours = ours.min(t.elapsed().as_secs_f64() * 1e3 / steps.max(1) as f64);
+        ours.push(t.elapsed().as_secs_f64() * 1e3 / steps.max(1) as f64);
         if let Some(py) = torch.as_deref_mut() {
+            std::thread::sleep(SETTLE);
             match py.time(&name) {
-                Ok(ms) => theirs = Some(theirs.map_or(ms, |m: f64| m.min(ms))),
+                Ok(ms) => theirs.push(ms),
                 Err(e) => {
                     eprintln!("PyTorch failed on {name}: {e}");
                     torch = None;
                 }
             }
+            std::thread::sleep(SETTLE);
         }
     }
+    let ms = median(&ours);
+    let torch_ms = (!theirs.is_empty()).then(|| median(&theirs));
     Ok(StepTiming {
         model: name,
         n_weights: config.n_weights(),
         batch,
-        ms_per_step: ours,
+        ms_per_step: ms,
+        ms_min: ours.iter().copied().fold(f64::INFINITY, f64::min),
         ms_inputs,
-        torch_ms_per_step: theirs,
-        ratio: theirs.map(|t| ours / t),
+        gflops: product_flops(config, batch) / (ms * 1e6),
+        torch_ms_per_step: torch_ms,
+        torch_ms_min: (!theirs.is_empty()).then(|| theirs.iter().copied().fold(f64::INFINITY, f64::min)),
+        ratio: torch_ms.map(|t| ms / t),
     })
 }
 
-/// Times `steps` steps (after one warm-up step) of each configuration, best of `rounds` rounds.
-pub fn run(configs: &[Config], batch: usize, steps: usize, rounds: usize) -> Result<Vec<StepTiming>> {
-    configs.iter().map(|c| time_config(c, batch, steps, rounds, None)).collect()
+/// Everything a run measured: the host, the products alone, each architecture's step, and the
+/// PyTorch build it was compared with.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct BenchReport {
+    pub host: Host,
+    pub products: Vec<ProductTiming>,
+    pub steps: Vec<StepTiming>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub torch: Option<TorchBuild>,
+    /// The 1-minute load average when the run ended.
+    pub load_after: Option<f64>,
+}
+
+/// The PyTorch a run compared with.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct TorchBuild {
+    pub version: String,
+    pub threads: usize,
+}
+
+/// The host, then the products and `steps` steps (after one warm-up step) of each configuration,
+/// `rounds` rounds; with `torch` (the twin script) PyTorch's step in alternating rounds. Without
+/// python3 or torch it says how to install it and times ours alone.
+pub fn run(configs: &[Config], batch: usize, steps: usize, rounds: usize, torch: Option<&Path>) -> Result<BenchReport> {
+    let host = Host::measure();
+    if let Some(w) = host.busy() {
+        eprintln!("warning: {w}");
+    }
+    let products = bench_host::products(batch, rounds.max(3), host.fma_peak_gflops);
+    let mut twin = match torch {
+        Some(script) => start_torch(configs, batch, steps, script)?,
+        None => None,
+    };
+    let timings = configs.iter().map(|c| time_config(c, batch, steps, rounds, twin.as_mut())).collect::<Result<Vec<_>>>()?;
+    let torch = twin.as_ref().map(|t| t.build.clone());
+    drop(twin);
+    Ok(BenchReport { host, products, steps: timings, torch, load_after: bench_host::load_average() })
 }
 
 /// The architectures timed by default: every distinct network layout of Tab. 1.
@@ -287,6 +369,7 @@ pub fn bench_spec(configs: &[Config], batch: usize, steps: usize) -> BenchSpec {
 
 /// The running PyTorch twin (`torch_reference.py --serve`).
 struct Torch {
+    build: TorchBuild,
     child: Child,
     stdin: ChildStdin,
     stdout: BufReader<ChildStdout>,
@@ -300,6 +383,8 @@ impl Torch {
             .arg(script)
             .arg(spec)
             .arg("--serve")
+            // Idle threads sleep instead of spinning into our rounds.
+            .env("OMP_WAIT_POLICY", "PASSIVE")
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
             .spawn()
@@ -317,8 +402,8 @@ impl Torch {
             let _ = child.wait();
             return Err(e.as_str().unwrap_or("error").to_string());
         }
-        eprintln!("PyTorch {} on {} threads", v["torch"].as_str().unwrap_or("?"), v["threads"]);
-        Ok(Torch { child, stdin, stdout })
+        let build = TorchBuild { version: v["torch"].as_str().unwrap_or("?").to_string(), threads: v["threads"].as_u64().unwrap_or(0) as usize };
+        Ok(Torch { build, child, stdin, stdout })
     }
 
     /// PyTorch's ms per step of the architecture `model` of the spec.
@@ -342,42 +427,55 @@ impl Drop for Torch {
     }
 }
 
-/// Our step and PyTorch's, alternating rounds per architecture (see `time_config`). Without python3
-/// or torch it prints how to install it and returns our timings alone.
-pub fn run_with_torch(configs: &[Config], batch: usize, steps: usize, rounds: usize, script: &Path) -> Result<Vec<StepTiming>> {
+/// The PyTorch twin serving `configs`, or `None` (said on stderr) where python3 or torch is missing.
+fn start_torch(configs: &[Config], batch: usize, steps: usize, script: &Path) -> Result<Option<Torch>> {
     let spec = bench_spec(configs, batch, steps);
     let spec_path = std::env::temp_dir().join(format!("nbrdf-bench-spec-{}.json", std::process::id()));
     let json = serde_json::to_vec_pretty(&spec).map_err(|e| Error::io(&spec_path, e))?;
     std::fs::write(&spec_path, json).map_err(|e| Error::io(&spec_path, e))?;
     // Kept after the run, so that `python3 benches/torch_reference.py SPEC` can time PyTorch alone.
     eprintln!("architectures for the PyTorch twin: {}", spec_path.display());
-    let mut torch = match Torch::start(script, &spec_path) {
+    Ok(match Torch::start(script, &spec_path) {
         Ok(t) => Some(t),
         Err(e) => {
             eprintln!("PyTorch reference unavailable: {e}\n  install it with `pip install torch`; timing ours only");
             None
         }
-    };
-    let out = configs.iter().map(|c| time_config(c, batch, steps, rounds, torch.as_mut())).collect();
-    drop(torch);
-    out
+    })
 }
 
-/// Prints the table of [`run`] or [`run_with_torch`].
-pub fn print_table(t: &[StepTiming]) {
-    let torch = t.iter().any(|r| r.torch_ms_per_step.is_some());
-    print!("{:<34} {:>10} {:>8} {:>10} {:>10}", "model", "parameters", "batch", "ms/step", "ms inputs");
+/// Prints a [`BenchReport`]: the host, the products, the steps.
+pub fn print_report(r: &BenchReport) {
+    let h = &r.host;
+    println!("host: {} · kernel level {} · {} threads · FMA peak {:.0} GFLOP/s (measured) · load average {}", h.cpu, h.level, h.threads, h.fma_peak_gflops, h.load_before.map_or("?".into(), |l| format!("{l:.2}")));
+    if let Some(t) = &r.torch {
+        println!("PyTorch {} on {} threads, rounds alternating (one side idle while the other runs)", t.version, t.threads);
+    }
+    println!("\n{:<34} {:>27} {:>9} {:>9} {:>7}", "product (hidden layers)", "layers × rows × inner × cols", "ms", "GFLOP/s", "peak");
+    for p in &r.products {
+        let shape = format!("{} × {} × {} × {}", p.layers, p.shape[0], p.shape[1], p.shape[2]);
+        println!("{:<34} {:>27} {:>9.2} {:>9.0} {:>6.0}%", p.product, shape, p.ms, p.gflops, 100.0 * p.peak_share);
+    }
+    let torch = r.steps.iter().any(|t| t.torch_ms_per_step.is_some());
+    print!("\n{:<34} {:>10} {:>7} {:>9} {:>9} {:>9} {:>7} {:>9}", "model", "parameters", "batch", "ms/step", "ms min", "GFLOP/s", "peak", "ms inputs");
     if torch {
-        print!(" {:>10} {:>7} {:>7}", "torch ms", "ratio", "target");
+        print!(" {:>9} {:>9} {:>7} {:>7}", "torch ms", "torch min", "ratio", "goal");
     }
     println!();
-    for r in t {
-        print!("{:<34} {:>10} {:>8} {:>10.1} {:>10.1}", r.model, r.n_weights, r.batch, r.ms_per_step, r.ms_inputs);
-        if let (Some(ms), Some(ratio)) = (r.torch_ms_per_step, r.ratio) {
+    for t in &r.steps {
+        let share = 100.0 * t.gflops / h.fma_peak_gflops;
+        print!("{:<34} {:>10} {:>7} {:>9.1} {:>9.1} {:>9.0} {:>6.0}% {:>9.1}", t.model, t.n_weights, t.batch, t.ms_per_step, t.ms_min, t.gflops, share, t.ms_inputs);
+        if let (Some(ms), Some(min), Some(ratio)) = (t.torch_ms_per_step, t.torch_ms_min, t.ratio) {
             let mark = if ratio <= TARGET_RATIO { "met" } else { "missed" };
-            print!(" {ms:>10.1} {ratio:>7.2} {TARGET_RATIO:>4} {mark}");
+            print!(" {ms:>9.1} {min:>9.1} {ratio:>7.2} {TARGET_RATIO:>4} {mark}");
         }
         println!();
+    }
+    println!("\nms/step: median over rounds (ms min: the fastest); torch likewise; ratio: of the medians.");
+    if let (Some(a), Some(b)) = (h.load_before, r.load_after) {
+        if a.max(b) > 0.5 {
+            println!("load average {a:.2} before, {b:.2} after: other work shared the host; time again on a quiet one.");
+        }
     }
 }
 

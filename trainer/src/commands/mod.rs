@@ -1,5 +1,6 @@
 //! The bodies of the trainer's subcommands; `main.rs` only parses arguments and dispatches here.
 
+pub mod bench_host;
 pub mod bench_step;
 pub mod data;
 pub mod export_shader;
