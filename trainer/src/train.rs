@@ -93,6 +93,33 @@ pub struct TrainLog {
     pub steps_done: usize,
     pub n_weights: usize,
     pub filtered: Option<FilteredLog>,
+    /// The learning curve: the training loss and, where the caller probes, the held-out PSNR at
+    /// [`RunSetup::curve_points`] evenly spaced steps (step 0 included); empty in logs written before.
+    #[serde(default)]
+    pub curve: Vec<CurvePoint>,
+}
+
+/// One point of a learning curve.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct CurvePoint {
+    pub step: usize,
+    /// Training seconds up to this step (the probes' own time excluded).
+    pub wall_s: f64,
+    /// Mean training loss over the steps since the previous point; `None` at step 0.
+    pub train_loss: Option<f32>,
+    /// What the probe measured on held-out data (the study: mean test-view PSNR in dB).
+    pub test_psnr: Option<f64>,
+}
+
+/// The steps at which a curve of `points` intervals over `steps` steps is sampled: `0` and
+/// `round(k·steps/points)` for `k = 1..=points`, without repeats.
+pub fn curve_steps(steps: usize, points: usize) -> Vec<usize> {
+    if points == 0 {
+        return Vec::new();
+    }
+    let mut v: Vec<usize> = (0..=points).map(|k| (k * steps + points / 2) / points).collect();
+    v.dedup();
+    v
 }
 
 /// [`Filtered`] in the log.
@@ -226,11 +253,22 @@ pub struct RunSetup {
     pub resume: Option<Checkpoint>,
     /// Show a progress bar on stderr.
     pub progress: bool,
+    /// Intervals of the learning curve ([`curve_steps`]); 0 records none.
+    pub curve_points: usize,
 }
+
+/// Measures the model on held-out data for the learning curve (the study renders its test views).
+pub type Probe<'a> = &'a mut dyn FnMut(&Model) -> Result<f64>;
 
 /// Fits `model` to `obs` (already sanitized) and returns its log. On a non-finite loss or gradient the
 /// weights keep their last finite values and the error names the last checkpoint.
 pub fn fit(model: &Model, obs: &Observations, opts: &TrainOptions, setup: RunSetup) -> Result<TrainLog> {
+    fit_probed(model, obs, opts, setup, None)
+}
+
+/// [`fit`], calling `probe` at the learning curve's steps ([`RunSetup::curve_points`]); its time is
+/// not counted as training time.
+pub fn fit_probed(model: &Model, obs: &Observations, opts: &TrainOptions, setup: RunSetup, mut probe: Option<Probe<'_>>) -> Result<TrainLog> {
     obs.check()?;
     if obs.is_empty() {
         return Err(Error::Invalid("no training observations left to fit".into()));
@@ -271,8 +309,23 @@ pub fn fit(model: &Model, obs: &Observations, opts: &TrainOptions, setup: RunSet
     bar.set_position(step as u64);
     let start = Instant::now();
     let wall_before = log.wall_s;
+    let mut probing = std::time::Duration::ZERO;
     let mut pixels = 0usize;
     let (mut acc, mut acc_n) = (0.0f64, 0usize);
+    let curve_at = curve_steps(opts.steps, setup.curve_points);
+    let (mut curve_acc, mut curve_n) = (0.0f64, 0usize);
+    let mut record = |step: usize, train_loss: Option<f32>, probing: &mut std::time::Duration, log: &mut TrainLog| -> Result<()> {
+        if !curve_at.contains(&step) || log.curve.last().is_some_and(|c| c.step >= step) {
+            return Ok(());
+        }
+        let t = Instant::now();
+        let test_psnr = probe.as_mut().map(|p| p(model)).transpose()?;
+        *probing += t.elapsed();
+        let wall_s = wall_before + (start.elapsed() - *probing).as_secs_f64();
+        log.curve.push(CurvePoint { step, wall_s, train_loss, test_psnr });
+        Ok(())
+    };
+    record(step, None, &mut probing, &mut log)?;
     let mut last_good = setup.checkpoint.clone().filter(|p| p.exists());
     let write = |step: usize, adam: &Adam, log: &TrainLog| -> Result<()> {
         if let Some(path) = &setup.checkpoint {
@@ -297,7 +350,13 @@ pub fn fit(model: &Model, obs: &Observations, opts: &TrainOptions, setup: RunSet
         pixels += batch.inputs.n;
         acc += loss as f64;
         acc_n += 1;
-        let secs = start.elapsed().as_secs_f64();
+        curve_acc += loss as f64;
+        curve_n += 1;
+        if curve_at.contains(&step) {
+            record(step, Some((curve_acc / curve_n.max(1) as f64) as f32), &mut probing, &mut log)?;
+            (curve_acc, curve_n) = (0.0, 0);
+        }
+        let secs = (start.elapsed() - probing).as_secs_f64();
         if step % opts.log_every.max(1) == 0 || step == opts.steps {
             log.loss.push((step, (acc / acc_n as f64) as f32));
             bar.set_message(format!("loss {:.3e}  {:.0} px/s", acc / acc_n as f64, pixels as f64 / secs.max(1e-9)));
@@ -408,7 +467,7 @@ mod tests {
             bad.radiance[i] = [f32::NAN, 0.1, 0.1];
         }
         bad.radiance[1] = [0.1, 1e30, 0.1];
-        let setup = RunSetup { checkpoint: Some(ckpt.clone()), resume: Some(saved.clone()), progress: false };
+        let setup = RunSetup { checkpoint: Some(ckpt.clone()), resume: Some(saved.clone()), ..Default::default() };
         let err = fit(&model, &bad, &TrainOptions { steps: 10, ..opts.clone() }, setup).unwrap_err();
         match &err {
             Error::NonFinite { step: 5, what: "loss", last_good: Some(p) } => assert_eq!(p, &ckpt),

@@ -51,6 +51,22 @@ fn tiny_study_writes_every_table_and_reuses_jobs() {
             assert_eq!(e.reciprocity_rmse, 0.0, "{}", r.model);
         }
         assert_eq!(e.energy.pairs, 4);
+        // The learning curve: step 0 and 20 points after it (10 steps: each step once), each with the
+        // held-out PSNR, the training loss after step 0, and wall time that never goes back.
+        let steps: Vec<usize> = r.curve.iter().map(|p| p.step).collect();
+        assert_eq!(steps, (0..=10).collect::<Vec<_>>(), "{}", r.model);
+        assert!(r.curve.iter().all(|p| p.test_psnr.is_some_and(f64::is_finite)), "{}", r.model);
+        assert!(r.curve[0].train_loss.is_none() && r.curve[1..].iter().all(|p| p.train_loss.is_some()));
+        assert!(r.curve.windows(2).all(|w| w[0].wall_s <= w[1].wall_s));
+        // The curve's last PSNR is the evaluation's: the same renderings, scored the same way.
+        let last = r.curve.last().unwrap().test_psnr.unwrap();
+        assert!((last - e.image.psnr).abs() < 1e-6, "{}: curve {last} vs evaluation {}", r.model, e.image.psnr);
+        // The data set was exposed like a capture: the configured median luminance unless that would
+        // saturate more than 2 % of the object (both measured on one view's probe, so the whole data
+        // set lands near, not on, the bound).
+        let x = r.exposure.expect("synth records the exposure");
+        assert!(x.median_luminance > 0.01 && x.median_luminance < 0.3, "{}: {x:?}", r.model);
+        assert!(x.saturated_share < 0.06, "{x:?}");
         assert!(e.eval_ns_per_query > 0.0 && r.size_bytes > 0 && r.train_wall_s > 0.0);
         assert!(e.eval_batch_ns_per_query.is_some_and(|ns| ns > 0.0), "{}: batched timing", r.model);
         // Neural models also get an f16 copy: smaller, and close to the f32 one in quality.
@@ -65,7 +81,7 @@ fn tiny_study_writes_every_table_and_reuses_jobs() {
         }
     }
     let report = std::fs::read_to_string(out.join("REPORT.md")).unwrap();
-    for heading in ["## Tab. 1", "## Tab. 2", "## Tab. 3", "## Tab. 4", "## Accuracy versus cost", "## Renderings", "Reduced scale"] {
+    for heading in ["## Tab. 1", "## Learning curves", "Exposure of the renders", "## Tab. 2", "## Tab. 3", "## Tab. 4", "## Accuracy versus cost", "## Renderings", "Reduced scale"] {
         assert!(report.contains(heading), "missing {heading}:\n{report}");
     }
     let section = |h: &str| {
@@ -104,6 +120,10 @@ fn tiny_study_writes_every_table_and_reuses_jobs() {
     assert!(loaded.eval.eval_batch_ns_per_query.is_none());
     let json = serde_json::to_string(&results[1]).unwrap();
     assert!(serde_json::from_str::<study::JobResult>(&json[..json.len() / 2]).is_err());
+    // One learning-curve figure per object, with a line per Tab. 1 variant.
+    assert!(report.contains("figures/curves-sphere__two-lobe-metal.png"));
+    let curves = image::open(out.join("figures/curves-sphere__two-lobe-metal.png")).unwrap().to_rgb8();
+    assert_eq!(curves.dimensions(), (1400, 560));
     // The figures: Pareto plots and, per object, best parametric and best neural comparisons.
     for plot in ["figures/pareto-train.png", "figures/pareto-eval.png", "figures/pareto-eval-batch.png"] {
         assert!(report.contains(plot), "{plot} not linked");

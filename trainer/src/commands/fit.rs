@@ -163,6 +163,9 @@ impl Outputs {
     }
 }
 
+/// Intervals of the learning curve every fit records (21 points with step 0).
+pub const CURVE_POINTS: usize = 20;
+
 /// Sanitizes `obs`, fits `config` (resuming from the checkpoint in `out_dir` when `resume`), and writes
 /// the outputs. Returns the log.
 pub fn run(
@@ -173,6 +176,22 @@ pub fn run(
     resume: bool,
     progress: bool,
     position_table: Option<&[f32]>,
+) -> Result<train::TrainLog> {
+    run_probed(config, obs, opts, out_dir, resume, progress, position_table, None)
+}
+
+/// [`run`], recording the learning curve's training loss at [`CURVE_POINTS`] intervals and, with a
+/// `probe`, its held-out measure too.
+#[allow(clippy::too_many_arguments)]
+pub fn run_probed(
+    config: Config,
+    obs: Observations,
+    opts: &TrainOptions,
+    out_dir: &Path,
+    resume: bool,
+    progress: bool,
+    position_table: Option<&[f32]>,
+    probe: Option<train::Probe<'_>>,
 ) -> Result<train::TrainLog> {
     std::fs::create_dir_all(out_dir).map_err(|e| Error::io(out_dir, e))?;
     let outputs = Outputs::in_dir(out_dir, &config);
@@ -185,7 +204,8 @@ pub fn run(
     }
     let model = Model::init(config, opts.seed, &Device::Cpu)?;
     let resume = if resume && outputs.checkpoint.exists() { Some(Checkpoint::load(&outputs.checkpoint)?) } else { None };
-    let mut log = train::fit(&model, &obs, opts, RunSetup { checkpoint: Some(outputs.checkpoint.clone()), resume, progress })?;
+    let setup = RunSetup { checkpoint: Some(outputs.checkpoint.clone()), resume, progress, curve_points: CURVE_POINTS };
+    let mut log = train::fit_probed(&model, &obs, opts, setup, probe)?;
     log.filtered = Some((&filtered).into());
     crate::models::export::save(&model, &outputs.model, position_table)?;
     let log_json = serde_json::to_vec_pretty(&log).map_err(|e| Error::io(&outputs.log, e))?;

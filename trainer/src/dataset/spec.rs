@@ -121,6 +121,36 @@ pub struct DatasetFile {
     pub counts: Counts,
     /// Views, in order.
     pub views: Vec<ViewSpec>,
+    /// How bright the renders came out (absent in data sets written before it was recorded, and in
+    /// captured ones).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub exposure: Option<ExposureSpec>,
+}
+
+/// Radiance at which a channel counts as saturated: the top of the sRGB range the images are viewed
+/// and scored in, where a camera's sensor would clip.
+pub const SATURATED: f32 = 1.0;
+
+/// The exposure of a rendered data set, over the object's pixels of every image.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ExposureSpec {
+    /// Light intensity `L_i` every image was rendered with.
+    pub light_intensity: f32,
+    /// Median Rec. 709 luminance of the object's pixels (noise included).
+    pub median_luminance: f32,
+    /// Share (0-1) of object pixels with a channel at or above [`SATURATED`].
+    pub saturated_share: f64,
+}
+
+impl ExposureSpec {
+    /// Median of `v` (NaN for none; the upper middle value for an even count).
+    pub fn median(v: &mut [f32]) -> f32 {
+        if v.is_empty() {
+            return f32::NAN;
+        }
+        let m = v.len() / 2;
+        *v.select_nth_unstable_by(m, f32::total_cmp).1
+    }
 }
 
 pub(crate) fn rows(m: glam::Mat3) -> [[f32; 3]; 3] {

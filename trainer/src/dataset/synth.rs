@@ -17,7 +17,7 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use super::material::MaterialSpec;
-use super::spec::{self, Counts, DatasetFile, ImageSpec, LightSpec, NormalizationSpec, ViewSpec};
+use super::spec::{self, Counts, DatasetFile, ExposureSpec, ImageSpec, LightSpec, NormalizationSpec, ViewSpec, SATURATED};
 use super::{err, load_mesh, mesh_spec, Split};
 
 /// Arguments of `synth` (paper defaults, Sec. 5.3).
@@ -58,8 +58,14 @@ pub struct SynthArgs {
     #[arg(long, default_value_t = 40.0)]
     pub fov: f32,
     /// Light intensity L_i (all channels).
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, conflicts_with = "target_median")]
     pub light_intensity: f32,
+    /// Instead of --light-intensity: choose the intensity so that the object's median luminance is
+    /// this (0.1-0.3 looks like a well-exposed capture), but dimmer where that would saturate more than
+    /// [`MAX_SATURATED`] of the object's pixels, as a photographer exposes for the highlights; measured
+    /// on a noise-free probe of the first view.
+    #[arg(long)]
+    pub target_median: Option<f32>,
     /// Cast shadow rays even on a convex mesh (they change nothing; for checking).
     #[arg(long)]
     pub force_shadows: bool,
@@ -88,6 +94,7 @@ impl SynthArgs {
             seed: 0,
             fov: 40.0,
             light_intensity: 1.0,
+            target_median: None,
             force_shadows: false,
             verbose: false,
             quiet: false,
@@ -127,6 +134,9 @@ impl SynthArgs {
         }
         if !(self.light_intensity.is_finite() && self.light_intensity > 0.0) {
             return Err(err("--light-intensity", "must be positive"));
+        }
+        if self.target_median.is_some_and(|m| !(m.is_finite() && m > 0.0 && m <= 100.0)) {
+            return Err(err("--target-median", "must lie in (0, 100]"));
         }
         Ok(())
     }
@@ -184,6 +194,52 @@ pub fn hemisphere_lights(rng: &mut ChaCha8Rng, toward_camera: Vec3, count: usize
         .collect()
 }
 
+/// Rec. 709 luminance of linear RGB.
+pub fn luminance(c: [f32; 3]) -> f32 {
+    0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
+}
+
+/// Longest side of the calibration probe: the median needs the object's shading, not its detail.
+const PROBE_SIZE: u32 = 96;
+
+/// Share of object pixels a calibrated exposure lets saturate at most: measured captures clip a few
+/// specular highlights, not whole lobes.
+pub const MAX_SATURATED: f32 = 0.02;
+
+/// The light intensity that gives the object a median luminance of `target` over the images of one
+/// view (noise-free, at most [`PROBE_SIZE`]² pixels), or the dimmer one that saturates
+/// [`MAX_SATURATED`] of its pixels: rendering is linear in the intensity, so one probe at intensity 1
+/// fixes both.
+fn calibrate_intensity(
+    geometry: &Geometry,
+    camera_at: impl Fn(u32) -> Result<Camera, Error>,
+    lights: &[DirectionalLight],
+    material: &super::material::Material,
+    target: f32,
+) -> Result<f32, Error> {
+    let camera = camera_at(PROBE_SIZE)?;
+    let unit: Vec<DirectionalLight> = lights.iter().filter_map(|l| DirectionalLight::new(l.direction, [1.0; 3])).collect();
+    let options = RenderOptions { noise_sigma: 0.0, ..RenderOptions::default() };
+    let probe = render_view(geometry, &camera, &unit, |_, wi, wo| material.eval(wi, wo), &options);
+    let mask: Vec<bool> = probe.gbuffer.samples.iter().map(Option::is_some).collect();
+    let mut lum: Vec<f32> =
+        probe.images.iter().flat_map(|im| im.radiance.iter().zip(&mask).filter(|(_, m)| **m).map(|(c, _)| luminance(*c))).collect();
+    let median = ExposureSpec::median(&mut lum);
+    if !(median.is_finite() && median > 0.0) {
+        return Err(err("--target-median", "the object's median luminance is 0 (a black material, or the mesh is not in view)"));
+    }
+    // The brightest channel of the pixel at the (1 - MAX_SATURATED) quantile maps to SATURATED.
+    let mut peak: Vec<f32> =
+        probe.images.iter().flat_map(|im| im.radiance.iter().zip(&mask).filter(|(_, m)| **m).map(|(c, _)| c[0].max(c[1]).max(c[2]))).collect();
+    let q = (((1.0 - MAX_SATURATED) * peak.len() as f32) as usize).min(peak.len() - 1);
+    let bright = *peak.select_nth_unstable_by(q, f32::total_cmp).1;
+    let by_highlights = if bright > 0.0 { SATURATED / bright } else { f32::INFINITY };
+    Ok((target / median).min(by_highlights))
+}
+
+/// Object pixels sampled per image for the exposure statistics (a stride over the mask).
+const STATS_PER_IMAGE: usize = 4096;
+
 /// Renders and writes the data set; returns its description and one render report per view.
 pub fn synthesize(args: &SynthArgs) -> Result<(DatasetFile, Vec<RenderReport>), Error> {
     args.check()?;
@@ -218,16 +274,33 @@ pub fn synthesize(args: &SynthArgs) -> Result<(DatasetFile, Vec<RenderReport>), 
     );
     bar.set_message("synth");
 
+    // Meshes in OBJ files are mostly y-up: keep world +y up in the image where possible.
+    let camera_of = |d: Vec3, size: u32| {
+        let up = if d.y.abs() > 0.99 { Vec3::Z } else { Vec3::Y };
+        Camera::look_at(d * distance, Vec3::ZERO, up, fov, size, size)
+    };
+    let lights_of = |i: usize, d: Vec3, intensity: f32| {
+        let count = if split_of(i, args.train_views, n) == Split::Train { args.train_lights } else { args.test_lights };
+        let mut light_rng = ChaCha8Rng::seed_from_u64(mix(args.seed, 1 + i as u64));
+        hemisphere_lights(&mut light_rng, d, count, intensity)
+    };
+    let intensity = match args.target_median {
+        None => args.light_intensity,
+        Some(target) => {
+            let d0 = dirs[0];
+            calibrate_intensity(&geometry, |s| camera_of(d0, s.min(args.size)), &lights_of(0, d0, 1.0), &material, target)?
+        }
+    };
+    let mut luminances = Vec::new();
+    let (mut saturated, mut object_pixels) = (0usize, 0usize);
+
     let mut views = Vec::with_capacity(n);
     let mut reports = Vec::with_capacity(n);
     for (i, d) in dirs.iter().enumerate() {
         let split = split_of(i, args.train_views, n);
-        // Meshes in OBJ files are mostly y-up: keep world +y up in the image where possible.
-        let up = if d.y.abs() > 0.99 { Vec3::Z } else { Vec3::Y };
-        let camera = Camera::look_at(*d * distance, Vec3::ZERO, up, fov, args.size, args.size)?;
-        let count = if split == Split::Train { args.train_lights } else { args.test_lights };
-        let mut light_rng = ChaCha8Rng::seed_from_u64(mix(args.seed, 1 + i as u64));
-        let lights = hemisphere_lights(&mut light_rng, *d, count, args.light_intensity);
+        let camera = camera_of(*d, args.size)?;
+        let lights = lights_of(i, *d, intensity);
+        let count = lights.len();
         let options = RenderOptions {
             shadows: if args.force_shadows { ShadowPass::Force } else { ShadowPass::Auto },
             noise_sigma: args.sigma,
@@ -239,6 +312,13 @@ pub fn synthesize(args: &SynthArgs) -> Result<(DatasetFile, Vec<RenderReport>), 
         std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, &e))?;
         let mask: Vec<bool> = rendered.gbuffer.samples.iter().map(Option::is_some).collect();
         write_png_mask(dir.join("mask.png"), args.size, args.size, &mask)?;
+        let on_object: Vec<usize> = (0..mask.len()).filter(|&p| mask[p]).collect();
+        let stride = on_object.len().div_ceil(STATS_PER_IMAGE).max(1);
+        for img in &rendered.images {
+            saturated += on_object.iter().filter(|&&p| img.radiance[p].iter().any(|&c| c >= SATURATED)).count();
+            object_pixels += on_object.len();
+            luminances.extend(on_object.iter().step_by(stride).map(|&p| luminance(img.radiance[p])));
+        }
         let mut images = Vec::with_capacity(count);
         for (li, (light, img)) in lights.iter().zip(&rendered.images).enumerate() {
             let radiance = dir_rel.join(format!("{li:03}.exr"));
@@ -291,6 +371,11 @@ pub fn synthesize(args: &SynthArgs) -> Result<(DatasetFile, Vec<RenderReport>), 
             test_lights: args.test_lights,
         },
         views,
+        exposure: Some(ExposureSpec {
+            light_intensity: intensity,
+            median_luminance: ExposureSpec::median(&mut luminances),
+            saturated_share: saturated as f64 / object_pixels.max(1) as f64,
+        }),
     };
     file.validate()?;
     file.write(out)?;
@@ -307,6 +392,14 @@ pub fn run(args: &SynthArgs) -> Result<DatasetFile, Error> {
         println!("view 00:\n{}", r.summary());
     }
     println!("shadow rays in all views: {shadow_rays}");
+    if let Some(e) = &file.exposure {
+        println!(
+            "light intensity {:.4}: object median luminance {:.3}, {:.2}% of object pixels saturated (a channel >= {SATURATED})",
+            e.light_intensity,
+            e.median_luminance,
+            100.0 * e.saturated_share
+        );
+    }
     Ok(file)
 }
 

@@ -111,7 +111,9 @@ pub fn evaluate(
                 let (cl, cv) = (frame.to_local(im.light.direction).z, frame.to_local(g.view).z);
                 pred_brdf.push(out.brdf[p]);
                 ref_brdf.push(truth.data[p]);
-                keep.push(brdf_rmse::keep(cl, cv, false));
+                // As the paper: values of saturated reference pixels are left out.
+                let saturated = reference.data[p].iter().any(|&c| c >= crate::dataset::spec::SATURATED);
+                keep.push(brdf_rmse::keep(cl, cv, saturated));
             }
         }
     }
@@ -242,6 +244,56 @@ fn ns_per_round(rounds: usize, mut round: impl FnMut(usize)) -> f64 {
         }
     }
     t.elapsed().as_nanos() as f64 / done as f64
+}
+
+/// The test views of a data set, their references in sRGB loaded once: the learning curve's probe,
+/// scored with the same PSNR (sRGB, masked to the object) as [`evaluate`], on renderings of the
+/// training model exported as [`evaluate`] would read it (without the sampling proxy, which `eval`
+/// does not use).
+pub struct TestViews<'a> {
+    ds: &'a Dataset,
+    /// `(index into ds.views, sRGB reference per light)`.
+    views: Vec<(usize, Vec<RgbImage>)>,
+}
+
+impl<'a> TestViews<'a> {
+    /// Loads the references of every test view of `ds`.
+    pub fn load(ds: &'a Dataset) -> Result<TestViews<'a>> {
+        let mut views = Vec::new();
+        for (i, view) in ds.views.iter().enumerate().filter(|(_, v)| v.split == Split::Test) {
+            let refs = view.images.iter().map(|im| im.load().map(|r| crate::metrics::to_srgb(&r))).collect::<std::result::Result<Vec<_>, _>>();
+            views.push((i, refs.map_err(Error::Core)?));
+        }
+        if views.iter().all(|(_, r)| r.is_empty()) {
+            return Err(Error::Invalid("the data set has no test images".into()));
+        }
+        Ok(TestViews { ds, views })
+    }
+
+    /// Mean test-image PSNR (dB) of the model file `bytes`.
+    pub fn psnr(&self, bytes: &[u8]) -> Result<f64> {
+        let buf = ModelBuf::from_bytes(bytes).map_err(Error::Core)?;
+        let model = buf.model();
+        let (mut sum, mut n) = (0.0, 0usize);
+        for (i, refs) in &self.views {
+            let view = &self.ds.views[*i];
+            let lights: Vec<_> = view.images.iter().map(|im| im.light).collect();
+            let eval = |s: &SurfaceSample, wi, wo| model.eval(&prepare_at(&model, self.ds, s), wi, wo);
+            let rendered = render_view(&self.ds.geometry, &view.camera, &lights, eval, &RenderOptions::default());
+            for (reference, out) in refs.iter().zip(&rendered.images) {
+                let test = RgbImage::from_data(view.camera.width, view.camera.height, out.radiance.clone()).map_err(Error::Core)?;
+                sum += crate::metrics::psnr::psnr(reference, &crate::metrics::to_srgb(&test), Some(&view.mask));
+                n += 1;
+            }
+        }
+        Ok(sum / n as f64)
+    }
+
+    /// [`TestViews::psnr`] of a training model, its per-vertex `position_table` travelling with it.
+    pub fn psnr_of(&self, model: &crate::models::Model, position_table: Option<&[f32]>) -> Result<f64> {
+        let bytes = nbrdf::file::encode(&model.config.header(), &model.weights()?, position_table).map_err(Error::Core)?;
+        self.psnr(&bytes)
+    }
 }
 
 /// The first image of the first test view: reference, the model's rendering (Eq. 9, as in

@@ -149,6 +149,80 @@ pub fn pareto_plot(path: &Path, title: &str, cost_label: &str, accuracy_label: &
     write_png(path, width, height, &rgb)
 }
 
+/// One variant's learning curve: `(step, training seconds, test PSNR)` per point.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Curve {
+    pub label: String,
+    pub points: Vec<(f64, f64, f64)>,
+}
+
+/// Distinct line colours (Okabe–Ito's colour-blind-safe set, then darker tones), cycled.
+const PALETTE: [RGBColor; 10] = [
+    RGBColor(0, 114, 178),
+    RGBColor(213, 94, 0),
+    RGBColor(0, 158, 115),
+    RGBColor(204, 121, 167),
+    RGBColor(86, 180, 233),
+    RGBColor(230, 159, 0),
+    RGBColor(0, 0, 0),
+    RGBColor(120, 60, 20),
+    RGBColor(90, 90, 160),
+    RGBColor(150, 150, 150),
+];
+
+/// Plots test PSNR against training steps (left panel) and against training wall time (right
+/// panel) for every curve; writes a `1400×560` PNG to `path`.
+pub fn curve_plot(path: &Path, title: &str, curves: &[Curve]) -> Result<()> {
+    register_font()?;
+    let (width, height) = (1400u32, 560u32);
+    let mut rgb = vec![255u8; (width * height * 3) as usize];
+    let plot_err = |e: &dyn std::fmt::Display| Error::Invalid(format!("plot {}: {e}", path.display()));
+    let finite = |c: &Curve| c.points.iter().filter(|p| p.2.is_finite()).copied().collect::<Vec<_>>();
+    {
+        let root = BitMapBackend::with_buffer(&mut rgb, (width, height)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| plot_err(&e))?;
+        let root = root.titled(title, (FAMILY, 20)).map_err(|e| plot_err(&e))?;
+        let panels = root.split_evenly((1, 2));
+        let yr = lin_range(curves.iter().flat_map(|c| finite(c).into_iter().map(|p| p.2)));
+        for (panel, by_time) in panels.iter().zip([false, true]) {
+            let x = |p: &(f64, f64, f64)| if by_time { p.1 } else { p.0 };
+            let xmax = curves.iter().flat_map(|c| finite(c).into_iter().map(|p| x(&p))).fold(0.0f64, f64::max).max(1e-9);
+            let mut chart = ChartBuilder::on(panel)
+                .margin(14)
+                .x_label_area_size(40)
+                .y_label_area_size(56)
+                .build_cartesian_2d(0.0..xmax * 1.02, yr.clone())
+                .map_err(|e| plot_err(&e))?;
+            chart
+                .configure_mesh()
+                .x_desc(if by_time { "training wall time (s)" } else { "training step" })
+                .y_desc("test PSNR (dB)")
+                .label_style((FAMILY, 14))
+                .draw()
+                .map_err(|e| plot_err(&e))?;
+            for (i, c) in curves.iter().enumerate() {
+                let colour = PALETTE[i % PALETTE.len()];
+                let pts: Vec<(f64, f64)> = finite(c).iter().map(|p| (x(p), p.2)).collect();
+                chart
+                    .draw_series(LineSeries::new(pts, colour.stroke_width(2)))
+                    .map_err(|e| plot_err(&e))?
+                    .label(c.label.clone())
+                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], colour.stroke_width(2)));
+            }
+            chart
+                .configure_series_labels()
+                .position(SeriesLabelPosition::LowerRight)
+                .label_font((FAMILY, 12))
+                .background_style(WHITE.mix(0.8))
+                .border_style(BLACK)
+                .draw()
+                .map_err(|e| plot_err(&e))?;
+        }
+        root.present().map_err(|e| plot_err(&e))?;
+    }
+    write_png(path, width, height, &rgb)
+}
+
 /// Enlargement of the comparison images: the study renders small (64²), too small to inspect.
 pub const ZOOM: u32 = 4;
 

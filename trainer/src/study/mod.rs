@@ -50,6 +50,14 @@ pub struct JobResult {
     pub eval_f16: Option<Evaluation>,
     #[serde(default)]
     pub size_bytes_f16: Option<u64>,
+    /// The learning curve: training loss and mean test-view PSNR at ~20 points of the run (empty in
+    /// results written before it was recorded).
+    #[serde(default)]
+    pub curve: Vec<crate::train::CurvePoint>,
+    /// The scene's data set exposure (light intensity, median luminance, saturated share), when
+    /// its description records one.
+    #[serde(default)]
+    pub exposure: Option<crate::dataset::spec::ExposureSpec>,
 }
 
 /// Which jobs this process runs: job `j` (in scene-major order) belongs to shard `j % count`.
@@ -166,6 +174,16 @@ pub fn run(config: &StudyConfig, out: &Path, shard: Option<Shard>, progress: boo
         checkpoint_every: config.steps.max(1),
         ..TrainOptions::default()
     };
+    for (key, v) in [("lambda_diffuse", config.lambda_diffuse), ("lambda_specular", config.lambda_specular)] {
+        if v.is_some_and(|v| !(v.is_finite() && v >= 0.0)) {
+            return Err(Error::Invalid(format!("study config key {key:?}: {v:?} must be finite and non-negative")));
+        }
+    }
+    let opts = TrainOptions {
+        lambda_diffuse: config.lambda_diffuse.unwrap_or(opts.lambda_diffuse),
+        lambda_specular: config.lambda_specular.unwrap_or(opts.lambda_specular),
+        ..opts
+    };
     let mine: Vec<(usize, usize)> = jobs(config)
         .into_iter()
         .enumerate()
@@ -187,6 +205,7 @@ pub fn run(config: &StudyConfig, out: &Path, shard: Option<Shard>, progress: boo
         let ds = Dataset::open(&dir).map_err(Error::Core)?;
         let args = DataArgs { dataset: Some(dir.clone()), diligent: None, object: String::new(), pixel_stride: config.pixel_stride };
         let mut training: Option<data::TrainingData> = None;
+        let mut test_views: Option<evaluate::TestViews> = None;
         for m in here {
             let (spec, model_config) = (&config.models[m], configs[m]);
             let name = model_config.name();
@@ -205,7 +224,13 @@ pub fn run(config: &StudyConfig, out: &Path, shard: Option<Shard>, progress: boo
             }
             let t = training.as_ref().expect("just loaded");
             bar.doing(format!("{} / {name}: fitting {} steps", scene.id(), config.steps));
-            let log = fit::run(model_config, t.obs.clone(), &opts, &jdir, false, false, t.position_table.as_deref())?;
+            let table = t.position_table.as_deref();
+            if test_views.is_none() {
+                test_views = Some(evaluate::TestViews::load(&ds)?);
+            }
+            let views = test_views.as_ref().expect("just loaded");
+            let mut probe = |m: &crate::models::Model| views.psnr_of(m, table);
+            let log = fit::run_probed(model_config, t.obs.clone(), &opts, &jdir, false, false, table, Some(&mut probe))?;
             bar.doing(format!("{} / {name}: evaluating", scene.id()));
             let model_path = fit::Outputs::in_dir(&jdir, &model_config).model;
             let eval = evaluate::evaluate(&ds, &model_path, &lpips, config)?;
@@ -232,6 +257,8 @@ pub fn run(config: &StudyConfig, out: &Path, shard: Option<Shard>, progress: boo
                 eval,
                 eval_f16,
                 size_bytes_f16,
+                curve: log.curve.clone(),
+                exposure: ds.description.as_ref().and_then(|d| d.exposure),
             };
             let json = serde_json::to_vec_pretty(&r).map_err(|e| Error::io(&result_path, e))?;
             crate::train::write_atomic(&result_path, &json)?;

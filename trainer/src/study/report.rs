@@ -29,6 +29,11 @@ pub struct ModelSummary {
     pub energy_share_above_one: f64,
     /// Mean over objects of the median violating albedo; `None` when no object violates.
     pub energy_median_above_one: Option<f64>,
+    /// Smallest excess over 1 the energy test can see for a typical pair: `z` times the mean standard
+    /// error of the albedo estimates, averaged over objects.
+    pub energy_detectable_excess: f64,
+    /// Mean worst-channel albedo over the pairs, averaged over objects.
+    pub energy_mean_albedo: f64,
     pub train_wall_s: f64,
     pub eval_ns_per_query: f64,
     /// Batched evaluation ns per query (`None` unless every object has it).
@@ -83,6 +88,8 @@ pub fn summarize(results: &[JobResult]) -> Vec<ModelSummary> {
                 brdf_rmse_cbrt: mean(rs.iter().map(|r| r.eval.brdf_rmse_cbrt.value)),
                 reciprocity_rmse: mean(rs.iter().map(|r| r.eval.reciprocity_rmse)),
                 energy_share_above_one: mean(rs.iter().map(|r| r.eval.energy.share_above_one)),
+                energy_detectable_excess: mean(rs.iter().map(|r| r.eval.energy.z * r.eval.energy.mean_standard_error)),
+                energy_mean_albedo: mean(rs.iter().map(|r| r.eval.energy.mean_albedo)),
                 energy_median_above_one: (!medians.is_empty()).then(|| mean(medians.into_iter())),
                 train_wall_s: mean(rs.iter().map(|r| r.train_wall_s)),
                 eval_ns_per_query: mean(rs.iter().map(|r| r.eval.eval_ns_per_query)),
@@ -289,12 +296,38 @@ pub fn pareto_plots(out: &Path, config: &StudyConfig, results: &[JobResult]) -> 
     Ok(written)
 }
 
+/// One learning-curve figure per object over its Tab. 1 variants that recorded a curve
+/// (`figures/curves-<scene>.png`). Returns their titles and paths relative to `out`.
+pub fn curve_plots(out: &Path, config: &StudyConfig, results: &[JobResult]) -> Result<Vec<(String, std::path::PathBuf)>> {
+    let mut written = Vec::new();
+    for scene in &config.scenes {
+        let id = scene.id();
+        let curves: Vec<figures::Curve> = results
+            .iter()
+            .filter(|r| r.scene == id && in_tab1(&r.model, config) && r.curve.iter().any(|p| p.test_psnr.is_some()))
+            .map(|r| figures::Curve {
+                label: short_label(&r.model, config),
+                points: r.curve.iter().filter_map(|p| Some((p.step as f64, p.wall_s, p.test_psnr?))).collect(),
+            })
+            .collect();
+        if curves.is_empty() {
+            continue;
+        }
+        let rel = std::path::PathBuf::from(format!("figures/curves-{id}.png"));
+        let title = format!("Learning curves, {} / {}", scene.mesh, scene.material);
+        figures::curve_plot(&out.join(&rel), &title, &curves)?;
+        written.push((title, rel));
+    }
+    Ok(written)
+}
+
 /// The Markdown report; `plots` and `comparisons` are the figures to link (paths relative to the
 /// report).
 pub fn markdown(
     config: &StudyConfig,
     results: &[JobResult],
     plots: &[(String, std::path::PathBuf)],
+    curves: &[(String, std::path::PathBuf)],
     comparisons: &[Comparison],
 ) -> String {
     let s = summarize(results);
@@ -357,6 +390,49 @@ pub fn markdown(
             opt(m.lpips, 100.0, 2),
             m.flip * 100.0
         );
+    }
+
+    let exposures: Vec<String> = config
+        .scenes
+        .iter()
+        .filter_map(|sc| {
+            let e = results.iter().find(|r| r.scene == sc.id())?.exposure?;
+            Some(format!(
+                "{} / {}: light intensity {:.3}, median object luminance {:.3}, {:.1} % of object pixels saturated",
+                sc.mesh,
+                sc.material,
+                e.light_intensity,
+                e.median_luminance,
+                100.0 * e.saturated_share
+            ))
+        })
+        .collect();
+    if !exposures.is_empty() {
+        let _ = writeln!(
+            md,
+            "\nExposure of the renders (a channel at or above {} counts as saturated; saturated pixels are left out of RMSE∛, \
+             as in the paper):\n",
+            crate::dataset::spec::SATURATED
+        );
+        for e in exposures {
+            let _ = writeln!(md, "- {e}");
+        }
+    }
+
+    let _ = writeln!(md, "\n## Learning curves\n");
+    if curves.is_empty() {
+        let _ = writeln!(md, "None recorded (results written before the fits recorded their curves).");
+    } else {
+        let _ = writeln!(
+            md,
+            "Mean test-view PSNR of every Tab. 1 variant at {} points of its run, against training steps (left) and \
+             training wall time (right; the probes' own time excluded). A curve still rising at its last point would gain \
+             from more steps. The points, with the training loss, are in `results.json` (`jobs[].curve`).\n",
+            crate::commands::fit::CURVE_POINTS + 1
+        );
+        for (title, path) in curves {
+            let _ = writeln!(md, "![{title}]({})", path.display());
+        }
     }
 
     let _ = writeln!(md, "\n## Tab. 2 — number of layers the directions pass through (NOL)\n");
@@ -424,16 +500,27 @@ pub fn markdown(
     }
 
     let _ = writeln!(md, "\n## Tab. 4 — energy conservation\n");
-    let _ = writeln!(md, "Tab. 1 rows. Share of point-light pairs whose albedo is above 1 by more than 3 standard errors, and the median albedo of those.\n");
-    let _ = writeln!(md, "| model | % > 1 | μ.5 > 1 |");
-    let _ = writeln!(md, "|---|---:|---:|");
+    let _ = writeln!(
+        md,
+        "Tab. 1 rows. Share of point-light pairs whose albedo is above 1 by more than 3 standard errors, and the median \
+         albedo of those. What the test can see: with {} pairs per object a share below {:.2} % is one pair or none, and \
+         with {} view samples per pair an excess over 1 is detected once it exceeds 3 standard errors of the estimate, \
+         the column \"detectable\" (mean over pairs and objects). A 0 means no violation of that size, not none at all.\n",
+        config.energy_pairs,
+        100.0 / config.energy_pairs.max(1) as f64,
+        config.energy_samples
+    );
+    let _ = writeln!(md, "| model | % > 1 | μ.5 > 1 | mean albedo | detectable excess |");
+    let _ = writeln!(md, "|---|---:|---:|---:|---:|");
     for m in &tab1 {
         let _ = writeln!(
             md,
-            "| {} | {:.1} | {} |",
+            "| {} | {:.1} | {} | {:.3} | {:.3} |",
             m.model,
             m.energy_share_above_one * 100.0,
-            m.energy_median_above_one.map_or("all valid".into(), |v| format!("{v:.3}"))
+            m.energy_median_above_one.map_or("all valid".into(), |v| format!("{v:.3}")),
+            m.energy_mean_albedo,
+            m.energy_detectable_excess
         );
     }
 
@@ -580,8 +667,9 @@ pub fn csv(results: &[JobResult]) -> String {
 pub fn write(out: &Path, config: &StudyConfig, results: &[JobResult], comparisons: &[Comparison]) -> Result<()> {
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let plots = pareto_plots(out, config, results)?;
+    let curves = curve_plots(out, config, results)?;
     let put = |name: &str, bytes: &[u8]| crate::train::write_atomic(&out.join(name), bytes);
-    put("REPORT.md", markdown(config, results, &plots, comparisons).as_bytes())?;
+    put("REPORT.md", markdown(config, results, &plots, &curves, comparisons).as_bytes())?;
     put("results.csv", csv(results).as_bytes())?;
     let json = serde_json::json!({ "config": config, "summary": summarize(results), "jobs": results });
     put("results.json", &serde_json::to_vec_pretty(&json).map_err(|e| Error::io(out, e))?)?;
