@@ -776,7 +776,7 @@ fn fit_with_intrinsic_32_runs_on_a_scan_with_islands_and_non_manifold_edges() {
         .find(|p| p.extension().is_some_and(|x| x == "nbrdf"))
         .expect("a .nbrdf model file");
     let buf = nbrdf::ModelBuf::load(&model).unwrap();
-    let header = buf.model().header().clone();
+    let header = *buf.model().header();
     // One row per vertex of the mesh as loaded (the loader may drop the trailing unreferenced one).
     let loaded = nbrdf::scene::Mesh::load(&obj).unwrap();
     assert_eq!(header.n_vertices as usize, loaded.positions.len());
