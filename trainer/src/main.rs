@@ -30,6 +30,9 @@ enum Command {
     Inspect(trainer::dataset::DataArgs),
     /// Fit one model variant and write the model, checkpoint and training log
     Fit(commands::fit::FitArgs),
+    /// Score a linear EXR rendering against a reference with the study's image metrics (PSNR, DSSIM,
+    /// LPIPS, HDR-FLIP), optionally over an object mask
+    Compare(commands::compare::CompareArgs),
     /// Write a fitted model (or an NBRDF-json network) as a self-contained GPU shader (docs/shader.md)
     ExportShader {
         /// The .nbrdf model or NBRDF-json network
@@ -151,6 +154,7 @@ fn run(cli: Cli) -> trainer::Result<()> {
                 outputs.model.parent().unwrap_or(&outputs.model).display()
             );
         }
+        Command::Compare(args) => commands::compare::run(&args)?,
         Command::ExportShader { model, lang, out, weights } => commands::export_shader::run(&model, &lang, &out, weights.as_deref())?,
         Command::Models { position } => {
             print!("{}", commands::models::table(commands::parse_position(&position)?));

@@ -188,3 +188,102 @@ fn tiny_study_writes_every_table_and_reuses_jobs() {
     };
     assert_eq!(names(&merged), names(&results));
 }
+
+/// `results.json` without what depends on the machine's load: every field whose name says it is a
+/// wall time or a timing (`train_wall_s`, `eval_ns_per_query`, `prepare_ns_per_point`, …).
+fn without_timings(mut v: serde_json::Value) -> serde_json::Value {
+    match &mut v {
+        serde_json::Value::Object(map) => {
+            map.retain(|k, _| !(k.contains("wall") || k.contains("_ns_per_")));
+            for x in map.values_mut() {
+                *x = without_timings(x.take());
+            }
+        }
+        serde_json::Value::Array(items) => {
+            for x in items.iter_mut() {
+                *x = without_timings(x.take());
+            }
+        }
+        _ => {}
+    }
+    v
+}
+
+/// Scale-out as `scripts/study-slurm.sh` does it, with a stand-in `sbatch` that runs each array task in
+/// turn (with its `SLURM_ARRAY_TASK_ID`) and then the merge job: the shards synthesize their own copies
+/// of the data set and fit their jobs in separate processes, and the merged `results.json` must equal
+/// that of one unsharded run in everything but timings. Synthesis, training and evaluation are
+/// deterministic (fixed seeds), so the metrics agree exactly, not just closely.
+#[cfg(unix)]
+#[test]
+fn sharded_by_the_slurm_script_and_merged_equals_one_unsharded_run() {
+    use std::os::unix::fs::PermissionsExt;
+    use std::process::Command;
+    let dir = tempfile::tempdir().unwrap();
+    let config = StudyConfig { models: vec![ModelSpec::new("rp"), ModelSpec::new("single-mlp")], ..tiny() };
+    let config_path = dir.path().join("config.json");
+    std::fs::write(&config_path, serde_json::to_vec_pretty(&config).unwrap()).unwrap();
+    let trainer = env!("CARGO_BIN_EXE_trainer");
+
+    let one = dir.path().join("one");
+    let status = Command::new(trainer).args(["study", "--config"]).arg(&config_path).arg("--out").arg(&one).status().unwrap();
+    assert!(status.success(), "unsharded run: {status}");
+
+    let bin = dir.path().join("bin");
+    std::fs::create_dir(&bin).unwrap();
+    let sbatch = bin.join("sbatch");
+    std::fs::write(
+        &sbatch,
+        r#"#!/usr/bin/env bash
+# Stand-in for Slurm's sbatch: runs the job now (every array task in turn), prints a job id.
+array=
+while [ "${1#--}" != "$1" ]; do
+    case $1 in --array=*) array=${1#--array=} ;; esac
+    shift
+done
+if [ -n "$array" ]; then
+    for i in $(seq "${array%-*}" "${array#*-}"); do SLURM_ARRAY_TASK_ID=$i bash "$@" >&2 || exit 1; done
+else
+    bash "$@" >&2 || exit 1
+fi
+echo 4242
+"#,
+    )
+    .unwrap();
+    std::fs::set_permissions(&sbatch, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let script = concat!(env!("CARGO_MANIFEST_DIR"), "/../scripts/study-slurm.sh");
+    let sharded = dir.path().join("sharded");
+    let path = format!("{}:{}", bin.display(), std::env::var("PATH").unwrap_or_default());
+    let out = Command::new("bash")
+        .arg(script)
+        .arg(&config_path)
+        .arg(&sharded)
+        .arg("2")
+        .arg("--time=00:10:00")
+        .env("PATH", path)
+        .env("TRAINER", trainer)
+        .output()
+        .unwrap();
+    let said = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "script: {said}\n{}", String::from_utf8_lossy(&out.stderr));
+    assert!(said.contains("array job 4242") && said.contains("merge job 4242"), "{said}");
+
+    let read = |d: &std::path::Path| -> serde_json::Value {
+        serde_json::from_slice(&std::fs::read(d.join("results.json")).unwrap()).unwrap()
+    };
+    // Each shard ran one of the two jobs, each into its own folder.
+    for (i, model) in ["rp", "single-mlp+exact"].iter().enumerate() {
+        let shard = read(&sharded.join(format!("shard-{i}")));
+        let jobs = shard["jobs"].as_array().unwrap();
+        assert_eq!(jobs.len(), 1, "shard {i}");
+        assert_eq!(jobs[0]["model"], *model, "shard {i}");
+    }
+    let (single, merged) = (read(&one), read(&sharded));
+    assert_eq!(merged["jobs"].as_array().unwrap().len(), 2);
+    assert!(merged["jobs"][1]["eval"]["image"]["psnr"].as_f64().unwrap() > 5.0, "a real fit, not a blank");
+    assert_eq!(without_timings(merged), without_timings(single));
+    assert!(sharded.join("REPORT.md").is_file());
+    // Joined in any folder order, the jobs come out in the config's order, as one run lists them.
+    let (_, reversed) = study::report::merge(&[sharded.join("shard-1"), sharded.join("shard-0")]).unwrap();
+    assert_eq!(reversed.iter().map(|r| r.model.as_str()).collect::<Vec<_>>(), ["rp", "single-mlp+exact"]);
+}

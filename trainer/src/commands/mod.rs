@@ -2,6 +2,7 @@
 
 pub mod bench_host;
 pub mod bench_step;
+pub mod compare;
 pub mod data;
 pub mod export_shader;
 pub mod fit;

@@ -10,7 +10,7 @@
 //! | 16 | 8 | key `u64`: [`cache_key`] of the mesh and k |
 //! | 24 | 4 | n_vertices `u32` |
 //! | 28 | 4 | k `u32` |
-//! | 32 | 8k | eigenvalues `f64`, ascending, the constant one dropped |
+//! | 32 | 8k | eigenvalues `f64`, ascending, the per-component constants (zeros) dropped |
 //! | 32 + 8k | 4nk | per-vertex values `f32`, row-major `[n_vertices × k]` |
 //! | end − 4 | 4 | CRC-32 (IEEE) of every byte before it |
 //!
@@ -27,7 +27,7 @@ pub const MAGIC: [u8; 8] = *b"NBRDFLBE";
 /// Format version written and read.
 pub const VERSION: u32 = 1;
 /// Bumped whenever a change to assembly or solver changes the numbers, so old caches are not reused.
-pub const SOLVER_VERSION: u32 = 1;
+pub const SOLVER_VERSION: u32 = 2;
 const HEADER_LEN: usize = 32;
 
 /// Key of a mesh and k: 64-bit FNV-1a over the solver version, the exact bits of the positions, the

@@ -1,5 +1,11 @@
 //! The smallest eigenpairs of the generalised problem L φ = λ M φ, L the cotangent stiffness and M the
-//! lumped mass matrix (see [`laplacian`](super::laplacian)).
+//! lumped mass matrix (see [`laplacian`](super::laplacian)), with L's null space deflated.
+//!
+//! Null space: L φ = 0 exactly for the functions constant on each connected component, so a mesh with
+//! c components (a scan with a few loose islands, say) has the eigenvalue 0 c times, with an arbitrary,
+//! rounding-dependent basis. Both solvers therefore work on the M-orthogonal complement of those
+//! functions (known in closed form from the component labels) and return the smallest *non-zero*
+//! eigenvalues: no eigenfunction carries a per-component constant.
 //!
 //! Method: shift-invert **block Lanczos** with full reorthogonalisation in the M inner product. With
 //! K = L + sM, s > 0 (the shift σ = −s of the usual "L − σM" notation), K is symmetric positive definite
@@ -23,7 +29,8 @@
 //! iteration with Rayleigh–Ritz, tried second, is simpler but needed ~15× more triangular solves:
 //! 57 s instead of 18 s for the bunny on the shared build machine.)
 //!
-//! Small problems are solved densely instead (faer's symmetric eigendecomposition of `M^{-1/2} L M^{-1/2}`).
+//! Small problems are solved densely instead (faer's symmetric eigendecomposition of `M^{-1/2} L M^{-1/2}`,
+//! its null space moved to the top of the spectrum by Hotelling deflation).
 //! Everything runs sequentially from a fixed pseudo-random start block, so results are bitwise
 //! reproducible on one machine.
 
@@ -50,11 +57,27 @@ pub const MAX_SOLVER_BYTES: usize = 4 << 30;
 /// convergence (the rate depends on `λ + s`). Any s > 0 keeps K = L + sM positive definite.
 pub const SHIFT_FRACTION: f64 = 1e-2;
 
-/// A pair has converged when `‖L x − λ M x‖_{M⁻¹} ≤ TOLERANCE · (λ_max_wanted + s)` with x M-unit.
-/// Why this value: the residual is formed with the exact sparse L, so its floor is about
-/// ε·‖K‖ ≈ 2e-16·λ_max(mesh), a few 1e-13 of the wanted eigenvalues even on the finest meshes here;
-/// 1e-10 stays clear of it while making the eigenvectors far more accurate than their `f32` table.
-pub const TOLERANCE: f64 = 1e-10;
+/// A pair has converged when `‖L x − λ M x‖_{M⁻¹} ≤ TOLERANCE · (λ_max_wanted + s)` with x M-unit
+/// (or, on an ill-conditioned mesh, when it is within [`FLOOR_SAFETY`] of the rounding floor).
+/// Why this value: the residual is scale-free (L does not change when the mesh is scaled by α, M and x
+/// scale by α² and 1/α, λ by 1/α²), so no mass normalisation is needed; an eigenvector's error is at
+/// most the residual over the relative gap to the next eigenvalue, so 1e-8 puts the error of any
+/// eigenvector with a gap above 20 % at or below the 6e-8 rounding of the `f32` table it is stored in,
+/// and within a near-multiple cluster only mixes members of the cluster, which span the same space.
+/// (It also admits the 3.65e-9 at which a scanned mesh stopped under the former 1e-10.)
+pub const TOLERANCE: f64 = 1e-8;
+
+/// A pair has also converged when its residual is at most this multiple of the rounding floor
+/// `ε (‖C‖ + s)`, C = M^{-1/2} L M^{-1/2} (‖C‖ bounded by Gershgorin,
+/// [`CotanLaplacian::norm_bound`]): the backward error of the solves with the factor of L + sM, below
+/// which no Krylov method can push the residual. Why it matters: a sliver of height h·len gives
+/// cotangents ~1/h at vertices of mass ~h·len², so ‖C‖ grows like 1/h²; a scan with slivers of
+/// h = 1e-4 (of their edge) has a floor of ~3e-7 of λ_k, and the residual stagnates at ~25 × that.
+/// The pairs are nonetheless accurate: there they agree with the dense solver's to 1e-12 (eigenvalues)
+/// and 1e-15 (subspaces), since the M⁻¹ norm magnifies the rounding at the slivers' tiny-mass
+/// vertices rather than an error. Why 300: room above the measured 20–30 ×, while a pair that
+/// Lanczos has not converged yet sits orders of magnitude higher.
+pub const FLOOR_SAFETY: f64 = 300.0;
 
 /// Block size b: the largest exact eigenvalue multiplicity found without relying on rounding. Why 8:
 /// exact multiplicities come from symmetry, and the irreducible representations of the 3D point
@@ -90,13 +113,14 @@ pub enum Method {
     },
 }
 
-/// The `count` smallest eigenpairs, ascending.
+/// The `count` smallest eigenpairs on the complement of the null space, ascending.
 #[derive(Debug, Clone)]
 pub struct Eigenpairs {
-    /// Eigenvalues λ, ascending; each the Rayleigh quotient φᵀLφ / φᵀMφ of its vector.
+    /// Eigenvalues λ > 0, ascending; each the Rayleigh quotient φᵀLφ / φᵀMφ of its vector.
     pub values: Vec<f64>,
-    /// Eigenvectors φ as columns (active vertices × count), M-orthonormal. Sign convention: the entry of
-    /// largest magnitude (first one on ties) is positive.
+    /// Eigenvectors φ as columns (active vertices × count), M-orthonormal and M-orthogonal to the
+    /// indicator of every connected component. Sign convention: the entry of largest magnitude (first
+    /// one on ties) is positive.
     pub vectors: Mat<f64>,
     /// How they were computed.
     pub method: Method,
@@ -114,8 +138,8 @@ pub enum Solver {
     ShiftInvertLanczos,
 }
 
-/// Computes the `count` smallest eigenpairs of L φ = λ M φ with [`Solver::Auto`]. `count` must be in
-/// `1..=lap.len()`.
+/// Computes the `count` smallest non-zero eigenpairs of L φ = λ M φ with [`Solver::Auto`]. `count` must
+/// be in `1..=lap.len() − lap.components()`: a component of n_c vertices has n_c − 1 of them.
 pub fn smallest_eigenpairs(lap: &CotanLaplacian, count: usize) -> Result<Eigenpairs, Error> {
     smallest_eigenpairs_with(lap, count, Solver::Auto)
 }
@@ -123,11 +147,9 @@ pub fn smallest_eigenpairs(lap: &CotanLaplacian, count: usize) -> Result<Eigenpa
 /// [`smallest_eigenpairs`] with a chosen solver.
 pub fn smallest_eigenpairs_with(lap: &CotanLaplacian, count: usize, solver: Solver) -> Result<Eigenpairs, Error> {
     let n = lap.len();
-    if count == 0 || count > n {
-        return Err(Error::InvalidK {
-            k: count.saturating_sub(1),
-            max: n.saturating_sub(1),
-        });
+    let max = n.saturating_sub(lap.components());
+    if count == 0 || count > max {
+        return Err(Error::InvalidK { k: count, max });
     }
     if lap.mass().iter().any(|&m| !(m > 0.0 && m.is_finite())) {
         // Cannot happen for an assembled valid mesh; guards the square roots below.
@@ -135,7 +157,7 @@ pub fn smallest_eigenpairs_with(lap: &CotanLaplacian, count: usize, solver: Solv
             reason: "mass matrix has a non-positive or non-finite entry".into(),
         });
     }
-    let too_big = max_basis(count) >= n;
+    let too_big = max_basis(count) >= max;
     let use_dense = match solver {
         Solver::Auto => n <= DENSE_MAX_VERTICES || too_big,
         Solver::Dense => true,
@@ -152,7 +174,7 @@ pub fn smallest_eigenpairs_with(lap: &CotanLaplacian, count: usize, solver: Solv
         });
     }
     let (mut values, mut vectors, method) = if use_dense {
-        let (values, vectors) = dense(lap, count)?;
+        let (values, vectors) = dense(lap, count, max)?;
         (values, vectors, Method::Dense)
     } else {
         let shift = SHIFT_FRACTION * 8.0 * std::f64::consts::PI / lap.mass().iter().sum::<f64>();
@@ -182,55 +204,29 @@ pub fn smallest_eigenpairs_with(lap: &CotanLaplacian, count: usize, solver: Solv
     })
 }
 
-/// Makes the null space of a disconnected mesh canonical.
-///
-/// With c > 1 connected components the eigenvalue 0 has multiplicity c (the locally constant
-/// functions), and any solver returns an arbitrary, rounding-dependent basis of that space. Replace the
-/// first `min(c, count)` pairs by a fixed one: the global constant first (the function the encoding
-/// drops, as on a connected mesh), then the M-orthonormalised (Gram–Schmidt) indicators of components
-/// 1, 2, …, so that the kept "which part am I on" functions do not depend on rounding. `component` is
-/// the label of each vertex, as from [`validate`](super::mesh::validate).
-pub fn canonicalize_null_space(pairs: &mut Eigenpairs, component: &[u32], components: usize, mass: &[f64]) {
-    if components < 2 {
-        return;
-    }
-    let mut area = vec![0.0f64; components];
-    for (&label, &m) in component.iter().zip(mass) {
-        area[label as usize] += m;
-    }
-    let inner = |a: &[f64], b: &[f64]| a.iter().zip(b).zip(&area).map(|((x, y), w)| x * y * w).sum::<f64>();
-    // Piecewise constant functions, as their value on each component.
-    let candidates = std::iter::once(vec![1.0; components]).chain((1..components).map(|i| {
-        let mut e = vec![0.0; components];
-        e[i] = 1.0;
-        e
-    }));
-    let mut basis: Vec<Vec<f64>> = Vec::new();
-    for mut f in candidates.take(components.min(pairs.values.len())) {
-        for b in &basis {
-            let p = inner(&f, b);
-            f.iter_mut().zip(b).for_each(|(x, y)| *x -= p * y);
-        }
-        let norm = inner(&f, &f).sqrt();
-        f.iter_mut().for_each(|x| *x /= norm);
-        basis.push(f);
-    }
-    for (j, f) in basis.iter().enumerate() {
-        for (i, &label) in component.iter().enumerate() {
-            pairs.vectors[(i, j)] = f[label as usize];
-        }
-        pairs.values[j] = 0.0;
-    }
-}
-
-/// Dense path: eigendecomposition of the symmetric `M^{-1/2} L M^{-1/2}`.
-fn dense(lap: &CotanLaplacian, count: usize) -> Result<(Vec<f64>, Mat<f64>), Error> {
+/// Dense path: eigendecomposition of the symmetric `C = M^{-1/2} L M^{-1/2}` plus `τ Σ_c u_c u_cᵀ`, u_c
+/// the unit null vector `M^{1/2} 1_c / √area_c` of component c (Hotelling deflation). τ exceeds every
+/// eigenvalue of C, so the null space moves to the top of the spectrum and the `count ≤ wanted_max`
+/// smallest pairs are the non-zero ones.
+fn dense(lap: &CotanLaplacian, count: usize, wanted_max: usize) -> Result<(Vec<f64>, Mat<f64>), Error> {
     let n = lap.len();
-    let inv_sqrt: Vec<f64> = lap.mass().iter().map(|m| 1.0 / m.sqrt()).collect();
+    let mass = lap.mass();
+    let inv_sqrt: Vec<f64> = mass.iter().map(|m| 1.0 / m.sqrt()).collect();
     let mut c = Mat::<f64>::zeros(n, n);
+    let mut row_sum = vec![0.0f64; n]; // Gershgorin: every eigenvalue of C is ≤ max_i Σ_j |C_ij|
     for &(row, col, value) in lap.stiffness_entries() {
         let (r, k) = (row as usize, col as usize);
         c[(r, k)] = value * inv_sqrt[r] * inv_sqrt[k];
+        row_sum[r] += c[(r, k)].abs();
+    }
+    let tau = 2.0 * row_sum.iter().fold(0.0, |a: f64, &b| a.max(b)) + 1.0;
+    let (label, area) = (lap.component(), lap.component_area());
+    for j in 0..n {
+        for i in 0..n {
+            if label[i] == label[j] {
+                c[(i, j)] += tau * (mass[i] * mass[j]).sqrt() / area[label[i] as usize];
+            }
+        }
     }
     let evd = c.self_adjoint_eigen(Side::Lower).map_err(|e| Error::NotConverged {
         wanted: count,
@@ -241,9 +237,14 @@ fn dense(lap: &CotanLaplacian, count: usize) -> Result<(Vec<f64>, Mat<f64>), Err
     let u = evd.U();
     let mut order: Vec<usize> = (0..n).collect();
     order.sort_by(|&a, &b| s[a].total_cmp(&s[b]));
+    debug_assert!(count <= wanted_max);
     let order = &order[..count];
     let values = order.iter().map(|&j| s[j]).collect();
-    let vectors = Mat::from_fn(n, count, |i, j| u[(i, order[j])] * inv_sqrt[i]);
+    let mut vectors = Mat::from_fn(n, count, |i, j| u[(i, order[j])] * inv_sqrt[i]);
+    // Exact in exact arithmetic; removes the rounding-level constants the decomposition leaves.
+    for j in 0..count {
+        lap.project_out_constants(vectors.col_as_slice_mut(j));
+    }
     Ok((values, vectors))
 }
 
@@ -268,7 +269,7 @@ fn block_lanczos(lap: &CotanLaplacian, count: usize, shift: f64) -> Result<(Vec<
     let d_max = max_basis(count).min(n);
     let mut v = Mat::<f64>::zeros(n, d_max);
     let mut t = Mat::<f64>::zeros(d_max, d_max);
-    let mut d = append_orthonormal(&mut v, 0, start_block(n, BLOCK.min(d_max)), mass);
+    let mut d = append_orthonormal(&mut v, 0, start_block(n, BLOCK.min(d_max)), lap);
     let mut applied = 0usize; // leading columns of V whose image under A is in T
     let mut solves = 0usize;
     // Shift-invert Lanczos needs a basis of about 4–5 × count here; checks before 2 × count would
@@ -303,7 +304,7 @@ fn block_lanczos(lap: &CotanLaplacian, count: usize, shift: f64) -> Result<(Vec<
             }
             applied = d;
             if d < d_max {
-                d = append_orthonormal(&mut v, d, w, mass);
+                d = append_orthonormal(&mut v, d, w, lap);
             }
         }
         if applied >= count && (applied >= next_check || exhausted || d == applied) {
@@ -332,7 +333,8 @@ fn block_lanczos(lap: &CotanLaplacian, count: usize, shift: f64) -> Result<(Vec<
 
 /// The `count` Ritz pairs of largest θ from the projected `T = Vᵀ M A V` (its leading `dim` block),
 /// as eigenpairs of the original problem (λ = 1/θ − s), if all have a relative residual within
-/// [`TOLERANCE`]; otherwise `Err` with the residual that failed.
+/// [`TOLERANCE`] or [`FLOOR_SAFETY`] times the rounding floor; otherwise `Err` with the relative
+/// residual that failed.
 ///
 /// The wanted pair of largest λ converges last (Lanczos converges from the ends of the spectrum
 /// inwards), so its residual alone is checked first: that costs one basis combination instead of
@@ -346,7 +348,6 @@ fn rayleigh_ritz(
     shift: f64,
 ) -> Result<(Vec<f64>, Mat<f64>), f64> {
     let n = lap.len();
-    let mass = lap.mass();
     let tt = Mat::from_fn(dim, dim, |i, j| 0.5 * (t[(i, j)] + t[(j, i)]));
     let evd = tt.self_adjoint_eigen(Side::Lower).map_err(|_| f64::INFINITY)?;
     let theta = evd.S().column_vector();
@@ -364,13 +365,11 @@ fn rayleigh_ritz(
         })
         .collect();
     let scale = values[count - 1] + shift;
-    let mut lx = vec![0.0; n];
-    let mut residual = |x: &[f64], lambda: f64| {
-        lap.apply_stiffness(x, &mut lx);
-        let r2: f64 = (0..n)
-            .map(|i| (lx[i] - lambda * mass[i] * x[i]).powi(2) / mass[i])
-            .sum();
-        let r = r2.sqrt() / scale;
+    let floor = f64::EPSILON * (lap.norm_bound() + shift);
+    let tolerance = TOLERANCE.max(FLOOR_SAFETY * floor / scale);
+    // Relative to the largest wanted λ + s; NaN maps to infinity so the comparisons are total.
+    let relative = |x: &[f64], lambda: f64| {
+        let r = residual(lap, x, lambda) / scale;
         if r.is_finite() {
             r
         } else {
@@ -384,26 +383,38 @@ fn rayleigh_ritz(
         x
     };
     let last = combine(&order[count - 1..count]);
-    let r = residual(last.col_as_slice(0), values[count - 1]);
-    // `residual` maps NaN to infinity, so this comparison is total.
-    if r > TOLERANCE {
+    let r = relative(last.col_as_slice(0), values[count - 1]);
+    if r > tolerance {
         return Err(r);
     }
     let x = combine(&order[..count]);
     let worst = (0..count)
-        .map(|j| residual(x.col_as_slice(j), values[j]))
+        .map(|j| relative(x.col_as_slice(j), values[j]))
         .fold(0.0, f64::max);
-    if worst <= TOLERANCE {
+    if worst <= tolerance {
         Ok((values, x))
     } else {
         Err(worst)
     }
 }
 
-/// M-orthogonalises the columns of `w` against `v[:, ..d]` and among themselves, twice, drops the
-/// directions that do not survive ([`DEFLATION`]), stores the rest in `v[:, d..]` (as many as fit) and
-/// returns the new column count.
-fn append_orthonormal(v: &mut Mat<f64>, d: usize, w: Mat<f64>, mass: &[f64]) -> usize {
+/// `‖L x − λ M x‖_{M⁻¹}`: the M⁻¹ norm because the residual is a load (an integrated quantity), which
+/// makes `residual / (λ ‖x‖_M)` independent of the mesh's resolution and scale.
+pub fn residual(lap: &CotanLaplacian, x: &[f64], lambda: f64) -> f64 {
+    let mass = lap.mass();
+    let mut lx = vec![0.0; x.len()];
+    lap.apply_stiffness(x, &mut lx);
+    (0..x.len())
+        .map(|i| (lx[i] - lambda * mass[i] * x[i]).powi(2) / mass[i])
+        .sum::<f64>()
+        .sqrt()
+}
+
+/// M-orthogonalises the columns of `w` against L's null space, against `v[:, ..d]` and among themselves,
+/// twice, drops the directions that do not survive ([`DEFLATION`]), stores the rest in `v[:, d..]` (as
+/// many as fit) and returns the new column count.
+fn append_orthonormal(v: &mut Mat<f64>, d: usize, w: Mat<f64>, lap: &CotanLaplacian) -> usize {
+    let mass = lap.mass();
     let mut w = w;
     let mut floor = (0..w.ncols())
         .map(|j| w.col_as_slice(j).iter().zip(mass).map(|(x, m)| m * x * x).sum::<f64>())
@@ -411,6 +422,10 @@ fn append_orthonormal(v: &mut Mat<f64>, d: usize, w: Mat<f64>, mass: &[f64]) -> 
         * DEFLATION
         * DEFLATION;
     for _pass in 0..2 {
+        // The null space is A's dominant eigenspace (θ = 1/s), so rounding would let it grow back.
+        for j in 0..w.ncols() {
+            lap.project_out_constants(w.col_as_slice_mut(j));
+        }
         if d > 0 {
             let mw = scale_rows(w.as_ref(), mass);
             let mut c = Mat::<f64>::zeros(d, w.ncols());

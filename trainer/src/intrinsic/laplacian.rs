@@ -4,7 +4,9 @@
 //! encoding solve L φ = λ M φ (Koestler et al. 2022, Sec. 3).
 //!
 //! Both are assembled in `f64` on a [`ValidMesh`], i.e. in compact numbering
-//! without isolated vertices and degenerate triangles.
+//! without isolated vertices and degenerate triangles. The operator also keeps the mesh's connected
+//! components: L's null space is exactly the functions constant on each component, which the
+//! eigensolver projects out.
 
 use super::mesh::{cross_edges, dot, norm, sub, ValidMesh};
 
@@ -16,6 +18,10 @@ pub struct CotanLaplacian {
     entries: Vec<(u32, u32, f64)>,
     /// Diagonal of M, one positive value per active vertex.
     mass: Vec<f64>,
+    /// Connected component of each active vertex, labels `0..component_area.len()`.
+    component: Vec<u32>,
+    /// Σ M_ii over each component: its area.
+    component_area: Vec<f64>,
 }
 
 impl CotanLaplacian {
@@ -88,7 +94,16 @@ impl CotanLaplacian {
                 _ => merged.push((row, col, value)),
             }
         }
-        Self { entries: merged, mass }
+        let mut component_area = vec![0.0f64; mesh.report.components];
+        for (&c, &m) in mesh.component.iter().zip(&mass) {
+            component_area[c as usize] += m;
+        }
+        Self {
+            entries: merged,
+            mass,
+            component: mesh.component.clone(),
+            component_area,
+        }
     }
 
     /// Number of (active) vertices, the size of L and M.
@@ -109,6 +124,45 @@ impl CotanLaplacian {
     /// Diagonal of the lumped mass matrix M.
     pub fn mass(&self) -> &[f64] {
         &self.mass
+    }
+
+    /// Connected component of each vertex, labels `0..components()`.
+    pub fn component(&self) -> &[u32] {
+        &self.component
+    }
+
+    /// Number of connected components: the dimension of L's null space.
+    pub fn components(&self) -> usize {
+        self.component_area.len()
+    }
+
+    /// Area of each connected component (Σ M_ii over its vertices).
+    pub fn component_area(&self) -> &[f64] {
+        &self.component_area
+    }
+
+    /// Subtracts from `x` its M-weighted mean on each component: the M-orthogonal projection onto the
+    /// complement of L's null space (the locally constant functions).
+    pub fn project_out_constants(&self, x: &mut [f64]) {
+        let mut mean = vec![0.0f64; self.component_area.len()];
+        for ((&c, &m), &v) in self.component.iter().zip(&self.mass).zip(x.iter()) {
+            mean[c as usize] += m * v;
+        }
+        mean.iter_mut().zip(&self.component_area).for_each(|(s, a)| *s /= a);
+        for (v, &c) in x.iter_mut().zip(&self.component) {
+            *v -= mean[c as usize];
+        }
+    }
+
+    /// An upper bound on the largest eigenvalue of L φ = λ M φ, i.e. on ‖M^{-1/2} L M^{-1/2}‖₂
+    /// (Gershgorin: the largest absolute row sum of that matrix). Sets the rounding floor of the
+    /// eigensolver's residuals; huge on meshes with slivers.
+    pub fn norm_bound(&self) -> f64 {
+        let mut row = vec![0.0f64; self.mass.len()];
+        for &(r, c, value) in &self.entries {
+            row[r as usize] += value.abs() / (self.mass[r as usize] * self.mass[c as usize]).sqrt();
+        }
+        row.into_iter().fold(0.0, f64::max)
     }
 
     /// `y = L x`.

@@ -16,6 +16,17 @@ use super::Error;
 /// order 1e8 into the stiffness matrix and ruin the conditioning of the factorisation.
 pub const DEGENERATE_RATIO: f64 = 1e-8;
 
+/// A triangle whose height over its longest edge is at most this many `f32` rounding units
+/// (`f32::EPSILON` times its largest coordinate magnitude) is degenerate too.
+///
+/// Why: [`DEGENERATE_RATIO`] compares the area with the triangle's own size, but rounding moves each
+/// coordinate by up to half a unit of the *coordinate's* magnitude. A vertex placed on an edge (a
+/// T-junction, a zero-area triangle in exact arithmetic) ends up a few 1e-8 off it, which on an edge a
+/// tenth of the coordinates' size is a ratio of ~4e-7: kept by the ratio test, it is a needle whose
+/// cotangents (~1e7) make the eigenproblem as ill-conditioned as f64 allows. Four units: the most two
+/// roundings of three coordinates move a point off a line, with room.
+pub const DEGENERATE_ULPS: f64 = 4.0;
+
 /// What validation found: counts the caller may want to log or assert on.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MeshReport {
@@ -23,15 +34,15 @@ pub struct MeshReport {
     pub n_vertices: usize,
     /// Triangles in the input.
     pub n_triangles: usize,
-    /// Triangles dropped: repeated vertex indices or (near) zero area, see [`DEGENERATE_RATIO`].
+    /// Triangles dropped: repeated vertex indices or (near) zero area, see [`DEGENERATE_RATIO`] and
+    /// [`DEGENERATE_ULPS`].
     pub degenerate_triangles: usize,
-    /// Vertices referenced by no kept triangle. They take no part in the eigenproblem and get the value
-    /// 0 in every eigenfunction.
+    /// Vertices referenced by no kept triangle (unreferenced, or only in degenerate triangles). They
+    /// take no part in the eigenproblem and get the value 0 in every eigenfunction.
     pub isolated_vertices: usize,
-    /// Connected components of the kept triangles. With `c > 1` components the operator has `c` zero
-    /// eigenvalues (piecewise constant functions); only the global constant is dropped, the other
-    /// `c − 1` stay in the encoding as canonical "which component" functions
-    /// ([`canonicalize_null_space`](super::eigen::canonicalize_null_space)).
+    /// Connected components of the kept triangles (triangles sharing a vertex are connected). With `c`
+    /// components the operator has `c` zero eigenvalues (the piecewise constant functions), all of
+    /// which the eigensolver projects out.
     pub components: usize,
     /// Total area of the kept triangles, in squared mesh units.
     pub total_area: f64,
@@ -141,7 +152,11 @@ fn is_degenerate(p: [[f64; 3]; 3]) -> bool {
         .map(|e| dot(*e, *e))
         .fold(0.0, f64::max);
     // Positions are finite (checked before) and f32-sized, so nothing here overflows f64 or is NaN.
-    norm(cross_edges(p)) <= DEGENERATE_RATIO * longest
+    let double_area = norm(cross_edges(p));
+    let magnitude = p.iter().flatten().fold(0.0f64, |m, c| m.max(c.abs()));
+    // height = 2·area / longest edge, compared without dividing (longest may be 0).
+    double_area <= DEGENERATE_RATIO * longest
+        || double_area <= DEGENERATE_ULPS * f64::from(f32::EPSILON) * magnitude * longest.sqrt()
 }
 
 /// Connected component of each vertex (union–find over the kept triangles), labelled 0, 1, … in the
@@ -230,6 +245,19 @@ mod tests {
         assert_eq!(mesh.report.degenerate_triangles, 2);
         assert_eq!(mesh.report.isolated_vertices, 2);
         assert_eq!(mesh.active, vec![0, 1, 2, 3]);
+    }
+
+    #[test]
+    fn a_vertex_rounded_next_to_an_edge_makes_a_degenerate_triangle() {
+        // The f32 midpoint of an edge is off the edge by rounding only: zero area in exact arithmetic.
+        let (a, b) = ([0.3f32, 0.7, -0.1], [0.41f32, 0.62, 0.05]);
+        let mid: [f32; 3] = std::array::from_fn(|c| 0.5 * (a[c] + b[c]));
+        let mesh = validate(&[a, mid, b, [0.3, 0.9, 0.0]], &[[0, 1, 2], [0, 2, 3]]).unwrap();
+        assert_eq!((mesh.report.degenerate_triangles, mesh.report.isolated_vertices), (1, 1));
+        // A thin but real triangle (height 1e-5, ~100 rounding units of its coordinates) is kept.
+        let apex = [mid[0], mid[1], mid[2] + 1e-5];
+        let thin = validate(&[a, apex, b, [0.3, 0.9, 0.0]], &[[0, 1, 2], [0, 2, 3]]).unwrap();
+        assert_eq!(thin.report.degenerate_triangles, 0);
     }
 
     #[test]

@@ -8,6 +8,20 @@
 //! L φ = λ M φ by shift-invert block Lanczos on a sparse Cholesky factor; [`cache`] keeps the result on disk
 //! per mesh and k. [`extrinsic()`] is the baseline encoding of the 3D point itself.
 //!
+//! Any triangle soup with at least one non-degenerate triangle has an encoding, as scanned meshes must:
+//! - several connected components (one constant eigenfunction each): all the per-component constants
+//!   are dropped, and the k smallest non-zero eigenvalues kept, so each eigenfunction lives on one
+//!   component (or a few with equal eigenvalues) and integrates to zero on each;
+//! - tiny islands: their eigenvalues grow like 1/area, so none is among the k smallest unless k is
+//!   large, and their vertices then get all-zero rows, like isolated vertices;
+//! - isolated vertices (in no kept triangle): all-zero rows, the value of every eigenfunction's mean;
+//! - degenerate (zero-area or repeated-index) triangles: dropped before assembly;
+//! - boundaries, non-manifold edges (shared by three or more triangles), inconsistent orientation: the
+//!   cotangent stiffness is a sum of per-triangle positive semi-definite terms and never looks at them.
+//!
+//! The only meshes without an encoding are those with no usable triangle and those with fewer than
+//! k + c vertices in triangles (c components): [`Error::NoValidTriangles`], [`Error::InvalidK`].
+//!
 //! ```
 //! use trainer::intrinsic::IntrinsicEncoding;
 //! // A regular tetrahedron: 4 vertices, so at most k = 3 non-constant eigenfunctions.
@@ -68,10 +82,10 @@ pub enum Error {
         /// Degenerate triangles found.
         degenerate: usize,
     },
-    /// k is 0 or larger than (vertices in use − 1): the eigenproblem has only that many non-constant
-    /// eigenfunctions.
+    /// k is 0 or larger than (vertices in use − connected components): the eigenproblem has only that
+    /// many non-constant eigenfunctions.
     #[error(
-        "k = {k} eigenfunctions requested, but this mesh has at most {max} (vertices in use − 1) and k must be ≥ 1"
+        "k = {k} eigenfunctions requested, but this mesh has at most {max} (vertices in triangles − connected components) and k must be ≥ 1"
     )]
     InvalidK {
         /// Requested k.
@@ -98,7 +112,7 @@ pub enum Error {
     /// The eigensolver stopped before all wanted pairs converged.
     #[error("eigensolver converged {converged} of {wanted} eigenpairs ({detail})")]
     NotConverged {
-        /// Pairs wanted (k + 1).
+        /// Pairs wanted (k).
         wanted: usize,
         /// Pairs converged.
         converged: usize,
@@ -146,13 +160,16 @@ pub struct Report {
     pub mesh: MeshReport,
     /// Which solver ran.
     pub method: Method,
-    /// The dropped smallest eigenvalue (≈ 0, exactly 0 on a disconnected mesh: the constant
-    /// eigenfunction).
-    pub dropped_eigenvalue: f64,
     /// Largest scale-free residual `‖Lφ − λMφ‖_{M⁻¹} / (λ_k ‖φ‖_M)` over the kept pairs, relative to
-    /// the largest kept eigenvalue λ_k (not to each λ, which is 0 for the extra piecewise-constant
-    /// eigenfunctions of a mesh with several components).
+    /// the largest kept eigenvalue λ_k, so that one number bounds the error of every pair.
     pub max_relative_residual: f64,
+    /// `ε ‖M^{-1/2} L M^{-1/2}‖ / λ_k` (the norm bounded by Gershgorin): the residual that rounding alone
+    /// causes. Around 1e-13 on clean meshes; slivers raise it (it grows like 1/height²), and the solver
+    /// accepts residuals up to [`eigen::FLOOR_SAFETY`] times it.
+    pub rounding_floor: f64,
+    /// Largest `|∫_c φ_j dA| / √area_c` over the kept eigenfunctions j and connected components c: how
+    /// far the per-component constants are from removed (0 in exact arithmetic).
+    pub max_component_mean: f64,
 }
 
 /// The per-vertex table of the k smallest non-constant Laplace–Beltrami eigenfunctions of a mesh.
@@ -161,8 +178,8 @@ pub struct Report {
 /// M-orthonormal (∫ φ_i φ_j dA = δ_ij over the surface), so their magnitude scales like
 /// 1/√area; see [`scaled_to_unit_range`](Self::scaled_to_unit_range) for the rescaling Koestler et al.
 /// apply before the network. Isolated vertices (in no usable triangle) have all-zero rows. On a mesh
-/// with c > 1 connected components the first c − 1 columns are the canonical piecewise-constant
-/// "which component" functions (eigenvalue 0), see [`eigen::canonicalize_null_space`].
+/// with c > 1 connected components the c constant eigenfunctions (eigenvalue 0) are all dropped: every
+/// column is M-orthogonal to each component's indicator, and the eigenvalues are all positive.
 #[derive(Debug, Clone, PartialEq)]
 pub struct IntrinsicEncoding {
     key: u64,
@@ -173,7 +190,7 @@ pub struct IntrinsicEncoding {
 }
 
 impl IntrinsicEncoding {
-    /// Computes the k smallest non-constant eigenfunctions of the mesh.
+    /// Computes the k eigenfunctions of smallest non-zero eigenvalue of the mesh.
     pub fn compute(positions: &[[f32; 3]], triangles: &[[u32; 3]], k: usize) -> Result<Self, Error> {
         Self::compute_with_report(positions, triangles, k).map(|(enc, _)| enc)
     }
@@ -185,9 +202,9 @@ impl IntrinsicEncoding {
         k: usize,
     ) -> Result<(Self, Report), Error> {
         let mesh = mesh::validate(positions, triangles)?;
-        let n_active = mesh.active.len();
-        if k == 0 || k >= n_active {
-            return Err(Error::InvalidK { k, max: n_active - 1 });
+        let max = mesh.active.len() - mesh.report.components;
+        if k == 0 || k > max {
+            return Err(Error::InvalidK { k, max });
         }
         if k > u32::MAX as usize {
             return Err(Error::TooLarge {
@@ -197,32 +214,37 @@ impl IntrinsicEncoding {
             });
         }
         let lap = laplacian::CotanLaplacian::assemble(&mesh);
-        let mut pairs = eigen::smallest_eigenpairs(&lap, k + 1)?;
-        eigen::canonicalize_null_space(&mut pairs, &mesh.component, mesh.report.components, lap.mass());
-        let scale = pairs.values[k];
-        let max_relative_residual = (1..=k)
-            .map(|j| relative_residual(&lap, &pairs, j, scale))
+        let pairs = eigen::smallest_eigenpairs(&lap, k)?;
+        let scale = pairs.values[k - 1];
+        let column = |j: usize| -> Vec<f64> { (0..lap.len()).map(|i| pairs.vectors[(i, j)]).collect() };
+        let max_relative_residual = (0..k)
+            .map(|j| eigen::residual(&lap, &column(j), pairs.values[j]) / scale)
+            .fold(0.0, f64::max);
+        let rounding_floor = f64::EPSILON * lap.norm_bound() / scale;
+        let max_component_mean = (0..k)
+            .map(|j| component_means(&lap, &column(j)))
             .fold(0.0, f64::max);
 
         let mut values = vec![0.0f32; positions.len() * k];
         for (a, &v) in mesh.active.iter().enumerate() {
             let row = &mut values[v as usize * k..(v as usize + 1) * k];
             for (j, out) in row.iter_mut().enumerate() {
-                *out = pairs.vectors[(a, j + 1)] as f32;
+                *out = pairs.vectors[(a, j)] as f32;
             }
         }
         let enc = Self {
             key: cache_key(positions, triangles, k),
             n_vertices: positions.len(),
             k,
-            eigenvalues: pairs.values[1..].to_vec(),
+            eigenvalues: pairs.values,
             values,
         };
         let report = Report {
             mesh: mesh.report,
             method: pairs.method,
-            dropped_eigenvalue: pairs.values[0],
             max_relative_residual,
+            rounding_floor,
+            max_component_mean,
         };
         Ok((enc, report))
     }
@@ -392,16 +414,15 @@ impl IntrinsicEncoding {
     }
 }
 
-/// `‖Lφ − λMφ‖_{M⁻¹} / (scale ‖φ‖_M)` of pair `j`: the M⁻¹ norm because the residual is a load (an
-/// integrated quantity), which makes the ratio independent of mesh resolution and scale.
-fn relative_residual(lap: &laplacian::CotanLaplacian, pairs: &eigen::Eigenpairs, j: usize, scale: f64) -> f64 {
-    let n = lap.len();
-    let x: Vec<f64> = (0..n).map(|i| pairs.vectors[(i, j)]).collect();
-    let mut lx = vec![0.0; n];
-    lap.apply_stiffness(&x, &mut lx);
-    let lambda = pairs.values[j];
-    let m = lap.mass();
-    let r2: f64 = (0..n).map(|i| (lx[i] - lambda * m[i] * x[i]).powi(2) / m[i]).sum();
-    let x2: f64 = (0..n).map(|i| m[i] * x[i] * x[i]).sum();
-    (r2 / x2).sqrt() / scale.abs().max(f64::MIN_POSITIVE)
+/// `max_c |∫_c φ dA| / √area_c`: the M-inner product of φ with each component's unit indicator.
+fn component_means(lap: &laplacian::CotanLaplacian, phi: &[f64]) -> f64 {
+    let mut integral = vec![0.0f64; lap.components()];
+    for ((&c, &m), &v) in lap.component().iter().zip(lap.mass()).zip(phi) {
+        integral[c as usize] += m * v;
+    }
+    integral
+        .iter()
+        .zip(lap.component_area())
+        .map(|(i, a)| i.abs() / a.sqrt())
+        .fold(0.0, f64::max)
 }

@@ -700,6 +700,12 @@ pub fn merge(dirs: &[std::path::PathBuf]) -> Result<(StudyConfig, Vec<JobResult>
         }
     }
     let config = config.ok_or_else(|| Error::Invalid("study merge: give at least one folder".into()))?;
+    // Config order (scene-major, as one unsharded run lists them), whatever the order of the folders.
+    let order: Vec<(String, String)> = super::jobs(&config)
+        .into_iter()
+        .filter_map(|(s, m)| Some((config.scenes[s].id(), config.model_config(&config.models[m]).ok()?.name())))
+        .collect();
+    jobs.sort_by_key(|j| order.iter().position(|(s, m)| *s == j.scene && *m == j.model).unwrap_or(usize::MAX));
     Ok((config, jobs))
 }
 
