@@ -14,9 +14,18 @@ use crate::{Error, Result};
 pub struct TrainingData {
     /// The observations, directions in the local shading frame.
     pub obs: Observations,
-    /// Per-vertex intrinsic encoding (`n_vertices × k`, row-major) for the model file; `None` for the
-    /// other position inputs.
-    pub position_table: Option<Vec<f32>>,
+    /// Per-vertex intrinsic encoding for the model file; `None` for the other position inputs.
+    pub position_table: Option<PositionTable>,
+}
+
+/// The per-vertex position input a model file carries, and the mesh it belongs to.
+#[derive(Clone, Debug)]
+pub struct PositionTable {
+    /// `n_vertices × k`, row-major.
+    pub values: Vec<f32>,
+    /// [`nbrdf::scene::Mesh::content_hash`] of the mesh (as loaded for the fit), recorded in the file
+    /// so that a renderer refuses the table on another mesh.
+    pub mesh_hash: u64,
 }
 
 /// Loads the training split of `args` and attaches the position input:
@@ -50,7 +59,7 @@ pub fn load(args: &DataArgs, position: PositionEncoding, cache_dir: &Path) -> Re
                     *o = (0..3).map(|c| bary[c] * table[tri[c] as usize * k + j]).sum();
                 }
             }
-            (values, k, Some(table))
+            (values, k, Some(PositionTable { values: table, mesh_hash: mesh.content_hash() }))
         }
     };
     let obs = Observations::from_arrays(values, n_position, &s.wi, &s.wo, &s.intensity, &s.radiance)?;

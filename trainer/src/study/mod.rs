@@ -11,6 +11,7 @@
 //! and `result.json`; a job whose `result.json` carries the current job hash is not run again),
 //! `figures/` (PNGs linked from `REPORT.md`).
 
+pub mod checks;
 pub mod config;
 pub mod evaluate;
 pub mod figures;
@@ -205,7 +206,7 @@ pub fn run(config: &StudyConfig, out: &Path, shard: Option<Shard>, progress: boo
             }
             let t = training.as_ref().expect("just loaded");
             bar.doing(format!("{} / {name}: fitting {} steps", scene.id(), config.steps));
-            let log = fit::run(model_config, t.obs.clone(), &opts, &jdir, false, false, t.position_table.as_deref())?;
+            let log = fit::run(model_config, t.obs.clone(), &opts, &jdir, false, false, t.position_table.as_ref())?;
             bar.doing(format!("{} / {name}: evaluating", scene.id()));
             let model_path = fit::Outputs::in_dir(&jdir, &model_config).model;
             let eval = evaluate::evaluate(&ds, &model_path, &lpips, config)?;
@@ -276,6 +277,7 @@ pub fn comparisons(config: &StudyConfig, roots: &[PathBuf], out: &Path, results:
         let mut ds = None;
         for r in [best(true), best(false)].into_iter().flatten() {
             let Some(model_path) = roots.iter().map(|root| fit::Outputs::named(&job_dir(root, scene, &r.model), &r.model).model).find(|p| p.exists()) else {
+                eprintln!("warning: no folder holds the model file of {id} / {}; its comparison figure is left out", r.model);
                 continue;
             };
             if ds.is_none() {
@@ -294,8 +296,10 @@ fn read_result(path: &Path) -> Option<JobResult> {
 
 /// Runs the study and writes the report into `out`; returns the results.
 pub fn run_and_report(config: &StudyConfig, out: &Path, shard: Option<Shard>, progress: bool) -> Result<Vec<JobResult>> {
+    checks::check_output(out, config, shard)?;
     let results = run(config, out, shard, progress)?;
     let figs = comparisons(config, &[out.to_path_buf()], out, &results)?;
     report::write(out, config, &results, &figs)?;
+    checks::record_output(out, config, shard)?;
     Ok(results)
 }
