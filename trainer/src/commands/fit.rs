@@ -85,12 +85,14 @@ pub struct FitArgs {
     pub resume: bool,
 }
 
-/// `trainer fit`: loads the data the arguments name (or the toy set), fits, writes the files; returns
 /// Most pixels per batch: bounds the activations' memory (the paper's batch is 2^15 colour values).
 pub const MAX_BATCH: usize = 1 << 20;
 /// Most pixels of the built-in toy set (~170 bytes each).
 pub const MAX_TOY: usize = 10_000_000;
+/// Most training steps (the paper trains 20 000; the log and checkpoints grow with the count).
+pub const MAX_STEPS: usize = 10_000_000;
 
+/// `trainer fit`: loads the data the arguments name (or the toy set), fits, writes the files; returns
 /// where they went and the log. `progress` draws a bar on stderr.
 pub fn run_args(args: &FitArgs, progress: bool) -> Result<(Outputs, train::TrainLog)> {
     let m = &args.model;
@@ -102,6 +104,9 @@ pub fn run_args(args: &FitArgs, progress: bool) -> Result<(Outputs, train::Train
     }
     if !(lr_final.is_finite() && lr_final >= 0.0) {
         return Err(Error::Invalid(format!("--lr-final {lr_final}: must be finite and non-negative")));
+    }
+    if args.steps == 0 || args.steps > MAX_STEPS {
+        return Err(Error::Invalid(format!("--steps {}: allowed 1..={MAX_STEPS}", args.steps)));
     }
     if batch == 0 || batch > MAX_BATCH {
         return Err(Error::Invalid(format!("--batch {batch}: allowed 1..={MAX_BATCH} pixels")));

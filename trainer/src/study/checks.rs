@@ -27,6 +27,9 @@ pub fn validate(config: &StudyConfig, source: &str) -> Result<()> {
     }
     parse_position(&config.position).map_err(|e| Error::Invalid(format!("{}: {e}", key("position"))))?;
     parse_reciprocity(&config.reciprocity).map_err(|e| Error::Invalid(format!("{}: {e}", key("reciprocity"))))?;
+    if config.steps == 0 || config.steps > fit::MAX_STEPS {
+        return bad("steps", &config.steps, &format!("allowed 1..={}", fit::MAX_STEPS));
+    }
     if config.batch == 0 || config.batch > fit::MAX_BATCH {
         return bad("batch", &config.batch, &format!("allowed 1..={} pixels", fit::MAX_BATCH));
     }
