@@ -125,10 +125,11 @@ fn restore_swapped_out(parent: &Path, name: &str) {
     for e in entries.flatten() {
         let file = e.file_name();
         let Some(f) = file.to_str() else { continue };
-        if f.ends_with(&suffix) && temp_owner(f).is_some_and(|pid| !nbrdf::io::process_alive(pid)) {
-            if std::fs::rename(e.path(), parent.join(name)).is_ok() {
-                return;
-            }
+        if f.ends_with(&suffix)
+            && temp_owner(f).is_some_and(|pid| !nbrdf::io::process_alive(pid))
+            && std::fs::rename(e.path(), parent.join(name)).is_ok()
+        {
+            return;
         }
     }
 }

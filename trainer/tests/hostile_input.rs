@@ -169,7 +169,7 @@ fn fit_names_the_file_and_the_field_and_keeps_the_previous_fit() {
     tiny_data_set(&good);
     let bad = d.join("bad");
     copy_dir(&good, &bad);
-    edit_json(&bad.join("dataset.json"), |v| v["views"][0]["R"][1][1] = f64::from(-2.0).into());
+    edit_json(&bad.join("dataset.json"), |v| v["views"][0]["R"][1][1] = (-2.0).into());
 
     // A previous fit that no failed run may touch.
     let prev = d.join("prev");
