@@ -336,3 +336,27 @@ fn a_model_records_its_mesh_and_refuses_another() {
     let err = material.check_mesh(&moved).unwrap_err().to_string();
     assert!(err.contains("another mesh") && err.contains(&format!("{:016x}", sphere.content_hash())), "{err}");
 }
+
+/// `study merge` names every job of the config that none of the joined folders has a result for,
+/// instead of dropping its rows silently.
+#[test]
+fn study_merge_names_the_jobs_no_folder_holds() {
+    let tmp = tempfile::tempdir().unwrap();
+    let shard = tmp.path().join("shard");
+    std::fs::create_dir_all(&shard).unwrap();
+    let config = trainer::study::StudyConfig::default_small();
+    let results = serde_json::json!({ "config": config, "summary": [], "jobs": [] });
+    std::fs::write(shard.join("results.json"), serde_json::to_vec(&results).unwrap()).unwrap();
+    let r = Command::new(env!("CARGO_BIN_EXE_trainer"))
+        .args(["study", "--out"])
+        .arg(tmp.path().join("merged"))
+        .arg("merge")
+        .arg(&shard)
+        .output()
+        .unwrap();
+    let message = String::from_utf8_lossy(&r.stderr);
+    let jobs = trainer::study::jobs(&config);
+    assert_eq!(message.matches("no folder has a result for").count(), jobs.len(), "{message}");
+    let scene = config.scenes[0].id();
+    assert!(message.contains(&format!("{scene} / rp;")), "{message}");
+}
