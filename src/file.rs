@@ -6,7 +6,7 @@
 //! | 0..8 | magic `b"NBRDFMDL"` |
 //! | 8..12 | format version, `u32` LE |
 //! | 12..16 | header length `H`, `u32` LE |
-//! | 16..16+H | [`ModelHeader`], postcard-encoded (its last field, the optional sampling proxy, included); zero padding to a multiple of 4 |
+//! | 16..16+H | [`ModelHeader`], postcard-encoded; it may end before its trailing optional fields (the sampling proxy, then the mesh hash), which then read as `None`; zero padding to a multiple of 4 |
 //! | … | network weights in file order (`docs/models.md`), `f32` or `f16` LE per [`Precision`]; zero padding to a multiple of 4 |
 //! | … | object parameters, `f32` LE ([`ModelHeader::n_object`]) |
 //! | … | optional per-vertex position table, `f32` LE, `n_vertices × k` row-major (intrinsic encoding) |
