@@ -150,3 +150,39 @@ fn resume_continues_an_interrupted_run_and_refuses_a_checkpoint_past_the_steps()
     assert!(message.contains("lambert.ckpt.json") && message.contains("--steps") && message.contains(&more), "{message}");
     assert_eq!(snapshot(&out), before);
 }
+
+/// The pid of a process that has ended.
+fn dead_pid() -> u32 {
+    let mut child = Command::new("true").spawn().unwrap();
+    child.wait().unwrap();
+    child.id()
+}
+
+/// Leftovers of dead writers go, those of live ones stay; a previous data set that a crash left under
+/// its swapped-out name (the two-rename swap of platforms without an atomic exchange) is put back.
+#[test]
+fn stale_temporaries_are_removed_and_a_swapped_out_data_set_restored() {
+    let root = tempfile::tempdir().unwrap();
+    let dead = dead_pid();
+    let mine = std::process::id();
+    std::fs::write(root.path().join(format!(".nbrdf-tmp-{dead}-a.nbrdf")), b"").unwrap();
+    std::fs::create_dir_all(root.path().join(format!(".nbrdf-tmp-{dead}-ds/views"))).unwrap();
+    std::fs::write(root.path().join(format!(".nbrdf-tmp-{mine}-b.nbrdf")), b"").unwrap();
+    std::fs::write(root.path().join(".nbrdf-tmp-x-c"), b"").unwrap();
+    assert_eq!(nbrdf::io::remove_stale_temps(root.path()), 2);
+    let mut left = temps_in(root.path());
+    left.sort();
+    assert_eq!(left, vec![format!(".nbrdf-tmp-{mine}-b.nbrdf"), ".nbrdf-tmp-x-c".to_string()]);
+
+    // A data set swapped out by a writer that died before putting the new one in place.
+    let out = root.path().join("ds");
+    let tiny = ["synth", "--quiet", "--size", "16", "--views", "2", "--train-views", "1", "--train-lights", "1", "--test-lights", "1"];
+    run_ok(&[&tiny[..], &["--out", out.to_str().unwrap()]].concat());
+    let before = snapshot(&out);
+    let swapped = root.path().join(format!(".nbrdf-tmp-{}-previous-ds", dead_pid()));
+    std::fs::rename(&out, &swapped).unwrap();
+    let staging = trainer::staging::StagedDir::new(&out, "data set", |_| true).unwrap();
+    drop(staging);
+    assert!(!swapped.exists());
+    assert_eq!(snapshot(&out), before);
+}
