@@ -210,7 +210,7 @@ fn fit_names_the_file_and_the_field_and_keeps_the_previous_fit() {
 }
 
 #[test]
-fn study_blames_the_config_file_and_key_and_a_shard_never_takes_over_a_study() {
+fn study_blames_the_config_file_and_key_and_a_shard_never_takes_over_another_study() {
     let tmp = tempfile::tempdir().unwrap();
     let d = tmp.path();
     let s = |p: &Path| p.to_str().unwrap().to_string();
@@ -265,7 +265,6 @@ fn study_blames_the_config_file_and_key_and_a_shard_never_takes_over_a_study() {
         blame(&position, "position", "1..=4096"),
         Case { args: study(&utf8, &fresh, None), names: vec![s(&utf8), "UTF-8".into()], keep: fresh.clone() },
         Case { args: study(&good, &done, Some("0/2")), names: vec!["--shard 0/2".into(), "unsharded study".into(), "study merge".into()], keep: done.clone() },
-        Case { args: study(&good, &shard0, Some("1/2")), names: vec!["shard 0/2".into()], keep: shard0.clone() },
         Case { args: study(&sigma.with_file_name("batch.json"), &shard0, Some("0/2")), names: vec!["\"batch\"".into()], keep: shard0.clone() },
     ];
     check(&cases);

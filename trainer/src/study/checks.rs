@@ -89,9 +89,10 @@ fn previous(out: &Path) -> Result<Option<RunRecord>> {
     Ok(Some(RunRecord { shard: None, config: saved.config }))
 }
 
-/// Refuses a shard run into a folder that holds an unsharded study, another shard, or a study of
-/// another config: its `results.json` and `REPORT.md` would be replaced by this shard's part. Runs
-/// without `--shard` keep reusing a folder (cached jobs; a changed config reruns what changed).
+/// Refuses a shard run into a folder that holds an unsharded study, or shards of another config: its
+/// `results.json` and `REPORT.md` would be replaced by this shard's part. Shards of the same config may
+/// share a folder (a final unsharded run there writes the whole report); runs without `--shard` keep
+/// reusing a folder (cached jobs; a changed config reruns what changed).
 pub fn check_output(out: &Path, config: &StudyConfig, shard: Option<Shard>) -> Result<()> {
     let (Some(mine), Some(prev)) = (shard_name(shard), previous(out)?) else { return Ok(()) };
     let refuse = |holds: String| {
@@ -101,15 +102,12 @@ pub fn check_output(out: &Path, config: &StudyConfig, shard: Option<Shard>) -> R
             out.display()
         )))
     };
+    // Shards of one config share a folder by design (docs/study.md); anything else is another study.
     match &prev.shard {
-        None => return refuse("an unsharded study".into()),
-        Some(s) if *s != mine => return refuse(format!("shard {s} of a study")),
-        Some(_) => {}
+        None => refuse("an unsharded study".into()),
+        Some(s) if prev.config != *config => refuse(format!("shard {s} of a study with another config")),
+        Some(_) => Ok(()),
     }
-    if prev.config != *config {
-        return refuse(format!("shard {mine} of a study with another config"));
-    }
-    Ok(())
 }
 
 /// Records which shard of which config `out` now holds (after its report is written).
