@@ -10,6 +10,13 @@ use crate::models::PositionEncoding;
 use crate::observations::Observations;
 use crate::{Error, Result};
 
+/// Most training pixels loaded from a data set (the paper's sets hold ~12 million).
+pub const MAX_TRAINING_PIXELS: usize = 100_000_000;
+/// Bytes a training pixel takes while loading (samples and observations), an upper estimate.
+const BYTES_PER_PIXEL: f64 = 200.0;
+/// Most values of a per-vertex intrinsic table (vertices × k): 1 GB of f32.
+pub const MAX_TABLE_VALUES: usize = 1 << 28;
+
 /// What `fit` trains on.
 pub struct TrainingData {
     /// The observations, directions in the local shading frame.
@@ -36,7 +43,31 @@ pub struct PositionTable {
 ///   eigenpairs are cached per mesh in `cache_dir`.
 pub fn load(args: &DataArgs, position: PositionEncoding, cache_dir: &Path) -> Result<TrainingData> {
     let ds = args.open()?;
-    let s = samples(&ds, Split::Train, args.pixel_stride.max(1))?;
+    let stride = args.pixel_stride.max(1);
+    // Memory bounded before any image is read: every masked pixel of every training image, at most.
+    let most: usize = ds
+        .views
+        .iter()
+        .filter(|v| v.split == Split::Train)
+        .map(|v| v.mask.iter().filter(|m| **m).count().div_ceil(stride) * v.images.len())
+        .sum();
+    if most > MAX_TRAINING_PIXELS {
+        return Err(Error::Invalid(format!(
+            "the data set has up to {most} training pixels (masked pixels × lights / --pixel-stride {stride}), \
+             ~{:.0} GB in memory; at most {MAX_TRAINING_PIXELS}: raise --pixel-stride",
+            most as f64 * BYTES_PER_PIXEL / 1e9
+        )));
+    }
+    if let PositionEncoding::Intrinsic { k } = position {
+        let values = ds.geometry.mesh.positions.len() * k as usize;
+        if values > MAX_TABLE_VALUES {
+            return Err(Error::Invalid(format!(
+                "--position intrinsic:{k} on a mesh of {} vertices: {values} table values; at most {MAX_TABLE_VALUES}",
+                ds.geometry.mesh.positions.len()
+            )));
+        }
+    }
+    let s = samples(&ds, Split::Train, stride)?;
     if s.is_empty() {
         return Err(Error::Invalid("the data set's training split has no lit, unshadowed pixels".into()));
     }
