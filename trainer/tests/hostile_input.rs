@@ -149,11 +149,16 @@ fn synth_and_inspect_name_the_file_the_field_and_the_value() {
         edit_json(&dir.join("dataset.json"), |v| v["views"][1]["images"][1]["light"]["direction"] = serde_json::json!([0.0, 0.0, 0.0]))
     });
     let missing = variant("missing-exr", &|dir| std::fs::remove_file(dir.join("views/01/001.exr")).unwrap());
+    let small = variant("small-exr", &|dir| {
+        let img = nbrdf::image::RgbImage::from_data(8, 8, vec![[0.1; 3]; 64]).unwrap();
+        nbrdf::image::write_exr(dir.join("views/01/000.exr"), &img).unwrap();
+    });
     for (dir, names) in [
         (&not_utf8, vec!["dataset.json", "UTF-8"]),
         (&rotation, vec!["dataset.json", "views[1]", "rotation"]),
         (&light, vec!["dataset.json", "views[1].images[1].light", "direction"]),
         (&missing, vec!["views/01/001.exr"]),
+        (&small, vec!["view 1 image 0", "views/01/000.exr", "8x8"]),
     ] {
         cases.push(case(&["inspect", "--dataset", &s(dir)], &names, dir));
     }

@@ -62,6 +62,13 @@ pub struct ImageRef {
 }
 
 impl ImageRef {
+    /// The radiance file.
+    pub fn path(&self) -> &Path {
+        match &self.source {
+            ImageSource::Exr(p) | ImageSource::DiligentPng { path: p, .. } => p,
+        }
+    }
+
     /// Reads the radiance (linear RGB).
     pub fn load(&self) -> Result<RgbImage, Error> {
         match &self.source {

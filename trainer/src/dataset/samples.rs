@@ -89,7 +89,14 @@ pub fn samples(ds: &Dataset, split: Split, pixel_stride: usize) -> Result<Sample
                 if (img.width, img.height) != (cam.width, cam.height) {
                     return Err(err(
                         "data set image",
-                        format!("view {vi} image {ii}: {}x{} pixels, the camera has {}x{}", img.width, img.height, cam.width, cam.height),
+                        format!(
+                            "view {vi} image {ii} ({}): {}x{} pixels, the camera has {}x{}",
+                            im.path().display(),
+                            img.width,
+                            img.height,
+                            cam.width,
+                            cam.height
+                        ),
                     ));
                 }
                 let mut s = Samples::default();

@@ -93,7 +93,12 @@ fn previous(out: &Path) -> Result<Option<RunRecord>> {
 /// `results.json` and `REPORT.md` would be replaced by this shard's part. Shards of the same config may
 /// share a folder (a final unsharded run there writes the whole report); runs without `--shard` keep
 /// reusing a folder (cached jobs; a changed config reruns what changed).
+///
+/// Also removes the temporary files that crashed runs left in `out` and its `figures/` (the data sets
+/// and fits clean their own folders).
 pub fn check_output(out: &Path, config: &StudyConfig, shard: Option<Shard>) -> Result<()> {
+    nbrdf::io::remove_stale_temps(out);
+    nbrdf::io::remove_stale_temps(&out.join("figures"));
     let (Some(mine), Some(prev)) = (shard_name(shard), previous(out)?) else { return Ok(()) };
     let refuse = |holds: String| {
         Err(Error::Invalid(format!(
