@@ -104,6 +104,17 @@ fn synth_and_inspect_name_the_file_the_field_and_the_value() {
     // Material and mesh files with wrong content.
     let utf8 = d.join("bad-utf8.json");
     std::fs::write(&utf8, b"{\"name\": \"\xff\", \"layers\": []}").unwrap();
+    // A 6-4-3 NBRDF-json network with a weight beyond f32 (1e39).
+    let overflow = d.join("overflow.json");
+    let net = serde_json::json!({
+        "input": "rusinkiewicz_half_diff_vectors",
+        "output": "expm1_clamped",
+        "layers": [
+            {"inputs": 6, "outputs": 4, "activation": "relu", "weight": vec![vec![0.1; 6]; 4], "bias": vec![0.0; 4]},
+            {"inputs": 4, "outputs": 3, "activation": "none", "weight": vec![vec![0.2; 4]; 3], "bias": vec![-0.1; 3]},
+        ]
+    });
+    std::fs::write(&overflow, net.to_string().replacen("0.2", "1e39", 1)).unwrap();
     let merl = d.join("huge.binary");
     let mut m = Vec::with_capacity(12 + 8 * 3 * 90 * 90 * 180);
     for n in [90i32, 90, 180] {
@@ -127,6 +138,7 @@ fn synth_and_inspect_name_the_file_the_field_and_the_value() {
     let g = s(&good);
     let mut cases = vec![
         Case { args: synth(&["--out", &g, "--material", &s(&utf8)]), names: vec![s(&utf8), "UTF-8".into()], keep: good.clone() },
+        Case { args: synth(&["--out", &g, "--material", &s(&overflow)]), names: vec![s(&overflow), "weight".into(), "NaN or infinite".into()], keep: good.clone() },
         Case { args: synth(&["--out", &g, "--material", &s(&merl)]), names: vec![s(&merl), "index 5".into(), "1e300".into()], keep: good.clone() },
         Case { args: synth(&["--out", &g, "--mesh", &s(&obj)]), names: vec![s(&obj), "triangles".into()], keep: good.clone() },
         Case { args: synth(&["--out", &g, "--sigma=-1"]), names: vec!["--sigma -1".into(), "non-negative".into()], keep: good.clone() },
