@@ -99,7 +99,9 @@ fn previous(out: &Path) -> Result<Option<RunRecord>> {
 pub fn check_output(out: &Path, config: &StudyConfig, shard: Option<Shard>) -> Result<()> {
     nbrdf::io::remove_stale_temps(out);
     nbrdf::io::remove_stale_temps(&out.join("figures"));
-    let (Some(mine), Some(prev)) = (shard_name(shard), previous(out)?) else { return Ok(()) };
+    // Only a shard run reads what the folder holds: an unsharded run replaces any report anyway.
+    let Some(mine) = shard_name(shard) else { return Ok(()) };
+    let Some(prev) = previous(out)? else { return Ok(()) };
     let refuse = |holds: String| {
         Err(Error::Invalid(format!(
             "--shard {mine} --out {}: the folder holds {holds}, whose results.json and REPORT.md this run would \
