@@ -85,6 +85,15 @@ pub enum Error {
         /// The parser's message.
         message: String,
     },
+    /// A problem located in the user's terms: `what` is the file and field, the flag or the config
+    /// key (and value), `message` what is wrong and what is allowed.
+    #[cfg(feature = "alloc")]
+    Context {
+        /// Where: a file and its field, a flag, a config key.
+        what: String,
+        /// What is wrong there.
+        message: String,
+    },
     /// An I/O error, with the path it concerns.
     #[cfg(feature = "std")]
     Io {
@@ -103,6 +112,20 @@ impl Error {
     pub fn io(path: impl Into<std::path::PathBuf>, err: &std::io::Error) -> Self {
         use alloc::string::ToString;
         Error::Io { path: path.into(), kind: err.kind(), message: err.to_string() }
+    }
+}
+
+impl Error {
+    /// `self` located at `what` (a file, a view, a config key): I/O errors already name their path and
+    /// are returned as they are, so that callers can still tell a missing file from a malformed one.
+    #[cfg(feature = "alloc")]
+    pub fn context(self, what: impl fmt::Display) -> Self {
+        use alloc::string::ToString;
+        match self {
+            #[cfg(feature = "std")]
+            e @ Error::Io { .. } => e,
+            e => Error::Context { what: what.to_string(), message: e.to_string() },
+        }
     }
 }
 
@@ -136,6 +159,8 @@ impl fmt::Display for Error {
             }
             #[cfg(feature = "alloc")]
             Error::Parse { what, message } => write!(f, "cannot parse {what}: {message}"),
+            #[cfg(feature = "alloc")]
+            Error::Context { what, message } => write!(f, "{what}: {message}"),
             #[cfg(feature = "std")]
             Error::Io { path, message, .. } => write!(f, "{}: {message}", path.display()),
         }

@@ -6,7 +6,7 @@
 //! | 0..8 | magic `b"NBRDFMDL"` |
 //! | 8..12 | format version, `u32` LE |
 //! | 12..16 | header length `H`, `u32` LE |
-//! | 16..16+H | [`ModelHeader`], postcard-encoded (its last field, the optional sampling proxy, included); zero padding to a multiple of 4 |
+//! | 16..16+H | [`ModelHeader`], postcard-encoded; it may end before its trailing optional fields (the sampling proxy, then the mesh hash), which then read as `None`; zero padding to a multiple of 4 |
 //! | … | network weights in file order (`docs/models.md`), `f32` or `f16` LE per [`Precision`]; zero padding to a multiple of 4 |
 //! | … | object parameters, `f32` LE ([`ModelHeader::n_object`]) |
 //! | … | optional per-vertex position table, `f32` LE, `n_vertices × k` row-major (intrinsic encoding) |
@@ -173,6 +173,11 @@ pub struct ModelHeader {
     /// [`crate::sampling::fit_proxy`]); `None` samples the cosine lobe. Parametric models sample their
     /// own lobes and ignore it.
     pub proxy: Option<crate::sampling::Proxy>,
+    /// [`Mesh::content_hash`](crate::scene::Mesh::content_hash) of the mesh the per-vertex table was
+    /// fitted on; `None` for a model without a table, or one exported before the field existed (its
+    /// header ends before it; only the vertex count is then checked). A renderer refuses the table on
+    /// a mesh of another hash.
+    pub mesh_hash: Option<u64>,
 }
 
 impl ModelHeader {
@@ -235,6 +240,7 @@ impl ModelHeader {
             n_nets,
             n_vertices: 0,
             proxy: None,
+            mesh_hash: None,
         }
     }
 
@@ -362,6 +368,12 @@ impl ModelHeader {
             return Err(Error::InvalidValue {
                 what: "position table",
                 reason: "only an intrinsic encoding carries a per-vertex table",
+            });
+        }
+        if self.mesh_hash.is_some() && self.n_vertices == 0 {
+            return Err(Error::InvalidValue {
+                what: "mesh hash",
+                reason: "only a model with a per-vertex table records its mesh",
             });
         }
         if self.enhanced && !self.kind.is_additive() {
@@ -498,23 +510,33 @@ pub(crate) fn parse(bytes: &[u8]) -> Result<(ModelHeader, Sections), Error> {
     Ok((header, sections))
 }
 
-/// Longest header accepted without the trailing proxy field (a real header is under 100 bytes).
+/// Longest header accepted without its trailing optional fields (a real header is under 100 bytes).
 const MAX_LEGACY_HEADER: usize = 256;
 
-/// Decodes the postcard header. Headers written before the `proxy` field existed end where it would
-/// start; they decode as if it were `None` (its postcard encoding is the single byte 0), so models
-/// exported before the field was added keep loading.
+/// Optional fields at the end of the header, in order, each added after version 1 was released:
+/// `proxy`, then `mesh_hash`.
+const TRAILING_OPTIONS: usize = 2;
+
+/// Decodes the postcard header. A header may end before any of its trailing optional fields (files
+/// written before the field existed, and [`encode`], which leaves a trailing `None` out so that such
+/// files stay byte-identical to before): the missing fields decode as `None` (postcard's `None` is the
+/// single byte 0). Readers that predate a field ignore it: postcard stops after the fields it knows.
 fn decode_header(bytes: &[u8]) -> Result<ModelHeader, Error> {
     let bad = Error::InvalidValue { what: "model header", reason: "not a valid header encoding" };
     match postcard::from_bytes::<ModelHeader>(bytes) {
         Ok(h) => Ok(h),
-        Err(postcard::Error::DeserializeUnexpectedEnd) if bytes.len() < MAX_LEGACY_HEADER => {
+        Err(postcard::Error::DeserializeUnexpectedEnd) if bytes.len() + TRAILING_OPTIONS <= MAX_LEGACY_HEADER => {
             let mut buf = [0u8; MAX_LEGACY_HEADER];
             buf[..bytes.len()].copy_from_slice(bytes);
-            match postcard::from_bytes::<ModelHeader>(&buf[..bytes.len() + 1]) {
-                Ok(h) if h.proxy.is_none() => Ok(h),
-                _ => Err(bad),
+            for missing in 1..=TRAILING_OPTIONS {
+                match postcard::from_bytes::<ModelHeader>(&buf[..bytes.len() + missing]) {
+                    // Only the appended fields may be filled in, and only with `None`.
+                    Ok(h) if h.mesh_hash.is_none() && (missing < 2 || h.proxy.is_none()) => return Ok(h),
+                    Err(postcard::Error::DeserializeUnexpectedEnd) => continue,
+                    _ => return Err(bad),
+                }
             }
+            Err(bad)
         }
         Err(_) => Err(bad),
     }
@@ -591,8 +613,12 @@ pub fn encode(
         return Err(Error::NonFinite { what: "exported weights", index: i });
     }
     let (net_w, object) = weights.split_at(header.n_network_weights());
-    let header_bytes = postcard::to_allocvec(&header)
+    let mut header_bytes = postcard::to_allocvec(&header)
         .map_err(|_| Error::InvalidValue { what: "model header", reason: "cannot be encoded" })?;
+    // Without a mesh hash the header ends as it did before the field existed (see `decode_header`).
+    if header.mesh_hash.is_none() {
+        header_bytes.pop();
+    }
     let mut out = Vec::with_capacity(16 + header_bytes.len() + weights.len() * 4 + 8);
     out.extend_from_slice(&MAGIC);
     out.extend_from_slice(&VERSION.to_le_bytes());
@@ -619,6 +645,38 @@ pub fn encode(
         }
         t.iter().for_each(|w| out.extend_from_slice(&w.to_le_bytes()));
     }
+    let crc = crc32fast::hash(&out);
+    out.extend_from_slice(&crc.to_le_bytes());
+    Ok(out)
+}
+
+/// The model file `bytes` with [`ModelHeader::mesh_hash`] set to `hash`: the mesh its per-vertex table
+/// was fitted on. Everything after the header is kept byte for byte; the checksum is recomputed.
+///
+/// ```
+/// use nbrdf::file::{encode, record_mesh, ModelHeader, ModelKind, PositionEncoding, Reciprocity};
+/// let h = ModelHeader::paper(ModelKind::SingleMlp, false, Reciprocity::Exact, PositionEncoding::Intrinsic { k: 2 }, 2);
+/// let bytes = encode(&h, &vec![0.01; h.n_weights()], Some(&[0.0; 8])).unwrap();
+/// let stamped = record_mesh(&bytes, 42).unwrap();
+/// assert_eq!(nbrdf::ModelBuf::from_bytes(&stamped).unwrap().header().mesh_hash, Some(42));
+/// ```
+#[cfg(feature = "alloc")]
+pub fn record_mesh(bytes: &[u8], hash: u64) -> Result<alloc::vec::Vec<u8>, Error> {
+    use alloc::vec::Vec;
+    let (mut header, sections) = parse(bytes)?;
+    header.mesh_hash = Some(hash);
+    header.validate()?;
+    let header_bytes = postcard::to_allocvec(&header)
+        .map_err(|_| Error::InvalidValue { what: "model header", reason: "cannot be encoded" })?;
+    let body = &bytes[sections.weights.0..sections.table.1];
+    let mut out = Vec::with_capacity(16 + header_bytes.len() + 3 + body.len() + 4);
+    out.extend_from_slice(&MAGIC);
+    out.extend_from_slice(&VERSION.to_le_bytes());
+    out.extend_from_slice(&(header_bytes.len() as u32).to_le_bytes());
+    out.extend_from_slice(&header_bytes);
+    // Every section after the header starts 4-aligned, so the body keeps its layout after padding.
+    out.resize(align4(out.len()), 0);
+    out.extend_from_slice(body);
     let crc = crc32fast::hash(&out);
     out.extend_from_slice(&crc.to_le_bytes());
     Ok(out)

@@ -48,7 +48,9 @@ where
         _ => Path::new("."),
     };
     let mut builder = tempfile::Builder::new();
-    builder.prefix(".nbrdf-tmp-");
+    // The pid in the name lets a later run tell a crashed writer's leftover from a live one's.
+    let prefix = temp_prefix();
+    builder.prefix(&prefix);
     // tempfile's default mode is 0600; a data file gets the usual 0666 minus the umask instead.
     #[cfg(unix)]
     builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
@@ -60,4 +62,50 @@ where
     tmp.as_file().sync_all().map_err(|e| Error::io(path, &e))?;
     tmp.persist(path).map_err(|e| Error::io(path, &e.error))?;
     Ok(())
+}
+
+/// Prefix of every temporary file or folder this process creates beside an output:
+/// `.nbrdf-tmp-<pid>-`. [`remove_stale_temps`] removes those of processes that are gone.
+pub fn temp_prefix() -> std::string::String {
+    std::format!("{TEMP_PREFIX}{}-", std::process::id())
+}
+
+const TEMP_PREFIX: &str = ".nbrdf-tmp-";
+
+/// The pid a temporary name of [`temp_prefix`] carries, if `name` is one.
+pub fn temp_owner(name: &str) -> Option<u32> {
+    let rest = name.strip_prefix(TEMP_PREFIX)?;
+    rest.split_once('-')?.0.parse().ok()
+}
+
+/// Whether process `pid` is still running. Where the platform cannot tell (no `/proc`), every
+/// process counts as alive, so that nothing of a running writer is ever removed.
+pub fn process_alive(pid: u32) -> bool {
+    let proc_root = Path::new("/proc");
+    if !proc_root.join("self").exists() {
+        return true;
+    }
+    pid == std::process::id() || proc_root.join(std::format!("{pid}")).exists()
+}
+
+/// Removes the temporary files and folders in `dir` that writers which no longer run left behind
+/// (a crash, SIGKILL or SIGINT between creating and renaming them); returns how many. A missing or
+/// unreadable `dir` has none.
+pub fn remove_stale_temps(dir: &Path) -> usize {
+    let Ok(entries) = std::fs::read_dir(dir) else { return 0 };
+    let mut removed = 0;
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let Some(pid) = name.to_str().and_then(temp_owner) else { continue };
+        if process_alive(pid) {
+            continue;
+        }
+        let path = entry.path();
+        let gone = match entry.file_type() {
+            Ok(t) if t.is_dir() => std::fs::remove_dir_all(&path),
+            _ => std::fs::remove_file(&path),
+        };
+        removed += usize::from(gone.is_ok());
+    }
+    removed
 }

@@ -571,3 +571,34 @@ fn batched_parametric_models_and_invalid_points_match_single_queries() {
         }
     }
 }
+
+/// The mesh a table was fitted on travels in the header beside the proxy, covered by the checksum; a
+/// model without a table records no mesh.
+#[test]
+fn the_fitted_mesh_hash_round_trips_and_needs_a_table() {
+    use nbrdf::file::record_mesh;
+    use nbrdf::sampling::{GgxLobe, Proxy};
+    let proxy = Proxy::new(0.4, [GgxLobe { weight: 0.6, alpha: 0.1 }, GgxLobe::NONE]).unwrap();
+    let h = ModelHeader::paper(ModelKind::SingleMlp, false, Reciprocity::Exact, PositionEncoding::Intrinsic { k: 3 }, 2)
+        .with_proxy(proxy);
+    let w: Vec<f32> = (0..h.n_weights()).map(|i| (i % 7) as f32 * 1e-2).collect();
+    let table: Vec<f32> = (0..5 * 3).map(|i| i as f32 * 0.05).collect();
+    let plain = encode(&h, &w, Some(&table)).unwrap();
+    let stamped = record_mesh(&plain, 0x0123_4567_89ab_cdef).unwrap();
+    let (a, b) = (nbrdf::ModelBuf::from_bytes(&plain).unwrap(), nbrdf::ModelBuf::from_bytes(&stamped).unwrap());
+    assert_eq!(a.header().mesh_hash, None);
+    assert_eq!(b.header().mesh_hash, Some(0x0123_4567_89ab_cdef));
+    assert_eq!(b.header().proxy, Some(proxy));
+    assert_eq!(ModelHeader { mesh_hash: None, ..*b.header() }, *a.header());
+    // Re-encoding the stamped header gives the stamped file again.
+    assert_eq!(encode(b.header(), &w, Some(&table)).unwrap(), stamped);
+    // Any flipped bit of the hash is caught.
+    let len = u32::from_le_bytes(stamped[12..16].try_into().unwrap()) as usize;
+    let mut bad = stamped.clone();
+    bad[16 + len - 2] ^= 0x10;
+    assert!(nbrdf::ModelBuf::from_bytes(&bad).is_err());
+    // No table, no mesh.
+    let uniform = ModelHeader::paper(ModelKind::SingleMlp, false, Reciprocity::Exact, PositionEncoding::Uniform, 2);
+    let bytes = encode(&uniform, &vec![0.0; uniform.n_weights()], None).unwrap();
+    assert!(record_mesh(&bytes, 1).is_err());
+}

@@ -255,4 +255,19 @@ fn a_model_fitted_on_one_mesh_refuses_another() {
     material.check_mesh(&tet).unwrap();
     // Materials without a table fit every mesh.
     Material::builtin(Builtin::Velvet).check_mesh(&sphere).unwrap();
+
+    // A file that records its mesh's hash also refuses a mesh with as many vertices elsewhere; the
+    // file without the hash (as exported before the field existed) checks only the count.
+    let bytes = encode(&h, &w, Some(&table)).unwrap();
+    let stamped = nbrdf::file::record_mesh(&bytes, tet.content_hash()).unwrap();
+    assert_eq!(stamped[stamped.len() - 4 - table.len() * 4..stamped.len() - 4], bytes[bytes.len() - 4 - table.len() * 4..bytes.len() - 4]);
+    let material = Material::model(nbrdf::ModelBuf::from_bytes(&stamped).unwrap()).unwrap();
+    material.check_mesh(&tet).unwrap();
+    let mut moved = tet.clone();
+    moved.positions[3] = Vec3::new(0.0, 0.0, 2.0);
+    let err = material.check_mesh(&moved).unwrap_err().to_string();
+    assert!(err.contains("another mesh with as many vertices"), "{err}");
+    let flipped = Mesh::new(tet.positions.clone(), vec![[0, 1, 2], [0, 3, 1], [0, 2, 3], [1, 3, 2]]).unwrap();
+    assert!(material.check_mesh(&flipped).is_err(), "other triangles, same positions");
+    Material::model(nbrdf::ModelBuf::from_bytes(&bytes).unwrap()).unwrap().check_mesh(&moved).unwrap();
 }

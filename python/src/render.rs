@@ -110,6 +110,7 @@ pub(crate) fn render<'py>(
             .detach(|| -> Result<_, nbrdf::Error> {
                 let geometry = Geometry::new(load_mesh(&mesh)?)?;
                 let material = material(brdf)?.with_sampling(sampling);
+                material.check_mesh(&geometry.mesh)?;
                 let env = match (&env, env_color) {
                     (Some(p), _) => Some(Environment::load_exr(p)?),
                     (None, Some(c)) => Some(Environment::Constant(c)),

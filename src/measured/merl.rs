@@ -147,6 +147,7 @@ impl MerlTable {
                     index,
                 });
             }
+            check_magnitude(v, index)?;
             raw.push(v);
         }
         Ok(Self::with_proxy(raw))
@@ -169,6 +170,9 @@ impl MerlTable {
                 what: "MERL samples",
                 index,
             });
+        }
+        for (index, &v) in raw.iter().enumerate() {
+            check_magnitude(v, index)?;
         }
         Ok(Self::with_proxy(raw))
     }
@@ -410,7 +414,7 @@ impl MerlTable {
             });
         }
         let bytes = std::fs::read(path).map_err(|e| Error::io(path, &e))?;
-        Self::from_bytes(&bytes)
+        Self::from_bytes(&bytes).map_err(|e| e.context(std::format!("MERL file {}", path.display())))
     }
 
     /// Writes the table as a `.binary` file, atomically: into a temporary file in the same directory,
@@ -419,6 +423,20 @@ impl MerlTable {
     pub fn write(&self, path: impl AsRef<std::path::Path>) -> Result<(), Error> {
         crate::io::write_atomic(path.as_ref(), &self.to_bytes())
     }
+}
+
+/// Largest stored value accepted: 1e12 × (1/1500) ≈ 7e8 1/sr, far beyond any measured reflectance,
+/// and finite in f32 after scaling (1e300 became infinite there and rendered black).
+pub const MAX_SAMPLE: f64 = 1e12;
+
+fn check_magnitude(v: f64, index: usize) -> Result<(), Error> {
+    if v > MAX_SAMPLE {
+        return Err(Error::Context {
+            what: alloc::format!("MERL samples, index {index}"),
+            message: alloc::format!("value {v:e} is beyond {MAX_SAMPLE:e}; no measured BRDF comes near it"),
+        });
+    }
+    Ok(())
 }
 
 /// Checks the 12-byte header: `(90, 90, 180)` as little-endian `i32`.

@@ -116,17 +116,32 @@ impl Material {
     }
 
     /// Checks that the material can shade `mesh`: a model with a per-vertex position table must have
-    /// been fitted on a mesh with as many vertices (otherwise its features would be read from the
-    /// wrong vertices and shade wrongly, or black). Other materials fit every mesh.
+    /// been fitted on this mesh (otherwise its features would be read from the wrong vertices and shade
+    /// wrongly, or black): as many vertices, and the same [`Mesh::content_hash`] where the file records
+    /// one (files exported before the hash was stored record only the count). Other materials fit
+    /// every mesh.
     pub fn check_mesh(&self, mesh: &Mesh) -> Result<(), Error> {
         if let Source::Model { buf, .. } = &self.source {
-            let n = buf.header().n_vertices as usize;
+            let h = buf.header();
+            let n = h.n_vertices as usize;
             if n > 0 && n != mesh.positions.len() {
                 return Err(Error::SizeMismatch {
                     what: "mesh vertices (the model's per-vertex table was fitted on another mesh)",
                     expected: n,
                     found: mesh.positions.len(),
                 });
+            }
+            if let Some(fitted) = h.mesh_hash.filter(|_| n > 0) {
+                let found = mesh.content_hash();
+                if found != fitted {
+                    return Err(Error::Context {
+                        what: "mesh".into(),
+                        message: std::format!(
+                            "the model's per-vertex table was fitted on another mesh with as many vertices \
+                             (mesh hash {fitted:016x}, this mesh {found:016x}); render it on the mesh it was fitted on"
+                        ),
+                    });
+                }
             }
         }
         Ok(())

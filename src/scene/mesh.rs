@@ -320,6 +320,34 @@ impl Mesh {
         (Mesh { positions, normals: self.normals.clone(), triangles: self.triangles.clone() }, t)
     }
 
+    /// A hash of the vertex positions (their bits) and the triangles: the identity of the mesh a
+    /// model's per-vertex table was fitted on ([`ModelHeader::mesh_hash`](crate::file::ModelHeader::mesh_hash)).
+    /// The CRC-32 of the positions in the high half, of the triangles in the low half. The trainer and
+    /// the path tracer hash the mesh as they hold it: built-in meshes as built, files after
+    /// [`normalized`](Self::normalized).
+    ///
+    /// ```
+    /// use nbrdf::scene::builtin::BuiltinMesh;
+    /// let (a, b) = (BuiltinMesh::Sphere.mesh(), BuiltinMesh::Torus.mesh());
+    /// assert_eq!(a.content_hash(), BuiltinMesh::Sphere.mesh().content_hash());
+    /// assert_ne!(a.content_hash(), b.content_hash());
+    /// ```
+    pub fn content_hash(&self) -> u64 {
+        let mut p = crc32fast::Hasher::new();
+        for v in &self.positions {
+            for c in v.to_array() {
+                p.update(&c.to_bits().to_le_bytes());
+            }
+        }
+        let mut t = crc32fast::Hasher::new();
+        for tri in &self.triangles {
+            for i in tri {
+                t.update(&i.to_le_bytes());
+            }
+        }
+        (u64::from(p.finalize()) << 32) | u64::from(t.finalize())
+    }
+
     /// Axis-aligned bounding box `(min, max)` of the vertices.
     pub fn bounds(&self) -> (Vec3, Vec3) {
         self.positions.iter().fold((Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)), |(lo, hi), p| {

@@ -11,6 +11,7 @@
 //! - [`intrinsic`]: Laplace–Beltrami eigenfunctions for the intrinsic position encoding.
 //! - [`metrics`]: PSNR, DSSIM, LPIPS, HDR-FLIP, BRDF-space RMSE, reciprocity and energy (Sec. 6).
 //! - [`commands`]: the bodies of the `fit`, `models` and `bench-step` subcommands.
+//! - [`staging`]: outputs written whole or not at all (staged folders and files, stale leftovers).
 //! - [`study`]: the comparison of Sec. 6 (fit and evaluate every variant, write the report).
 
 mod bits;
@@ -19,9 +20,11 @@ pub mod dataset;
 pub mod engine;
 pub mod error;
 pub mod intrinsic;
+pub mod json;
 pub mod metrics;
 pub mod models;
 pub mod observations;
+pub mod staging;
 pub mod study;
 pub mod toy;
 pub mod train;

@@ -111,6 +111,7 @@ fn study(args: StudyArgs) -> trainer::Result<()> {
     let out = if args.out.as_os_str().is_empty() { PathBuf::from("out/study") } else { args.out };
     if let Some(StudyAction::Merge { dirs }) = &args.action {
         let (config, results) = trainer::study::report::merge(dirs)?;
+        trainer::study::checks::warn_missing_jobs(&config, &results);
         // The renderings come from the shard folders' data sets and fitted models.
         let figs = trainer::study::comparisons(&config, dirs, &out, &results)?;
         trainer::study::report::write(&out, &config, &results, &figs)?;

@@ -19,6 +19,13 @@ const CASES: &[Case] = &[
     Case { args: &["fit", "--toy", "100", "--model", "single-mlp", "--angle-frequencies", "17"], names: &["--angle-frequencies", "0..=16"] },
     Case { args: &["fit", "--toy", "100", "--model", "single-mlp", "--position", "intrinsic:100000"], names: &["intrinsic:100000", "1..=4096"] },
     Case { args: &["fit", "--toy", "100", "--model", "single-mlp", "--position", "extrinsic:40"], names: &["extrinsic:40", "frequencies"] },
+    Case { args: &["fit", "--toy", "100", "--model", "single-mlp", "--steps", "0"], names: &["--steps", "allowed"] },
+    Case { args: &["fit", "--toy", "100", "--model", "single-mlp", "--steps", "100000000000000"], names: &["--steps", "10000000"] },
+    Case { args: &["fit", "--toy", "100", "--model", "single-mlp", "--angle-frequencies", "200"], names: &["--angle-frequencies 200", "0..=16"] },
+    Case { args: &["bench-step", "--batch", "100000000000", "--steps", "1"], names: &["--batch", "1048576"] },
+    Case { args: &["bench-step", "--batch", "64", "--rounds", "0"], names: &["--rounds", "allowed"] },
+    Case { args: &["synth", "--size", "100000"], names: &["--size 100000", "16384"] },
+    Case { args: &["synth", "--sigma", "nan"], names: &["--sigma NaN", "finite"] },
     Case { args: &["synth", "--views", "100000000"], names: &["--views", "10000"] },
     Case { args: &["synth", "--train-lights", "100000000"], names: &["--train-lights", "10000"] },
     Case { args: &["synth", "--views", "5000", "--train-views", "5000", "--train-lights", "5000"], names: &["images", "200000"] },
@@ -34,7 +41,12 @@ fn out_of_range_sizes_and_numbers_fail_fast_naming_the_flag() {
     std::fs::write(&keep, "previous output").unwrap();
     for case in CASES {
         let started = std::time::Instant::now();
-        let out = Command::new(env!("CARGO_BIN_EXE_trainer")).args(case.args).arg("--out").arg(&dir).output().unwrap();
+        let mut command = Command::new(env!("CARGO_BIN_EXE_trainer"));
+        command.args(case.args);
+        if case.args[0] != "bench-step" {
+            command.arg("--out").arg(&dir);
+        }
+        let out = command.output().unwrap();
         let message = String::from_utf8_lossy(&out.stderr);
         assert_eq!(out.status.code(), Some(1), "{:?}: exit status; {message}", case.args);
         for name in case.names {

@@ -126,6 +126,14 @@ impl NbrdfNetwork {
 
     /// [`from_json_str`](Self::from_json_str) on raw bytes (which must be UTF-8 JSON).
     pub fn from_json_bytes(json: &[u8]) -> Result<Self, Error> {
+        // serde_json skips the bytes of fields it ignores without checking them; the whole
+        // document must be UTF-8 all the same.
+        if let Err(e) = core::str::from_utf8(json) {
+            return Err(Error::Parse {
+                what: "NBRDF-json".to_string(),
+                message: alloc::format!("not UTF-8: invalid byte at offset {}", e.valid_up_to()),
+            });
+        }
         let doc: JsonNetwork = serde_json::from_slice(json).map_err(|e| Error::Parse {
             what: "NBRDF-json".to_string(),
             message: e.to_string(),
@@ -146,7 +154,7 @@ impl NbrdfNetwork {
                 what: alloc::format!("NBRDF-json file {}", path.display()),
                 message,
             },
-            other => other,
+            other => other.context(alloc::format!("NBRDF-json file {}", path.display())),
         })
     }
 

@@ -179,7 +179,19 @@ pub struct TorchBuild {
 /// The host, then the products and `steps` steps (after one warm-up step) of each configuration,
 /// `rounds` rounds; with `torch` (the twin script) PyTorch's step in alternating rounds. Without
 /// python3 or torch it says how to install it and times ours alone.
+/// Most timed steps per round, and most rounds.
+pub const MAX_REPEATS: usize = 100_000;
+
 pub fn run(configs: &[Config], batch: usize, steps: usize, rounds: usize, torch: Option<&Path>) -> Result<BenchReport> {
+    // Sizes checked before any allocation, naming the flag and what is allowed.
+    if batch == 0 || batch > super::fit::MAX_BATCH {
+        return Err(crate::Error::Invalid(format!("--batch {batch}: allowed 1..={} pixels", super::fit::MAX_BATCH)));
+    }
+    for (flag, v) in [("--steps", steps), ("--rounds", rounds)] {
+        if v == 0 || v > MAX_REPEATS {
+            return Err(crate::Error::Invalid(format!("{flag} {v}: allowed 1..={MAX_REPEATS}")));
+        }
+    }
     let host = Host::measure();
     if let Some(w) = host.busy() {
         eprintln!("warning: {w}");

@@ -10,13 +10,29 @@ use crate::models::PositionEncoding;
 use crate::observations::Observations;
 use crate::{Error, Result};
 
+/// Most training pixels loaded from a data set (the paper's sets hold ~12 million).
+pub const MAX_TRAINING_PIXELS: usize = 100_000_000;
+/// Bytes a training pixel takes while loading (samples and observations), an upper estimate.
+const BYTES_PER_PIXEL: f64 = 200.0;
+/// Most values of a per-vertex intrinsic table (vertices × k): 1 GB of f32.
+pub const MAX_TABLE_VALUES: usize = 1 << 28;
+
 /// What `fit` trains on.
 pub struct TrainingData {
     /// The observations, directions in the local shading frame.
     pub obs: Observations,
-    /// Per-vertex intrinsic encoding (`n_vertices × k`, row-major) for the model file; `None` for the
-    /// other position inputs.
-    pub position_table: Option<Vec<f32>>,
+    /// Per-vertex intrinsic encoding for the model file; `None` for the other position inputs.
+    pub position_table: Option<PositionTable>,
+}
+
+/// The per-vertex position input a model file carries, and the mesh it belongs to.
+#[derive(Clone, Debug)]
+pub struct PositionTable {
+    /// `n_vertices × k`, row-major.
+    pub values: Vec<f32>,
+    /// [`nbrdf::scene::Mesh::content_hash`] of the mesh (as loaded for the fit), recorded in the file
+    /// so that a renderer refuses the table on another mesh.
+    pub mesh_hash: u64,
 }
 
 /// Loads the training split of `args` and attaches the position input:
@@ -27,7 +43,31 @@ pub struct TrainingData {
 ///   eigenpairs are cached per mesh in `cache_dir`.
 pub fn load(args: &DataArgs, position: PositionEncoding, cache_dir: &Path) -> Result<TrainingData> {
     let ds = args.open()?;
-    let s = samples(&ds, Split::Train, args.pixel_stride.max(1))?;
+    let stride = args.pixel_stride.max(1);
+    // Memory bounded before any image is read: every masked pixel of every training image, at most.
+    let most: usize = ds
+        .views
+        .iter()
+        .filter(|v| v.split == Split::Train)
+        .map(|v| v.mask.iter().filter(|m| **m).count().div_ceil(stride) * v.images.len())
+        .sum();
+    if most > MAX_TRAINING_PIXELS {
+        return Err(Error::Invalid(format!(
+            "the data set has up to {most} training pixels (masked pixels × lights / --pixel-stride {stride}), \
+             ~{:.0} GB in memory; at most {MAX_TRAINING_PIXELS}: raise --pixel-stride",
+            most as f64 * BYTES_PER_PIXEL / 1e9
+        )));
+    }
+    if let PositionEncoding::Intrinsic { k } = position {
+        let values = ds.geometry.mesh.positions.len() * k as usize;
+        if values > MAX_TABLE_VALUES {
+            return Err(Error::Invalid(format!(
+                "--position intrinsic:{k} on a mesh of {} vertices: {values} table values; at most {MAX_TABLE_VALUES}",
+                ds.geometry.mesh.positions.len()
+            )));
+        }
+    }
+    let s = samples(&ds, Split::Train, stride)?;
     if s.is_empty() {
         return Err(Error::Invalid("the data set's training split has no lit, unshadowed pixels".into()));
     }
@@ -50,7 +90,7 @@ pub fn load(args: &DataArgs, position: PositionEncoding, cache_dir: &Path) -> Re
                     *o = (0..3).map(|c| bary[c] * table[tri[c] as usize * k + j]).sum();
                 }
             }
-            (values, k, Some(table))
+            (values, k, Some(PositionTable { values: table, mesh_hash: mesh.content_hash() }))
         }
     };
     let obs = Observations::from_arrays(values, n_position, &s.wi, &s.wo, &s.intensity, &s.radiance)?;

@@ -7,6 +7,8 @@ use candle_core::Device;
 
 use crate::models::{Config, Model};
 use crate::observations::Observations;
+use super::data::PositionTable;
+use crate::staging::{self, StagedFile};
 use crate::train::{self, Checkpoint, RunSetup, TrainOptions, PAPER_BATCH_PIXELS};
 use crate::{Error, Result};
 
@@ -71,10 +73,10 @@ pub struct FitArgs {
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// Weight of the diffuse-vs-image L1 regulariser (enhanced, Sec. 4.4)
-    #[arg(long, default_value_t = 1e-2)]
+    #[arg(long, default_value_t = 1e-4)]
     pub lambda_diffuse: f32,
     /// Weight of the specular sparsity L1 regulariser (enhanced, Sec. 4.4)
-    #[arg(long, default_value_t = 1e-3)]
+    #[arg(long, default_value_t = 1e-5)]
     pub lambda_specular: f32,
     #[arg(long, default_value_t = 1000)]
     pub checkpoint_every: usize,
@@ -83,12 +85,14 @@ pub struct FitArgs {
     pub resume: bool,
 }
 
-/// `trainer fit`: loads the data the arguments name (or the toy set), fits, writes the files; returns
 /// Most pixels per batch: bounds the activations' memory (the paper's batch is 2^15 colour values).
-const MAX_BATCH: usize = 1 << 20;
+pub const MAX_BATCH: usize = 1 << 20;
 /// Most pixels of the built-in toy set (~170 bytes each).
-const MAX_TOY: usize = 10_000_000;
+pub const MAX_TOY: usize = 10_000_000;
+/// Most training steps (the paper trains 20 000; the log and checkpoints grow with the count).
+pub const MAX_STEPS: usize = 10_000_000;
 
+/// `trainer fit`: loads the data the arguments name (or the toy set), fits, writes the files; returns
 /// where they went and the log. `progress` draws a bar on stderr.
 pub fn run_args(args: &FitArgs, progress: bool) -> Result<(Outputs, train::TrainLog)> {
     let m = &args.model;
@@ -101,11 +105,20 @@ pub fn run_args(args: &FitArgs, progress: bool) -> Result<(Outputs, train::Train
     if !(lr_final.is_finite() && lr_final >= 0.0) {
         return Err(Error::Invalid(format!("--lr-final {lr_final}: must be finite and non-negative")));
     }
+    if args.steps == 0 || args.steps > MAX_STEPS {
+        return Err(Error::Invalid(format!("--steps {}: allowed 1..={MAX_STEPS}", args.steps)));
+    }
     if batch == 0 || batch > MAX_BATCH {
         return Err(Error::Invalid(format!("--batch {batch}: allowed 1..={MAX_BATCH} pixels")));
     }
     if let Some(n) = args.toy.filter(|&n| n == 0 || n > MAX_TOY) {
         return Err(Error::Invalid(format!("--toy {n}: allowed 1..={MAX_TOY} pixels")));
+    }
+    // The output folder and the resume point are checked before the data is loaded.
+    staging::check_writable(&args.out)?;
+    let outputs = Outputs::in_dir(&args.out, &config);
+    if args.resume && (outputs.partial_checkpoint.exists() || outputs.checkpoint.exists()) {
+        resume_point(&outputs, &config, args.steps)?;
     }
     let (obs, table) = match (&args.data, &args.diligent, args.toy) {
         (_, _, Some(n)) => (crate::toy::observations(n, config.position, args.seed), None),
@@ -132,14 +145,18 @@ pub fn run_args(args: &FitArgs, progress: bool) -> Result<(Outputs, train::Train
         checkpoint_every: args.checkpoint_every,
         ..TrainOptions::default()
     };
-    let log = run(config, obs, &opts, &args.out, args.resume, progress, table.as_deref())?;
+    let log = run(config, obs, &opts, &args.out, args.resume, progress, table.as_ref())?;
     Ok((Outputs::in_dir(&args.out, &config), log))
 }
 
 /// Where a fit writes its files.
 pub struct Outputs {
-    /// Training state (weights + Adam moments), `<name>.ckpt.json`.
+    /// Training state (weights + Adam moments) of the finished fit, `<name>.ckpt.json`.
     pub checkpoint: PathBuf,
+    /// Training state while a run is under way, `<name>.partial.ckpt.json`: the run's own checkpoints
+    /// go here, so the finished fit's files stay as they were until the run ends; `--resume` continues
+    /// from it first. It becomes `checkpoint` when the run ends.
+    pub partial_checkpoint: PathBuf,
     /// Training log, `<name>.log.json`.
     pub log: PathBuf,
     /// The fitted model for the core, `<name>.nbrdf`.
@@ -157,6 +174,7 @@ impl Outputs {
         let name = name.replace('+', "_");
         Outputs {
             checkpoint: dir.join(format!("{name}.ckpt.json")),
+            partial_checkpoint: dir.join(format!("{name}.partial.ckpt.json")),
             log: dir.join(format!("{name}.log.json")),
             model: dir.join(format!("{name}.nbrdf")),
         }
@@ -166,8 +184,43 @@ impl Outputs {
 /// Intervals of the learning curve every fit records (21 points with step 0).
 pub const CURVE_POINTS: usize = 20;
 
+/// The checkpoint `--resume` continues from: an interrupted run's partial one, else the finished
+/// fit's; checked against the configuration and `--steps` before any work.
+fn resume_point(outputs: &Outputs, config: &Config, steps: usize) -> Result<Option<(Checkpoint, PathBuf)>> {
+    let Some(path) = [&outputs.partial_checkpoint, &outputs.checkpoint].into_iter().find(|p| p.exists()) else {
+        eprintln!("--resume: no checkpoint of {} in the output folder; starting from step 0", config.name());
+        return Ok(None);
+    };
+    let c = Checkpoint::load(path)?;
+    if c.config != *config {
+        return Err(Error::Invalid(format!(
+            "{}: a checkpoint of {}, not of {}; --resume continues the same variant",
+            path.display(),
+            c.config.name(),
+            config.name()
+        )));
+    }
+    if c.step > steps {
+        return Err(Error::Invalid(format!(
+            "{}: the checkpoint is at step {}, past --steps {steps}; give --steps {} or more to continue it",
+            path.display(),
+            c.step,
+            c.step
+        )));
+    }
+    if c.step == steps {
+        eprintln!("{}: already at step {steps} (--steps); nothing to train, the model is exported again", path.display());
+    }
+    Ok(Some((c, path.clone())))
+}
+
 /// Sanitizes `obs`, fits `config` (resuming from the checkpoint in `out_dir` when `resume`), and writes
 /// the outputs. Returns the log.
+///
+/// All or nothing: the run's checkpoints go to [`Outputs::partial_checkpoint`], and the model, the
+/// log and the final checkpoint are written completely under temporary names and renamed into place
+/// together at the end, so an interrupted or failed run leaves the previous fit's files as they were.
+/// Temporary files of crashed runs in `out_dir` are removed first.
 pub fn run(
     config: Config,
     obs: Observations,
@@ -175,7 +228,7 @@ pub fn run(
     out_dir: &Path,
     resume: bool,
     progress: bool,
-    position_table: Option<&[f32]>,
+    position_table: Option<&PositionTable>,
 ) -> Result<train::TrainLog> {
     run_probed(config, obs, opts, out_dir, resume, progress, position_table, None)
 }
@@ -190,10 +243,11 @@ pub fn run_probed(
     out_dir: &Path,
     resume: bool,
     progress: bool,
-    position_table: Option<&[f32]>,
+    position_table: Option<&PositionTable>,
     probe: Option<train::Probe<'_>>,
 ) -> Result<train::TrainLog> {
     std::fs::create_dir_all(out_dir).map_err(|e| Error::io(out_dir, e))?;
+    nbrdf::io::remove_stale_temps(out_dir);
     let outputs = Outputs::in_dir(out_dir, &config);
     let (obs, filtered) = obs.sanitize(opts.max_radiance)?;
     if filtered.non_finite + filtered.too_bright + filtered.below_horizon > 0 {
@@ -203,13 +257,24 @@ pub fn run_probed(
         );
     }
     let model = Model::init(config, opts.seed, &Device::Cpu)?;
-    let resume = if resume && outputs.checkpoint.exists() { Some(Checkpoint::load(&outputs.checkpoint)?) } else { None };
-    let setup = RunSetup { checkpoint: Some(outputs.checkpoint.clone()), resume, progress, curve_points: CURVE_POINTS };
+    let (resume, resumed_from) = match resume.then(|| resume_point(&outputs, &config, opts.steps)).transpose()?.flatten() {
+        Some((c, p)) => (Some(c), Some(p)),
+        None => (None, None),
+    };
+    let setup = RunSetup { checkpoint: Some(outputs.partial_checkpoint.clone()), resume, resumed_from, progress, curve_points: CURVE_POINTS };
     let mut log = train::fit_probed(&model, &obs, opts, setup, probe)?;
     log.filtered = Some((&filtered).into());
-    crate::models::export::save(&model, &outputs.model, position_table)?;
+    let mut bytes = crate::models::export::encode(&model, position_table.map(|t| t.values.as_slice()))?;
+    if let Some(t) = position_table {
+        bytes = nbrdf::file::record_mesh(&bytes, t.mesh_hash)?;
+    }
     let log_json = serde_json::to_vec_pretty(&log).map_err(|e| Error::io(&outputs.log, e))?;
-    train::write_atomic(&outputs.log, &log_json)?;
+    let files = vec![
+        StagedFile::new(&outputs.model, &bytes)?,
+        StagedFile::new(&outputs.log, &log_json)?,
+        StagedFile::existing(outputs.partial_checkpoint.clone(), &outputs.checkpoint),
+    ];
+    staging::commit_all(files)?;
     Ok(log)
 }
 

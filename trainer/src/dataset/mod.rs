@@ -62,6 +62,13 @@ pub struct ImageRef {
 }
 
 impl ImageRef {
+    /// The radiance file.
+    pub fn path(&self) -> &Path {
+        match &self.source {
+            ImageSource::Exr(p) | ImageSource::DiligentPng { path: p, .. } => p,
+        }
+    }
+
     /// Reads the radiance (linear RGB).
     pub fn load(&self) -> Result<RgbImage, Error> {
         match &self.source {
@@ -123,7 +130,8 @@ pub fn load_mesh(spec: &spec::MeshSpec, base: &Path) -> Result<(Mesh, nbrdf::sce
         }
         spec::MeshSpec::File { path } => {
             let p = if path.is_absolute() { path.clone() } else { base.join(path) };
-            Ok(Mesh::load(&p)?.normalized())
+            let mesh = Mesh::load(&p).map_err(|e| e.context(format!("mesh file {}", p.display())))?;
+            Ok(mesh.normalized())
         }
     }
 }
@@ -133,11 +141,13 @@ impl Dataset {
     /// and every view's mask; radiance images are read later by [`samples()`].
     pub fn open(dir: &Path) -> Result<Self, Error> {
         let file = spec::DatasetFile::read(dir)?;
+        let description = dir.join("dataset.json");
         let (mesh, _) = load_mesh(&file.mesh, dir)?;
-        let geometry = Geometry::new(mesh)?;
+        let geometry = Geometry::new(mesh).map_err(|e| e.context(format!("{}: mesh", description.display())))?;
         let mut views = Vec::with_capacity(file.views.len());
         for (i, v) in file.views.iter().enumerate() {
-            let camera = v.camera(file.width, file.height)?;
+            let at = |field: &str| format!("{}: views[{i}].{field}", description.display());
+            let camera = v.camera(file.width, file.height).map_err(|e| e.context(at("K/R/t (camera)")))?;
             let (w, h, mask) = nbrdf::image::read_mask(dir.join(&v.mask))?;
             if (w, h) != (file.width, file.height) {
                 return Err(err(
@@ -148,9 +158,10 @@ impl Dataset {
             let images = v
                 .images
                 .iter()
-                .map(|im| {
+                .enumerate()
+                .map(|(j, im)| {
                     Ok(ImageRef {
-                        light: im.light.light()?,
+                        light: im.light.light().map_err(|e| e.context(at(&format!("images[{j}].light ({})", im.radiance.display()))))?,
                         source: ImageSource::Exr(dir.join(&im.radiance)),
                         brdf: Some(dir.join(&im.brdf)),
                     })

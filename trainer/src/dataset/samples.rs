@@ -66,7 +66,8 @@ impl Samples {
 
 /// The samples of every view of `split`: masked pixels whose ray hits the mesh, with the light above
 /// the shading horizon, unshadowed (shadow rays unless the mesh is convex), and seen from above the
-/// horizon. `pixel_stride` keeps every n-th pixel (by pixel index). Order: views, then images, then
+/// horizon. Radiance is kept as read, NaN and infinity included (the consumer decides, and counts, what
+/// it drops). `pixel_stride` keeps every n-th pixel (by pixel index). Order: views, then images, then
 /// pixels, independent of threading.
 pub fn samples(ds: &Dataset, split: Split, pixel_stride: usize) -> Result<Samples, Error> {
     let stride = pixel_stride.max(1);
@@ -88,7 +89,14 @@ pub fn samples(ds: &Dataset, split: Split, pixel_stride: usize) -> Result<Sample
                 if (img.width, img.height) != (cam.width, cam.height) {
                     return Err(err(
                         "data set image",
-                        format!("view {vi} image {ii}: {}x{} pixels, the camera has {}x{}", img.width, img.height, cam.width, cam.height),
+                        format!(
+                            "view {vi} image {ii} ({}): {}x{} pixels, the camera has {}x{}",
+                            im.path().display(),
+                            img.width,
+                            img.height,
+                            cam.width,
+                            cam.height
+                        ),
                     ));
                 }
                 let mut s = Samples::default();
@@ -100,8 +108,9 @@ pub fn samples(ds: &Dataset, split: Split, pixel_stride: usize) -> Result<Sample
                     }
                     let frame = g.frame();
                     let (wi, wo) = (frame.to_local(l), frame.to_local(g.view));
+                    // A NaN or infinite pixel stays: the trainer's sanitizing drops it and counts it.
                     let radiance = img.data[p];
-                    if wo.z <= 0.0 || !radiance.iter().all(|c| c.is_finite()) {
+                    if wo.z <= 0.0 {
                         continue;
                     }
                     s.view.push(vi as u32);

@@ -173,10 +173,13 @@ impl LightSpec {
     /// The light (direction normalised; a zero direction is an error).
     pub fn light(&self) -> Result<DirectionalLight, Error> {
         if !self.intensity.iter().all(|c| c.is_finite() && *c >= 0.0) {
-            return Err(err("dataset light intensity", "must be finite and non-negative"));
+            let message = "must be finite and non-negative".to_string();
+            return Err(Error::Context { what: format!("intensity {:?}", self.intensity), message });
         }
-        DirectionalLight::new(Vec3::from(self.direction), self.intensity)
-            .ok_or_else(|| err("dataset light direction", "zero or non-finite"))
+        DirectionalLight::new(Vec3::from(self.direction), self.intensity).ok_or_else(|| Error::Context {
+            what: format!("direction {:?}", self.direction),
+            message: "zero or non-finite".into(),
+        })
     }
 }
 

@@ -17,8 +17,9 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use super::material::MaterialSpec;
+use crate::staging::StagedDir;
 use super::spec::{self, Counts, DatasetFile, ExposureSpec, ImageSpec, LightSpec, NormalizationSpec, ViewSpec, SATURATED};
-use super::{err, load_mesh, mesh_spec, Split};
+use super::{load_mesh, mesh_spec, Split};
 
 /// Arguments of `synth` (paper defaults, Sec. 5.3).
 #[derive(Debug, Clone, clap::Args)]
@@ -101,51 +102,71 @@ impl SynthArgs {
         }
     }
 
-    fn check(&self) -> Result<(), Error> {
-        if self.size == 0 || self.size > 16384 {
-            return Err(err("--size", "must lie in 1..=16384"));
-        }
-        if self.views == 0 || self.train_views > self.views {
-            return Err(err("--views/--train-views", "need at least one view and no more training views than views"));
+    /// Checks every size and number before any work, with the flags named as on the command line.
+    pub fn check(&self) -> Result<(), Error> {
+        self.check_as(&|key| format!("--{}", key.replace('_', "-")))
+    }
+
+    /// [`check`](Self::check) with the fields named by `name` (a flag for the command line, a config
+    /// file and key for the study): each error says the field, its value and what is allowed.
+    pub fn check_as(&self, name: &dyn Fn(&str) -> String) -> Result<(), Error> {
+        let bad = |key: &str, value: &dyn std::fmt::Display, allowed: String| Error::Context {
+            what: format!("{} {value}", name(key)),
+            message: allowed,
+        };
+        if self.size == 0 || self.size > MAX_SIZE {
+            return Err(bad("size", &self.size, format!("allowed 1..={MAX_SIZE} pixels per side")));
         }
         // Sizes are checked before anything is allocated or written: an absurd count is an error
-        // naming the flag, never an allocation abort hours in.
-        for (what, v) in [("--views", self.views), ("--train-lights", self.train_lights), ("--test-lights", self.test_lights)] {
+        // naming the field, never an allocation abort hours in.
+        for (key, v) in [("views", self.views), ("train_lights", self.train_lights), ("test_lights", self.test_lights)] {
             if v > MAX_COUNT {
-                return Err(Error::TooLarge { what, found: v, max: MAX_COUNT });
+                return Err(bad(key, &v, format!("at most {MAX_COUNT}")));
             }
+        }
+        if self.views == 0 {
+            return Err(bad("views", &0, "need at least one view".into()));
+        }
+        if self.train_views > self.views {
+            return Err(bad("train_views", &self.train_views, format!("at most the {} views", self.views)));
         }
         let test_views = self.views - self.train_views;
         let images = self.train_views * self.train_lights + test_views * self.test_lights;
         if images > MAX_IMAGES {
-            let what = "images (training views × --train-lights + test views × --test-lights)";
-            return Err(Error::TooLarge { what, found: images, max: MAX_IMAGES });
+            return Err(Error::Context {
+                what: format!("{images} images (training views × {} + test views × {})", name("train_lights"), name("test_lights")),
+                message: format!("at most {MAX_IMAGES} images"),
+            });
         }
         let bytes = images as f64 * (self.size as f64).powi(2) * BYTES_PER_PIXEL;
         if bytes > MAX_BYTES {
-            let what = "bytes on disk (images × --size² × 12, estimated)";
-            return Err(Error::TooLarge { what, found: bytes as usize, max: MAX_BYTES as usize });
+            return Err(Error::Context {
+                what: format!("{images} images of {size}×{size} pixels ({})", name("size"), size = self.size),
+                message: format!("~{:.0} GB bytes on disk (12 per pixel), at most {:.0} GB", bytes / 1e9, MAX_BYTES / 1e9),
+            });
         }
         if !(self.sigma.is_finite() && self.sigma >= 0.0) {
-            return Err(err("--sigma", "must be finite and non-negative"));
+            return Err(bad("sigma", &self.sigma, "must be finite and non-negative".into()));
         }
         if !(self.fov > 0.0 && self.fov < 180.0) {
-            return Err(err("--fov", "must lie in (0, 180) degrees"));
+            return Err(bad("fov", &self.fov, "must lie in (0, 180) degrees".into()));
         }
         if !(self.light_intensity.is_finite() && self.light_intensity > 0.0) {
-            return Err(err("--light-intensity", "must be positive"));
+            return Err(bad("light_intensity", &self.light_intensity, "must be finite and positive".into()));
         }
-        if self.target_median.is_some_and(|m| !(m.is_finite() && m > 0.0 && m <= 100.0)) {
-            return Err(err("--target-median", "must lie in (0, 100]"));
+        if let Some(m) = self.target_median.filter(|m| !(m.is_finite() && *m > 0.0 && *m <= 100.0)) {
+            return Err(bad("target_median", &m, "must lie in (0, 100]".into()));
         }
         Ok(())
     }
 }
 
+/// Most pixels per image side.
+pub const MAX_SIZE: u32 = 16_384;
 /// Most views, and most lights per view.
-const MAX_COUNT: usize = 10_000;
+pub const MAX_COUNT: usize = 10_000;
 /// Most images in a data set.
-const MAX_IMAGES: usize = 200_000;
+pub const MAX_IMAGES: usize = 200_000;
 /// Bytes a pixel takes on disk, a generous estimate (RGB f32 EXR before compression).
 const BYTES_PER_PIXEL: f64 = 12.0;
 /// Most bytes a data set may take on disk.
@@ -226,7 +247,10 @@ fn calibrate_intensity(
         probe.images.iter().flat_map(|im| im.radiance.iter().zip(&mask).filter(|(_, m)| **m).map(|(c, _)| luminance(*c))).collect();
     let median = ExposureSpec::median(&mut lum);
     if !(median.is_finite() && median > 0.0) {
-        return Err(err("--target-median", "the object's median luminance is 0 (a black material, or the mesh is not in view)"));
+        return Err(Error::Context {
+            what: "--target-median".into(),
+            message: "the object's median luminance is 0 (a black material, or the mesh is not in view)".into(),
+        });
     }
     // The brightest channel of the pixel at the (1 - MAX_SATURATED) quantile maps to SATURATED.
     let mut peak: Vec<f32> =
@@ -251,10 +275,12 @@ pub fn synthesize(args: &SynthArgs) -> Result<(DatasetFile, Vec<RenderReport>), 
     let material_spec = MaterialSpec::parse(&args.material)?.canonical()?;
     let material = material_spec.load(&cwd)?;
     let (mesh, norm) = load_mesh(&mesh_spec, &cwd)?;
-    let geometry = Geometry::new(mesh)?;
+    let geometry = Geometry::new(mesh).map_err(|e| e.context(format!("--mesh {}", args.mesh)))?;
 
-    let out = &args.out;
-    std::fs::create_dir_all(out).map_err(|e| Error::io(out, &e))?;
+    // Everything goes into a folder beside --out, which replaces --out only once complete: an
+    // interrupted or failed run leaves the previous data set as it was.
+    let staged = StagedDir::new(&args.out, "data set", holds_only_a_data_set)?;
+    let out = staged.path();
     let n = args.views;
     let fov = args.fov.to_radians();
     let distance = 1.15 / (0.5 * fov).sin();
@@ -379,7 +405,15 @@ pub fn synthesize(args: &SynthArgs) -> Result<(DatasetFile, Vec<RenderReport>), 
     };
     file.validate()?;
     file.write(out)?;
+    staged.commit()?;
     Ok((file, reports))
+}
+
+/// Whether `dir` holds nothing but what `synth` writes (so replacing it whole loses nothing else).
+fn holds_only_a_data_set(dir: &Path) -> bool {
+    std::fs::read_dir(dir).is_ok_and(|entries| {
+        entries.flatten().all(|e| matches!(e.file_name().to_str(), Some("dataset.json" | "views")))
+    })
 }
 
 /// `trainer synth`: renders, then prints where it went and what was simulated.

@@ -187,8 +187,9 @@ impl StudyConfig {
 
     /// Reads a JSON config file.
     pub fn read(path: &Path) -> Result<Self> {
-        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-        serde_json::from_slice(&bytes).map_err(|e| Error::Invalid(format!("study config {}: {e}", path.display())))
+        let config: StudyConfig = crate::json::read(path, "study config")?;
+        super::checks::validate(&config, &format!("study config {}", path.display()))?;
+        Ok(config)
     }
 
     /// The trainer configuration of a model spec; an error names a bad spec (unknown model, a

@@ -11,6 +11,7 @@
 //! and `result.json`; a job whose `result.json` carries the current job hash is not run again),
 //! `figures/` (PNGs linked from `REPORT.md`).
 
+pub mod checks;
 pub mod config;
 pub mod evaluate;
 pub mod figures;
@@ -174,11 +175,6 @@ pub fn run(config: &StudyConfig, out: &Path, shard: Option<Shard>, progress: boo
         checkpoint_every: config.steps.max(1),
         ..TrainOptions::default()
     };
-    for (key, v) in [("lambda_diffuse", config.lambda_diffuse), ("lambda_specular", config.lambda_specular)] {
-        if v.is_some_and(|v| !(v.is_finite() && v >= 0.0)) {
-            return Err(Error::Invalid(format!("study config key {key:?}: {v:?} must be finite and non-negative")));
-        }
-    }
     let opts = TrainOptions {
         lambda_diffuse: config.lambda_diffuse.unwrap_or(opts.lambda_diffuse),
         lambda_specular: config.lambda_specular.unwrap_or(opts.lambda_specular),
@@ -224,12 +220,12 @@ pub fn run(config: &StudyConfig, out: &Path, shard: Option<Shard>, progress: boo
             }
             let t = training.as_ref().expect("just loaded");
             bar.doing(format!("{} / {name}: fitting {} steps", scene.id(), config.steps));
-            let table = t.position_table.as_deref();
+            let table = t.position_table.as_ref();
             if test_views.is_none() {
                 test_views = Some(evaluate::TestViews::load(&ds)?);
             }
             let views = test_views.as_ref().expect("just loaded");
-            let mut probe = |m: &crate::models::Model| views.psnr_of(m, table);
+            let mut probe = |m: &crate::models::Model| views.psnr_of(m, table.map(|t| t.values.as_slice()));
             let log = fit::run_probed(model_config, t.obs.clone(), &opts, &jdir, false, false, table, Some(&mut probe))?;
             bar.doing(format!("{} / {name}: evaluating", scene.id()));
             let model_path = fit::Outputs::in_dir(&jdir, &model_config).model;
@@ -303,6 +299,7 @@ pub fn comparisons(config: &StudyConfig, roots: &[PathBuf], out: &Path, results:
         let mut ds = None;
         for r in [best(true), best(false)].into_iter().flatten() {
             let Some(model_path) = roots.iter().map(|root| fit::Outputs::named(&job_dir(root, scene, &r.model), &r.model).model).find(|p| p.exists()) else {
+                eprintln!("warning: no folder holds the model file of {id} / {}; its comparison figure is left out", r.model);
                 continue;
             };
             if ds.is_none() {
@@ -321,8 +318,10 @@ fn read_result(path: &Path) -> Option<JobResult> {
 
 /// Runs the study and writes the report into `out`; returns the results.
 pub fn run_and_report(config: &StudyConfig, out: &Path, shard: Option<Shard>, progress: bool) -> Result<Vec<JobResult>> {
+    checks::check_output(out, config, shard)?;
     let results = run(config, out, shard, progress)?;
     let figs = comparisons(config, &[out.to_path_buf()], out, &results)?;
     report::write(out, config, &results, &figs)?;
+    checks::record_output(out, config, shard)?;
     Ok(results)
 }

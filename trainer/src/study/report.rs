@@ -689,8 +689,7 @@ pub fn merge(dirs: &[std::path::PathBuf]) -> Result<(StudyConfig, Vec<JobResult>
     for d in dirs {
         let p = d.join("results.json");
         let bytes = std::fs::read(&p).map_err(|e| Error::io(&p, e))?;
-        let saved: Saved =
-            serde_json::from_slice(&bytes).map_err(|e| Error::Invalid(format!("{}: {e}", p.display())))?;
+        let saved: Saved = crate::json::parse(&p, "study results file", &bytes)?;
         config.get_or_insert(saved.config);
         for j in saved.jobs {
             match jobs.iter_mut().find(|k| k.scene == j.scene && k.model == j.model) {
