@@ -213,8 +213,13 @@ mod on_gpu {
                     };
                     let (weight, pdf) = weight_at(wi);
                     let r_pdf = rel(o[7], pdf, FLOOR * pdf_scale);
-                    e.sample_pdf = e.sample_pdf.max(r_pdf);
                     e.sample = e.sample.max(r_pdf);
+                    if r_pdf > TOL {
+                        // A narrow proxy lobe's pdf at its own peak is ill-conditioned as the weight is.
+                        let pdf_of = |wi: Vec3, wo: Vec3| [core(&(wi, wo, q.2, q.3.clone())).1 as f64; 3];
+                        let allowed = spread(&pdf_of, wi, q.1)[0] / (pdf as f64).max(FLOOR * pdf_scale).max(1e-30);
+                        e.sample_pdf = e.sample_pdf.max(r_pdf - allowed);
+                    }
                     // Beyond TOL, the weight's own change under a few ulps of the directions (`spread`).
                     let weight_of = |wi: Vec3, wo: Vec3| {
                         let (f, pdf, _) = core(&(wi, wo, q.2, q.3.clone()));
@@ -253,13 +258,13 @@ mod on_gpu {
 
     fn check(name: &str, e: &Errors) {
         println!(
-            "{name}: {} pairs, max relative error eval {:.2e} (beyond its conditioning {:.2e}; that conditioning up to {:.2e}), pdf {:.2e}, sample pdf {:.2e}, sample weight {:.2e} (beyond its conditioning {:.2e}; that conditioning up to {:.2e}; direction {:.1e}); {} of {} samples elsewhere; {} pairs not bitwise reciprocal; {} pairs or samples on the φd seam (not compared); worst eval {}; worst weight {}",
+            "{name}: {} pairs, max relative error eval {:.2e} (beyond its conditioning {:.2e}; that conditioning up to {:.2e}), pdf {:.2e}, sample pdf beyond its conditioning {:.2e}, sample pdf or weight {:.2e} (beyond its conditioning {:.2e}; that conditioning up to {:.2e}; direction {:.1e}); {} of {} samples elsewhere; {} pairs not bitwise reciprocal; {} pairs or samples on the φd seam (not compared); worst eval {}; worst weight {}",
             e.pairs, e.eval, e.eval_excess, e.eval_conditioning, e.pdf, e.sample_pdf, e.sample, e.weight_excess, e.conditioning, e.direction, e.sample_mismatch, e.samples, e.reciprocity_failures, e.seam, e.worst, e.worst_sample
         );
         assert!(e.pairs >= 4096);
         assert!(e.eval_excess <= TOL, "{name}: eval off by {:.2e} relative beyond its conditioning", e.eval_excess);
         assert!(e.pdf <= TOL, "{name}: pdf off by {:.2e} relative", e.pdf);
-        assert!(e.sample_pdf <= TOL, "{name}: sample pdf off by {:.2e} relative", e.sample_pdf);
+        assert!(e.sample_pdf <= TOL, "{name}: sample pdf off by {:.2e} relative beyond its conditioning", e.sample_pdf);
         assert!(e.weight_excess <= TOL, "{name}: sample weight off by {:.2e} relative beyond its conditioning", e.weight_excess);
         assert!(e.sample_mismatch * 1000 <= e.pairs, "{name}: {} samples went elsewhere", e.sample_mismatch);
     }
