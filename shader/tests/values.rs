@@ -38,7 +38,7 @@ mod on_gpu {
         match nbrdf::angles::to_rusinkiewicz(wi, wo) {
             Some(r) => {
                 let m = r.phi_d % std::f32::consts::PI;
-                m < 1e-3 || m > std::f32::consts::PI - 1e-3
+                !(1e-3..=std::f32::consts::PI - 1e-3).contains(&m)
             }
             None => false,
         }
