@@ -7,7 +7,7 @@ use std::fmt::Write;
 pub const TEST_ENTRY: &str = "nbrdf_test_main";
 /// Values per query in the input buffer before the position input: wi (3), wo (3), u (3).
 pub const TEST_IN_STRIDE_BASE: usize = 9;
-/// Values per query in the output buffer: eval (3), pdf(wo, wi) (1), then the sample's wi (3), pdf
+/// Values per query in the output buffer: eval (3), pdf(wi, wo) (1), then the sample's wi (3), pdf
 /// (1), weight (3) and ok (1, as 0 or 1).
 pub const TEST_OUT_STRIDE: usize = 12;
 
@@ -46,8 +46,8 @@ pub(crate) fn test_entry(k: usize) -> String {
     let _ = write!(
         s,
         "    let f = nbrdf_eval(wi, wo{arg});\n\
-         \x20   let pdf = nbrdf_pdf(wo, wi{arg});\n\
-         \x20   let smp = nbrdf_sample(u, wo{arg});\n\
+         \x20   let pdf = nbrdf_pdf(wi, wo{arg});\n\
+         \x20   let smp = nbrdf_sample(wo, u{arg});\n\
          \x20   let o = i * {out}u;\n\
          \x20   nbrdf_test_out[o] = f.x;\n\
          \x20   nbrdf_test_out[o + 1u] = f.y;\n\

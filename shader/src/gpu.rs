@@ -39,7 +39,7 @@ impl Gpu {
     /// query.
     pub fn run(&self, shader: &Shader, queries: &[f32]) -> Result<Vec<f32>, String> {
         let stride = TEST_IN_STRIDE_BASE + shader.position_len;
-        if queries.is_empty() || queries.len() % stride != 0 {
+        if queries.is_empty() || !queries.len().is_multiple_of(stride) {
             return Err(format!("{} query values are not whole queries of {stride}", queries.len()));
         }
         let n = queries.len() / stride;

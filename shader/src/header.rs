@@ -35,11 +35,11 @@ pub(crate) fn comment(description: &str, body: &Body, storage: Storage) -> Strin
          //   fn nbrdf_eval(wi: vec3<f32>, wo: vec3<f32>{param}) -> vec3<f32>\n\
          //       the BRDF value, linear RGB in 1/sr, the cosine NOT included; 0 below the horizon, for\n\
          //       degenerate or non-finite directions; never NaN or negative.\n\
-         //   fn nbrdf_sample(u: vec3<f32>, wo: vec3<f32>{param}) -> NbrdfSample\n\
+         //   fn nbrdf_sample(wo: vec3<f32>, u: vec3<f32>{param}) -> NbrdfSample\n\
          //       draws wi for the view wo from three uniforms in [0, 1): .wi, .pdf (per unit solid angle of\n\
          //       wi), .weight = f(wi, wo) cos(theta_i) / pdf, .ok (false where no direction is produced).\n\
-         //   fn nbrdf_pdf(wo: vec3<f32>, wi: vec3<f32>{param}) -> f32\n\
-         //       the density nbrdf_sample draws wi with (note the order: wo first, as in pbrt).\n\
+         //   fn nbrdf_pdf(wi: vec3<f32>, wo: vec3<f32>{param}) -> f32\n\
+         //       the density nbrdf_sample draws wi with (arguments in eval's order, as the core's pdf).\n\
          //   @compute nbrdf_test_main: the test harness's entry point (bindings 0 and 1 of group 0); a\n\
          //       renderer ignores it.\n\
          // Conventions: directions in the local shading frame, +z the surface normal, both pointing away\n\

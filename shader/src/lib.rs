@@ -8,8 +8,8 @@
 //!
 //! ```wgsl
 //! fn nbrdf_eval(wi: vec3<f32>, wo: vec3<f32>, p: array<f32, P>) -> vec3<f32>  // 1/sr, no cosine
-//! fn nbrdf_sample(u: vec3<f32>, wo: vec3<f32>, p: array<f32, P>) -> NbrdfSample
-//! fn nbrdf_pdf(wo: vec3<f32>, wi: vec3<f32>, p: array<f32, P>) -> f32
+//! fn nbrdf_sample(wo: vec3<f32>, u: vec3<f32>, p: array<f32, P>) -> NbrdfSample
+//! fn nbrdf_pdf(wi: vec3<f32>, wo: vec3<f32>, p: array<f32, P>) -> f32
 //! ```
 //!
 //! (`p` only where the model has a position input). [`translate`] writes it as GLSL, HLSL, MSL or

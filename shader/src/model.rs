@@ -138,9 +138,9 @@ pub(crate) fn body(model: &Model<'_>, storage: Storage) -> Body {
                  \x20   let pair = nbrdf_upper_pair(wi, wo);\n\
                  \x20   if (!pair.ok) {{\n        return vec3<f32>(0.0);\n    }}\n\
                  \x20   return {prefix}_eval(nbrdf_params({a}), pair.wi, pair.wo);\n}}\n\n\
-                 fn nbrdf_pdf(wo: vec3<f32>, wi: vec3<f32>{param}) -> f32 {{\n\
+                 fn nbrdf_pdf(wi: vec3<f32>, wo: vec3<f32>{param}) -> f32 {{\n\
                  \x20   return {prefix}_pdf(nbrdf_params({a}), wo, wi);\n}}\n\n\
-                 fn nbrdf_sample(u: vec3<f32>, wo: vec3<f32>{param}) -> NbrdfSample {{\n\
+                 fn nbrdf_sample(wo: vec3<f32>, u: vec3<f32>{param}) -> NbrdfSample {{\n\
                  \x20   return {prefix}_sample(nbrdf_params({a}), u, wo);\n}}\n\n",
                 a = arg.trim_start_matches(", "),
             );
@@ -225,9 +225,9 @@ pub(crate) fn emit_proxy_sampling(code: &mut String, proxy: &Proxy, param: &str,
         "// The sampling proxy: cosine, and GGX visible-normal lobes of roughness NBRDF_PROXY_ALPHA.\n\
          const NBRDF_PROXY_P: vec3<f32> = vec3<f32>({}, {}, {});\n\
          const NBRDF_PROXY_ALPHA: vec2<f32> = vec2<f32>({}, {});\n\n\
-         fn nbrdf_pdf(wo: vec3<f32>, wi: vec3<f32>{param}) -> f32 {{\n\
+         fn nbrdf_pdf(wi: vec3<f32>, wo: vec3<f32>{param}) -> f32 {{\n\
          \x20   return nbrdf_proxy_pdf(NBRDF_PROXY_P, NBRDF_PROXY_ALPHA, wo, wi);\n}}\n\n\
-         fn nbrdf_sample(u: vec3<f32>, wo_in: vec3<f32>{param}) -> NbrdfSample {{\n\
+         fn nbrdf_sample(wo_in: vec3<f32>, u: vec3<f32>{param}) -> NbrdfSample {{\n\
          \x20   let wo = nbrdf_valid_wo(wo_in);\n\
          \x20   if (wo.w <= 0.0) {{\n        return nbrdf_no_sample();\n    }}\n\
          \x20   let wi = nbrdf_proxy_sample_wi(NBRDF_PROXY_P, NBRDF_PROXY_ALPHA, u, wo.xyz);\n\

@@ -168,10 +168,13 @@ fn emit_inline(out: &mut String, net: &Network) {
     let _ = writeln!(out, "    return array<f32, {}>({});", net.n_out(), values.join(", "));
 }
 
+/// One loop per layer over its outputs, each output's dot product written out in input order: Mesa's
+/// llvmpipe (lavapipe) ends every loop of an invocation once 65 535 iterations have run in all
+/// (`LP_MAX_TGSI_LOOP_ITERATIONS`), which an inner loop per weight row passed at width 128.
 fn emit_loops(out: &mut String, net: &Network, offset: usize) {
     let width = net.layers.iter().map(|l| l.n_out).max().unwrap_or(1).max(1);
     if net.n_in > 0 {
-        out.push_str("    var x = x_in;\n");
+        out.push_str("    let x = x_in;\n");
     }
     let _ = writeln!(out, "    var h: array<f32, {width}>;\n    var t: array<f32, {width}>;");
     let mut off = offset;
@@ -179,21 +182,23 @@ fn emit_loops(out: &mut String, net: &Network, offset: usize) {
         let rows: usize = layer.inputs.iter().map(|&i| net.segment_len(l, i)).sum();
         let n = layer.n_out;
         let _ = writeln!(out, "    for (var o = 0u; o < {n}u; o++) {{");
-        let _ = writeln!(out, "        var s = nbrdf_weights[{}u + o];", off + rows * n);
+        let _ = write!(out, "        var s = nbrdf_weights[{}u + o]", off + rows * n);
         let mut row = 0;
+        let mut terms = 0;
         for &input in &layer.inputs {
-            let len = net.segment_len(l, input);
-            if len == 0 {
-                continue;
-            }
             let src = if input == Input::X { "x" } else { "h" };
-            let _ = writeln!(out, "        for (var i = 0u; i < {len}u; i++) {{");
-            let _ = writeln!(out, "            s = s + {src}[i] * nbrdf_weights[{}u + (i + {row}u) * {n}u + o];", off);
-            out.push_str("        }\n");
-            row += len;
+            for i in 0..net.segment_len(l, input) {
+                if terms == TERMS_PER_LINE {
+                    out.push_str(";\n        s = s");
+                    terms = 0;
+                }
+                let _ = write!(out, " + {src}[{i}] * nbrdf_weights[{}u + o]", off + (row + i) * n);
+                terms += 1;
+            }
+            row += net.segment_len(l, input);
         }
         let value = if layer.relu { "max(s, 0.0)" } else { "s" };
-        let _ = writeln!(out, "        t[o] = {value};\n    }}\n    h = t;");
+        let _ = writeln!(out, ";\n        t[o] = {value};\n    }}\n    h = t;");
         off += (rows + 1) * n;
     }
     let n = net.n_out();

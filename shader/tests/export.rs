@@ -62,7 +62,7 @@ fn nbrdf_json_networks_export_with_a_fitted_proxy() {
     let shader = export("random.json", &common::json_network(3), &Options::default()).unwrap();
     assert!(shader.description.contains("6-21-21-3"), "{}", shader.description);
     assert_eq!(shader.position_len, 0);
-    assert!(shader.wgsl.contains("fn nbrdf_sample(u: vec3<f32>, wo_in: vec3<f32>) -> NbrdfSample"));
+    assert!(shader.wgsl.contains("fn nbrdf_sample(wo_in: vec3<f32>, u: vec3<f32>) -> NbrdfSample"));
     for lang in Lang::ALL {
         translate(&shader, lang).unwrap();
     }

@@ -38,7 +38,7 @@ mod on_gpu {
         match nbrdf::angles::to_rusinkiewicz(wi, wo) {
             Some(r) => {
                 let m = r.phi_d % std::f32::consts::PI;
-                m < 1e-3 || m > std::f32::consts::PI - 1e-3
+                !(1e-3..=std::f32::consts::PI - 1e-3).contains(&m)
             }
             None => false,
         }
@@ -87,6 +87,9 @@ mod on_gpu {
         eval: f64,
         pdf: f64,
         sample: f64,
+        sample_pdf: f64,
+        weight_excess: f64,
+        conditioning: f64,
         sample_mismatch: usize,
         samples: usize,
         pairs: usize,
@@ -94,6 +97,35 @@ mod on_gpu {
         seam: usize,
         direction: f64,
         worst: String,
+        worst_sample: String,
+        eval_excess: f64,
+        eval_conditioning: f64,
+    }
+
+    /// Ulps of a unit vector by which two correct f32 evaluations of the same directions may differ
+    /// inside: normalising each direction, their sum and its normalisation (the half vector) are about
+    /// four roundings, in either's own order (and fused or not).
+    const ULPS: f32 = 4.0;
+
+    /// The largest change of `f` (per channel) when `wi` or `wo` moves by `ULPS` ulps of its length
+    /// along any axis: where `f` is ill-conditioned in the directions (a narrow lobe's peak at grazing
+    /// angles, a network output near 0) that much of a difference is rounding, not a wrong formula.
+    fn spread(f: &dyn Fn(Vec3, Vec3) -> [f64; 3], wi: Vec3, wo: Vec3) -> [f64; 3] {
+        let at = f(wi, wo);
+        let mut s = [0.0f64; 3];
+        for axis in [Vec3::X, Vec3::Y, Vec3::Z] {
+            for sign in [-1.0f32, 1.0] {
+                let d = axis * (sign * ULPS * f32::EPSILON);
+                for moved in [f(wi + d * wi.length(), wo), f(wi, wo + d * wo.length())] {
+                    for c in 0..3 {
+                        if moved[c].is_finite() {
+                            s[c] = s[c].max((moved[c] - at[c]).abs());
+                        }
+                    }
+                }
+            }
+        }
+        s
     }
 
     fn rel(got: f32, want: f32, floor: f64) -> f64 {
@@ -133,15 +165,26 @@ mod on_gpu {
             let o = &out[i * TEST_OUT_STRIDE..(i + 1) * TEST_OUT_STRIDE];
             let seam = seams && on_seam(q.0, q.1);
             e.seam += seam as usize;
+            let eval_at = |wi: Vec3, wo: Vec3| core(&(wi, wo, q.2, q.3.clone())).0.map(f64::from);
+            let mut eval_spread = None;
             for c in 0..3 {
                 assert!(o[c].is_finite() && o[c] >= 0.0, "{}: query {i} gave {:?}", shader.description, &o[..3]);
                 if seam {
                     continue;
                 }
                 let r = rel(o[c], f[c], FLOOR * scale[c]);
-                if r > e.eval {
-                    e.eval = r;
+                if r > e.eval && e.eval_excess == 0.0 {
                     e.worst = format!("{:?} -> shader {:?} core {:?}", (q.0, q.1), &o[..3], f);
+                }
+                e.eval = e.eval.max(r);
+                if r > TOL {
+                    let s = *eval_spread.get_or_insert_with(|| spread(&eval_at, q.0, q.1));
+                    let allowed = s[c] / (f[c].abs() as f64).max(FLOOR * scale[c]).max(1e-30);
+                    e.eval_conditioning = e.eval_conditioning.max(allowed);
+                    if r - allowed > e.eval_excess {
+                        e.eval_excess = r - allowed;
+                        e.worst = format!("{:?} -> shader {:?} core {:?} (spread {:?})", (q.0, q.1), &o[..3], f, s);
+                    }
                 }
             }
             e.pdf = e.pdf.max(rel(o[3], *pdf, FLOOR * pdf_scale));
@@ -164,12 +207,35 @@ mod on_gpu {
                     }
                     // The warps are ill-conditioned near the rim (z = sqrt(1 - r²)): the sample's pdf
                     // and weight are checked at the shader's own direction.
-                    let (f, pdf, _) = core(&(wi, q.1, q.2, q.3.clone()));
-                    e.sample = e.sample.max(rel(o[7], pdf, FLOOR * pdf_scale));
-                    let weight = f.map(|v| (v as f64 * wi.z as f64 / pdf as f64) as f32);
-                    let w_scale = weight.iter().fold(0.0f32, |a, b| a.max(*b)) as f64;
+                    let weight_at = |w: Vec3| {
+                        let (f, pdf, _) = core(&(w, q.1, q.2, q.3.clone()));
+                        (f.map(|v| v as f64 * w.z as f64 / pdf as f64), pdf)
+                    };
+                    let (weight, pdf) = weight_at(wi);
+                    let r_pdf = rel(o[7], pdf, FLOOR * pdf_scale);
+                    e.sample = e.sample.max(r_pdf);
+                    if r_pdf > TOL {
+                        // A narrow proxy lobe's pdf at its own peak is ill-conditioned as the weight is.
+                        let pdf_of = |wi: Vec3, wo: Vec3| [core(&(wi, wo, q.2, q.3.clone())).1 as f64; 3];
+                        let allowed = spread(&pdf_of, wi, q.1)[0] / (pdf as f64).max(FLOOR * pdf_scale).max(1e-30);
+                        e.sample_pdf = e.sample_pdf.max(r_pdf - allowed);
+                    }
+                    // Beyond TOL, the weight's own change under a few ulps of the directions (`spread`).
+                    let weight_of = |wi: Vec3, wo: Vec3| {
+                        let (f, pdf, _) = core(&(wi, wo, q.2, q.3.clone()));
+                        f.map(|v| v as f64 * wi.z as f64 / pdf as f64)
+                    };
+                    let spread = spread(&weight_of, wi, q.1);
+                    let w_scale = weight.iter().fold(0.0f64, |a, b| a.max(*b));
                     for c in 0..3 {
-                        e.sample = e.sample.max(rel(o[8 + c], weight[c], FLOOR * w_scale));
+                        let denom = weight[c].abs().max(FLOOR * w_scale).max(1e-30);
+                        let r = if o[8 + c].to_bits() == (weight[c] as f32).to_bits() { 0.0 } else { (o[8 + c] as f64 - weight[c]).abs() / denom };
+                        e.sample = e.sample.max(r);
+                        e.conditioning = e.conditioning.max(spread[c] / denom);
+                        if r - spread[c] / denom > e.weight_excess {
+                            e.weight_excess = r - spread[c] / denom;
+                            e.worst_sample = format!("wo {:?} u {:?} -> wi {:?} weight shader {:?} core {:?} (spread {:?})", q.1, q.2, wi, &o[8..11], weight, spread);
+                        }
                     }
                 }
                 None if !ok => {}
@@ -192,13 +258,14 @@ mod on_gpu {
 
     fn check(name: &str, e: &Errors) {
         println!(
-            "{name}: {} pairs, max relative error eval {:.2e}, pdf {:.2e}, sample {:.2e} (direction {:.1e}); {} of {} samples elsewhere; {} pairs not bitwise reciprocal; {} pairs or samples on the φd seam (not compared); worst eval {}",
-            e.pairs, e.eval, e.pdf, e.sample, e.direction, e.sample_mismatch, e.samples, e.reciprocity_failures, e.seam, e.worst
+            "{name}: {} pairs, max relative error eval {:.2e} (beyond its conditioning {:.2e}; that conditioning up to {:.2e}), pdf {:.2e}, sample pdf beyond its conditioning {:.2e}, sample pdf or weight {:.2e} (beyond its conditioning {:.2e}; that conditioning up to {:.2e}; direction {:.1e}); {} of {} samples elsewhere; {} pairs not bitwise reciprocal; {} pairs or samples on the φd seam (not compared); worst eval {}; worst weight {}",
+            e.pairs, e.eval, e.eval_excess, e.eval_conditioning, e.pdf, e.sample_pdf, e.sample, e.weight_excess, e.conditioning, e.direction, e.sample_mismatch, e.samples, e.reciprocity_failures, e.seam, e.worst, e.worst_sample
         );
         assert!(e.pairs >= 4096);
-        assert!(e.eval <= TOL, "{name}: eval off by {:.2e} relative", e.eval);
+        assert!(e.eval_excess <= TOL, "{name}: eval off by {:.2e} relative beyond its conditioning", e.eval_excess);
         assert!(e.pdf <= TOL, "{name}: pdf off by {:.2e} relative", e.pdf);
-        assert!(e.sample <= TOL, "{name}: sample off by {:.2e} relative", e.sample);
+        assert!(e.sample_pdf <= TOL, "{name}: sample pdf off by {:.2e} relative beyond its conditioning", e.sample_pdf);
+        assert!(e.weight_excess <= TOL, "{name}: sample weight off by {:.2e} relative beyond its conditioning", e.weight_excess);
         assert!(e.sample_mismatch * 1000 <= e.pairs, "{name}: {} samples went elsewhere", e.sample_mismatch);
     }
 
@@ -218,7 +285,11 @@ mod on_gpu {
     #[test]
     fn every_model_kind_agrees_with_the_core_on_the_adapter() {
         let Some(gpu) = gpu_or_skip() else { return };
+        let only = std::env::var("NBRDF_SHADER_ONLY").unwrap_or_default();
         for (m, storage) in common::all_models().iter().zip([Storage::Inline, DEFAULT_BUFFER].into_iter().cycle()) {
+            if !m.name.contains(&only) {
+                continue;
+            }
             let buf = ModelBuf::from_bytes(&m.bytes).unwrap();
             let model = buf.model();
             let shader = export(&m.name, &m.bytes, &Options { storage: Some(storage), ..Options::default() }).unwrap();
