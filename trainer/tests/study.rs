@@ -209,11 +209,36 @@ fn without_timings(mut v: serde_json::Value) -> serde_json::Value {
     v
 }
 
+/// `a == b` but for numbers, which may differ by serde_json's parsing (not correctly rounded without
+/// its `float_roundtrip` feature: a merged mean of values read back can move in the last bits).
+fn assert_close(a: &serde_json::Value, b: &serde_json::Value, at: &str) {
+    use serde_json::Value::*;
+    match (a, b) {
+        (Number(x), Number(y)) => {
+            let (x, y) = (x.as_f64().unwrap(), y.as_f64().unwrap());
+            assert!((x - y).abs() <= 1e-12 * x.abs().max(y.abs()), "{at}: {x} vs {y}");
+        }
+        (Object(x), Object(y)) => {
+            assert_eq!(x.keys().collect::<Vec<_>>(), y.keys().collect::<Vec<_>>(), "{at}");
+            for (k, v) in x {
+                assert_close(v, &y[k], &format!("{at}.{k}"));
+            }
+        }
+        (Array(x), Array(y)) => {
+            assert_eq!(x.len(), y.len(), "{at}");
+            for (i, (v, w)) in x.iter().zip(y).enumerate() {
+                assert_close(v, w, &format!("{at}[{i}]"));
+            }
+        }
+        _ => assert_eq!(a, b, "{at}"),
+    }
+}
+
 /// Scale-out as `scripts/study-slurm.sh` does it, with a stand-in `sbatch` that runs each array task in
 /// turn (with its `SLURM_ARRAY_TASK_ID`) and then the merge job: the shards synthesize their own copies
 /// of the data set and fit their jobs in separate processes, and the merged `results.json` must equal
 /// that of one unsharded run in everything but timings. Synthesis, training and evaluation are
-/// deterministic (fixed seeds), so the metrics agree exactly, not just closely.
+/// deterministic (fixed seeds), so the metrics agree to the last bits a JSON round trip can move.
 #[cfg(unix)]
 #[test]
 fn sharded_by_the_slurm_script_and_merged_equals_one_unsharded_run() {
@@ -281,7 +306,7 @@ echo 4242
     let (single, merged) = (read(&one), read(&sharded));
     assert_eq!(merged["jobs"].as_array().unwrap().len(), 2);
     assert!(merged["jobs"][1]["eval"]["image"]["psnr"].as_f64().unwrap() > 5.0, "a real fit, not a blank");
-    assert_eq!(without_timings(merged), without_timings(single));
+    assert_close(&without_timings(merged), &without_timings(single), "results.json");
     assert!(sharded.join("REPORT.md").is_file());
     // Joined in any folder order, the jobs come out in the config's order, as one run lists them.
     let (_, reversed) = study::report::merge(&[sharded.join("shard-1"), sharded.join("shard-0")]).unwrap();
