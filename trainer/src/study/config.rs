@@ -319,6 +319,23 @@ mod tests {
         ids.dedup();
         assert_eq!(ids.len(), 25 * 9);
     }
+
+    /// The measured-materials config: six MERL materials (grease-covered steel, a metal, a paint, a
+    /// fabric among them) on three of the paper's meshes at 128², every Tab. 1 variant, valid as the
+    /// study checks configs.
+    #[test]
+    fn merl_config_parses_and_passes_the_checks() {
+        let path = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/study-merl.json"));
+        let c = StudyConfig::read(path).unwrap();
+        super::super::checks::validate(&c, "study-merl.json").unwrap();
+        assert_eq!(c.models, paper_variants(None)[..9]);
+        assert!(c.size >= 128 && c.scenes.len() >= 6);
+        let meshes: std::collections::BTreeSet<&str> = c.scenes.iter().map(|s| s.mesh.as_str()).collect();
+        assert!(meshes.len() >= 3);
+        for m in ["grease-covered-steel", "nickel", "gold-metallic-paint", "beige-fabric"] {
+            assert!(c.scenes.iter().any(|s| s.material.contains(m)), "{m}");
+        }
+    }
 }
 
 #[cfg(test)]
