@@ -296,6 +296,25 @@ pub fn pareto_plots(out: &Path, config: &StudyConfig, results: &[JobResult]) -> 
     Ok(written)
 }
 
+/// The paper's Tab. 1, MERL columns (RMSE ∛ ×100, PSNR, DSSIM ×100, LPIPS ×100, FLIP ×100), for a
+/// Tab. 1 row of ours by its name (any reciprocity suffix).
+pub fn paper_tab1(model: &str) -> Option<&'static [f64; 5]> {
+    const ROWS: [(&str, [f64; 5]); 9] = [
+        ("rp", [1.632, 44.05, 0.779, 1.656, 6.025]),
+        ("ts", [1.216, 46.06, 0.620, 1.174, 5.717]),
+        ("fmbrdf", [1.167, 46.40, 0.654, 1.310, 5.876]),
+        ("disney", [1.218, 46.46, 0.616, 1.158, 5.735]),
+        ("single-mlp", [0.554, 52.35, 0.411, 0.565, 4.795]),
+        ("additive-separate", [0.562, 52.28, 0.413, 0.571, 4.802]),
+        ("additive-shared", [0.665, 51.40, 0.428, 0.621, 5.075]),
+        ("additive-separate+enhanced", [0.547, 52.39, 0.412, 0.565, 4.794]),
+        ("additive-shared+enhanced", [0.579, 51.95, 0.419, 0.580, 4.836]),
+    ];
+    let base: Vec<&str> = model.split('+').filter(|p| !matches!(*p, "none" | "swap" | "exact")).collect();
+    let base = base.join("+");
+    ROWS.iter().find(|(name, _)| *name == base).map(|(_, row)| row)
+}
+
 /// One learning-curve figure per object over its Tab. 1 variants that recorded a curve
 /// (`figures/curves-<scene>.png`). Returns their titles and paths relative to `out`.
 pub fn curve_plots(out: &Path, config: &StudyConfig, results: &[JobResult]) -> Result<Vec<(String, std::path::PathBuf)>> {
@@ -390,6 +409,33 @@ pub fn markdown(
             opt(m.lpips, 100.0, 2),
             m.flip * 100.0
         );
+    }
+    let paper: Vec<(&ModelSummary, &[f64; 5])> = tab1.iter().filter_map(|m| Some((*m, paper_tab1(&m.model)?))).collect();
+    if !paper.is_empty() {
+        let _ = writeln!(
+            md,
+            "\nThe paper's Tab. 1 (MERL columns: 25 materials × 9 meshes, 20k steps) for the same rows, beside ours \
+             (each cell ours / paper; RMSE ∛, DSSIM, LPIPS, FLIP ×100):\n"
+        );
+        let _ = writeln!(md, "| model | RMSE ∛ | PSNR | DSSIM | LPIPS | FLIP |");
+        let _ = writeln!(md, "|---|---:|---:|---:|---:|---:|");
+        for (m, p) in paper {
+            let _ = writeln!(
+                md,
+                "| {} | {:.2} / {:.3} | {:.2} / {:.2} | {:.2} / {:.3} | {} / {:.3} | {:.2} / {:.3} |",
+                m.model,
+                m.brdf_rmse_cbrt * 100.0,
+                p[0],
+                m.psnr,
+                p[1],
+                m.dssim * 100.0,
+                p[2],
+                opt(m.lpips, 100.0, 2),
+                p[3],
+                m.flip * 100.0,
+                p[4]
+            );
+        }
     }
 
     let exposures: Vec<String> = config
@@ -724,6 +770,10 @@ mod tests {
         assert!(!in_tab1("single-mlp+swap", &c) && !in_tab1("single-mlp", &c) && !in_tab1("single-mlp+exact+nol3", &c));
         assert_eq!(short_label("additive-shared+enhanced+exact", &c), "add-shared+enh");
         assert_eq!(short_label("single-mlp+swap", &c), "single-mlp+swap");
+        // The paper's row of a variant, whatever its reciprocity strategy; none for an ablation.
+        assert_eq!(paper_tab1("additive-shared+enhanced+exact").unwrap()[1], 51.95);
+        assert_eq!(paper_tab1("rp").unwrap()[4], 6.025);
+        assert!(paper_tab1("single-mlp+exact+nol3").is_none());
     }
 
     /// Tab. 2 deltas by hand: two objects, variant − base per object, averaged.
