@@ -82,6 +82,21 @@ fn lin_range(v: impl Iterator<Item = f64>) -> std::ops::Range<f64> {
     lo - pad..hi + pad
 }
 
+/// The series' legend in a framed, half-transparent white box.
+fn draw_legend<'a, DB: DrawingBackend + 'a, CT: plotters::coord::CoordTranslate>(
+    chart: &mut ChartContext<'a, DB, CT>,
+    position: SeriesLabelPosition,
+    font_size: u32,
+) -> std::result::Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+    chart
+        .configure_series_labels()
+        .position(position)
+        .label_font((FAMILY, font_size))
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()
+}
+
 /// Plots accuracy against cost (log axis) with every point labelled and the Pareto front drawn as a
 /// step line through its points; writes a `900×600` PNG to `path`.
 pub fn pareto_plot(path: &Path, title: &str, cost_label: &str, accuracy_label: &str, points: &[CostPoint]) -> Result<()> {
@@ -136,14 +151,7 @@ pub fn pareto_plot(path: &Path, title: &str, cost_label: &str, accuracy_label: &
                     + Text::new(p.label.clone(), (6, dy), (FAMILY, 12).into_font().color(&BLACK))
             }))
             .map_err(|e| plot_err(&e))?;
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperMiddle)
-            .label_font((FAMILY, 14))
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .draw()
-            .map_err(|e| plot_err(&e))?;
+        draw_legend(&mut chart, SeriesLabelPosition::UpperMiddle, 14).map_err(|e| plot_err(&e))?;
         root.present().map_err(|e| plot_err(&e))?;
     }
     write_png(path, width, height, &rgb)
@@ -209,14 +217,7 @@ pub fn curve_plot(path: &Path, title: &str, curves: &[Curve]) -> Result<()> {
                     .label(c.label.clone())
                     .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], colour.stroke_width(2)));
             }
-            chart
-                .configure_series_labels()
-                .position(SeriesLabelPosition::LowerRight)
-                .label_font((FAMILY, 12))
-                .background_style(WHITE.mix(0.8))
-                .border_style(BLACK)
-                .draw()
-                .map_err(|e| plot_err(&e))?;
+            draw_legend(&mut chart, SeriesLabelPosition::LowerRight, 12).map_err(|e| plot_err(&e))?;
         }
         root.present().map_err(|e| plot_err(&e))?;
     }
