@@ -117,9 +117,7 @@ pub fn run_args(args: &FitArgs, progress: bool) -> Result<(Outputs, train::Train
     // The output folder and the resume point are checked before the data is loaded.
     staging::check_writable(&args.out)?;
     let outputs = Outputs::in_dir(&args.out, &config);
-    if args.resume && (outputs.partial_checkpoint.exists() || outputs.checkpoint.exists()) {
-        resume_point(&outputs, &config, args.steps)?;
-    }
+    let resume = if args.resume { resume_point(&outputs, &config, args.steps)? } else { None };
     let (obs, table) = match (&args.data, &args.diligent, args.toy) {
         (_, _, Some(n)) => (crate::toy::observations(n, config.position, args.seed), None),
         (None, None, None) => return Err(Error::Invalid("give --data DIR, --diligent PATH or --toy N".into())),
@@ -145,8 +143,8 @@ pub fn run_args(args: &FitArgs, progress: bool) -> Result<(Outputs, train::Train
         checkpoint_every: args.checkpoint_every,
         ..TrainOptions::default()
     };
-    let log = run(config, obs, &opts, &args.out, args.resume, progress, table.as_ref())?;
-    Ok((Outputs::in_dir(&args.out, &config), log))
+    let log = run(config, obs, &opts, &args.out, resume, progress, table.as_ref(), None)?;
+    Ok((outputs, log))
 }
 
 /// Where a fit writes its files.
@@ -184,9 +182,9 @@ impl Outputs {
 /// Intervals of the learning curve every fit records (21 points with step 0).
 pub const CURVE_POINTS: usize = 20;
 
-/// The checkpoint `--resume` continues from: an interrupted run's partial one, else the finished
-/// fit's; checked against the configuration and `--steps` before any work.
-fn resume_point(outputs: &Outputs, config: &Config, steps: usize) -> Result<Option<(Checkpoint, PathBuf)>> {
+/// The checkpoint `--resume` continues from and its file: an interrupted run's partial one, else the
+/// finished fit's; checked against the configuration and `--steps` before any work.
+pub fn resume_point(outputs: &Outputs, config: &Config, steps: usize) -> Result<Option<(Checkpoint, PathBuf)>> {
     let Some(path) = [&outputs.partial_checkpoint, &outputs.checkpoint].into_iter().find(|p| p.exists()) else {
         eprintln!("--resume: no checkpoint of {} in the output folder; starting from step 0", config.name());
         return Ok(None);
@@ -214,34 +212,21 @@ fn resume_point(outputs: &Outputs, config: &Config, steps: usize) -> Result<Opti
     Ok(Some((c, path.clone())))
 }
 
-/// Sanitizes `obs`, fits `config` (resuming from the checkpoint in `out_dir` when `resume`), and writes
-/// the outputs. Returns the log.
+/// Sanitizes `obs`, fits `config` (continuing from `resume`, a [`resume_point`], when given), and
+/// writes the outputs. Records the learning curve's training loss at [`CURVE_POINTS`] intervals and,
+/// with a `probe`, its held-out measure too. Returns the log.
 ///
 /// All or nothing: the run's checkpoints go to [`Outputs::partial_checkpoint`], and the model, the
 /// log and the final checkpoint are written completely under temporary names and renamed into place
 /// together at the end, so an interrupted or failed run leaves the previous fit's files as they were.
 /// Temporary files of crashed runs in `out_dir` are removed first.
+#[allow(clippy::too_many_arguments)]
 pub fn run(
     config: Config,
     obs: Observations,
     opts: &TrainOptions,
     out_dir: &Path,
-    resume: bool,
-    progress: bool,
-    position_table: Option<&PositionTable>,
-) -> Result<train::TrainLog> {
-    run_probed(config, obs, opts, out_dir, resume, progress, position_table, None)
-}
-
-/// [`run`], recording the learning curve's training loss at [`CURVE_POINTS`] intervals and, with a
-/// `probe`, its held-out measure too.
-#[allow(clippy::too_many_arguments)]
-pub fn run_probed(
-    config: Config,
-    obs: Observations,
-    opts: &TrainOptions,
-    out_dir: &Path,
-    resume: bool,
+    resume: Option<(Checkpoint, PathBuf)>,
     progress: bool,
     position_table: Option<&PositionTable>,
     probe: Option<train::Probe<'_>>,
@@ -257,10 +242,7 @@ pub fn run_probed(
         );
     }
     let model = Model::init(config, opts.seed, &Device::Cpu)?;
-    let (resume, resumed_from) = match resume.then(|| resume_point(&outputs, &config, opts.steps)).transpose()?.flatten() {
-        Some((c, p)) => (Some(c), Some(p)),
-        None => (None, None),
-    };
+    let (resume, resumed_from) = resume.unzip();
     let setup = RunSetup { checkpoint: Some(outputs.partial_checkpoint.clone()), resume, resumed_from, progress, curve_points: CURVE_POINTS };
     let mut log = train::fit_probed(&model, &obs, opts, setup, probe)?;
     log.filtered = Some((&filtered).into());
@@ -294,7 +276,7 @@ mod tests {
         obs.radiance[0] = [f32::NAN; 3];
         obs.wo[1] = -obs.wo[1];
         let opts = TrainOptions { steps: 4, batch: 64, log_every: 2, checkpoint_every: 2, ..Default::default() };
-        let log = run(config, obs.clone(), &opts, &dir, false, false, None).unwrap();
+        let log = run(config, obs.clone(), &opts, &dir, None, false, None, None).unwrap();
         let out = Outputs::in_dir(&dir, &config);
         let model = nbrdf::ModelBuf::load(&out.model).unwrap();
         // The architecture as configured, plus the sampling proxy fitted at export.
@@ -308,7 +290,9 @@ mod tests {
         assert!(log.samples_per_s > 0.0 && log.wall_s > 0.0);
 
         let more = TrainOptions { steps: 6, ..opts };
-        let resumed = run(config, obs, &more, &dir, true, false, None).unwrap();
+        let from = resume_point(&out, &config, 6).unwrap();
+        assert!(from.as_ref().is_some_and(|(c, p)| c.step == 4 && *p == out.checkpoint));
+        let resumed = run(config, obs, &more, &dir, from, false, None, None).unwrap();
         assert_eq!((resumed.steps_done, resumed.loss.len()), (6, 3));
         std::fs::remove_dir_all(&dir).ok();
     }

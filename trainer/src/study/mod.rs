@@ -166,19 +166,17 @@ pub fn run(config: &StudyConfig, out: &Path, shard: Option<Shard>, progress: boo
     if let (Err(reason), true) = (&lpips, progress) {
         eprintln!("LPIPS: {reason}");
     }
+    let defaults = TrainOptions::default();
     let opts = TrainOptions {
         steps: config.steps,
         batch: config.batch,
         lr: config.lr,
         lr_final: config.lr_final,
         seed: config.seed,
+        lambda_diffuse: config.lambda_diffuse.unwrap_or(defaults.lambda_diffuse),
+        lambda_specular: config.lambda_specular.unwrap_or(defaults.lambda_specular),
         checkpoint_every: config.steps.max(1),
-        ..TrainOptions::default()
-    };
-    let opts = TrainOptions {
-        lambda_diffuse: config.lambda_diffuse.unwrap_or(opts.lambda_diffuse),
-        lambda_specular: config.lambda_specular.unwrap_or(opts.lambda_specular),
-        ..opts
+        ..defaults
     };
     let mine: Vec<(usize, usize)> = jobs(config)
         .into_iter()
@@ -226,7 +224,7 @@ pub fn run(config: &StudyConfig, out: &Path, shard: Option<Shard>, progress: boo
             }
             let views = test_views.as_ref().expect("just loaded");
             let mut probe = |m: &crate::models::Model| views.psnr_of(m, table.map(|t| t.values.as_slice()));
-            let log = fit::run_probed(model_config, t.obs.clone(), &opts, &jdir, false, false, table, Some(&mut probe))?;
+            let log = fit::run(model_config, t.obs.clone(), &opts, &jdir, None, false, table, Some(&mut probe))?;
             bar.doing(format!("{} / {name}: evaluating", scene.id()));
             let model_path = fit::Outputs::in_dir(&jdir, &model_config).model;
             let eval = evaluate::evaluate(&ds, &model_path, &lpips, config)?;
