@@ -243,8 +243,9 @@ fn calibrate_intensity(
     let options = RenderOptions { noise_sigma: 0.0, ..RenderOptions::default() };
     let probe = render_view(geometry, &camera, &unit, |_, wi, wo| material.eval(wi, wo), &options);
     let mask: Vec<bool> = probe.gbuffer.samples.iter().map(Option::is_some).collect();
-    let mut lum: Vec<f32> =
-        probe.images.iter().flat_map(|im| im.radiance.iter().zip(&mask).filter(|(_, m)| **m).map(|(c, _)| luminance(*c))).collect();
+    let object: Vec<[f32; 3]> =
+        probe.images.iter().flat_map(|im| im.radiance.iter().zip(&mask).filter(|(_, m)| **m).map(|(c, _)| *c)).collect();
+    let mut lum: Vec<f32> = object.iter().map(|c| luminance(*c)).collect();
     let median = ExposureSpec::median(&mut lum);
     if !(median.is_finite() && median > 0.0) {
         return Err(Error::Context {
@@ -253,8 +254,7 @@ fn calibrate_intensity(
         });
     }
     // The brightest channel of the pixel at the (1 - MAX_SATURATED) quantile maps to SATURATED.
-    let mut peak: Vec<f32> =
-        probe.images.iter().flat_map(|im| im.radiance.iter().zip(&mask).filter(|(_, m)| **m).map(|(c, _)| c[0].max(c[1]).max(c[2]))).collect();
+    let mut peak: Vec<f32> = object.iter().map(|c| c[0].max(c[1]).max(c[2])).collect();
     let q = (((1.0 - MAX_SATURATED) * peak.len() as f32) as usize).min(peak.len() - 1);
     let bright = *peak.select_nth_unstable_by(q, f32::total_cmp).1;
     let by_highlights = if bright > 0.0 { SATURATED / bright } else { f32::INFINITY };

@@ -17,11 +17,12 @@ use std::time::Instant;
 use nbrdf::ModelBuf;
 use nbrdf::image::{read_exr, RgbImage};
 use nbrdf::model::{Model, Prepared};
-use nbrdf::scene::render::{render_view, RenderOptions, SurfaceSample};
+use nbrdf::scene::render::{render_view, RenderOptions, RenderedView, SurfaceSample};
+use nbrdf::scene::DirectionalLight;
 use nbrdf::{Rgb, Vec3};
 use serde::{Deserialize, Serialize};
 
-use crate::dataset::{samples, Dataset, Split};
+use crate::dataset::{samples, Dataset, Split, View};
 use crate::metrics::brdf_rmse::{self, CubeRootRmse};
 use crate::metrics::energy::{self, EnergyConfig, EnergySummary, LightPair};
 use crate::metrics::reciprocity::{reciprocity_rmse, DirectionPair};
@@ -77,6 +78,17 @@ fn prepare_at(model: &Model<'_>, ds: &Dataset, s: &SurfaceSample) -> Prepared {
     model.prepare(&point_input(model, ds, s.hit.triangle, s.hit.b1, s.hit.b2, s.position)).unwrap_or_default()
 }
 
+/// `view` re-rendered with `model` under `lights` (Eq. 9): the reference's camera and shadow
+/// visibility, no noise.
+fn render_with(model: &Model<'_>, ds: &Dataset, view: &View, lights: &[DirectionalLight]) -> RenderedView {
+    render_view(&ds.geometry, &view.camera, lights, |s, wi, wo| model.eval(&prepare_at(model, ds, s), wi, wo), &RenderOptions::default())
+}
+
+/// The lights of every image of `view`, in order.
+fn lights_of(view: &View) -> Vec<DirectionalLight> {
+    view.images.iter().map(|im| im.light).collect()
+}
+
 /// Evaluates the model file `model_path` on the test split of `ds` (see the module docs).
 pub fn evaluate(
     ds: &Dataset,
@@ -91,14 +103,7 @@ pub fn evaluate(
     let (mut pred_brdf, mut ref_brdf, mut keep) = (Vec::<Rgb>::new(), Vec::<Rgb>::new(), Vec::new());
     for view in ds.views.iter().filter(|v| v.split == Split::Test) {
         let cam = &view.camera;
-        let lights: Vec<_> = view.images.iter().map(|im| im.light).collect();
-        let rendered = render_view(
-            &ds.geometry,
-            cam,
-            &lights,
-            |s, wi, wo| eval(&prepare_at(&model, ds, s), wi, wo),
-            &RenderOptions::default(),
-        );
+        let rendered = render_with(&model, ds, view, &lights_of(view));
         for (im, out) in view.images.iter().zip(&rendered.images) {
             let reference = im.load().map_err(Error::Core)?;
             let test = RgbImage::from_data(cam.width, cam.height, out.radiance.clone()).map_err(Error::Core)?;
@@ -277,9 +282,7 @@ impl<'a> TestViews<'a> {
         let (mut sum, mut n) = (0.0, 0usize);
         for (i, refs) in &self.views {
             let view = &self.ds.views[*i];
-            let lights: Vec<_> = view.images.iter().map(|im| im.light).collect();
-            let eval = |s: &SurfaceSample, wi, wo| model.eval(&prepare_at(&model, self.ds, s), wi, wo);
-            let rendered = render_view(&self.ds.geometry, &view.camera, &lights, eval, &RenderOptions::default());
+            let rendered = render_with(&model, self.ds, view, &lights_of(view));
             for (reference, out) in refs.iter().zip(&rendered.images) {
                 let test = RgbImage::from_data(view.camera.width, view.camera.height, out.radiance.clone()).map_err(Error::Core)?;
                 sum += crate::metrics::psnr::psnr(reference, &crate::metrics::to_srgb(&test), Some(&view.mask));
@@ -307,13 +310,7 @@ pub fn first_test_image(ds: &Dataset, model_path: &std::path::Path) -> Result<(R
         .find(|v| v.split == Split::Test && !v.images.is_empty())
         .ok_or_else(|| Error::Invalid("the data set has no test images".into()))?;
     let im = &view.images[0];
-    let rendered = render_view(
-        &ds.geometry,
-        &view.camera,
-        &[im.light],
-        |s, wi, wo| model.eval(&prepare_at(&model, ds, s), wi, wo),
-        &RenderOptions::default(),
-    );
+    let rendered = render_with(&model, ds, view, &[im.light]);
     let reference = im.load().map_err(Error::Core)?;
     let test = RgbImage::from_data(view.camera.width, view.camera.height, rendered.images[0].radiance.clone())
         .map_err(Error::Core)?;
