@@ -26,6 +26,8 @@ const CASES: &[Case] = &[
     Case { args: &["bench-step", "--batch", "64", "--rounds", "0"], names: &["--rounds", "allowed"] },
     Case { args: &["synth", "--size", "100000"], names: &["--size 100000", "16384"] },
     Case { args: &["synth", "--sigma", "nan"], names: &["--sigma NaN", "finite"] },
+    Case { args: &["synth", "--target-median", "nan"], names: &["--target-median NaN", "(0, 100]"] },
+    Case { args: &["synth", "--target-median", "0"], names: &["--target-median 0", "(0, 100]"] },
     Case { args: &["synth", "--views", "100000000"], names: &["--views", "10000"] },
     Case { args: &["synth", "--train-lights", "100000000"], names: &["--train-lights", "10000"] },
     Case { args: &["synth", "--views", "5000", "--train-views", "5000", "--train-lights", "5000"], names: &["images", "200000"] },

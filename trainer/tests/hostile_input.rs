@@ -128,6 +128,12 @@ fn synth_and_inspect_name_the_file_the_field_and_the_value() {
         Case { args: synth(&["--out", &g, "--material", &s(&merl)]), names: vec![s(&merl), "index 5".into(), "1e300".into()], keep: good.clone() },
         Case { args: synth(&["--out", &g, "--mesh", &s(&obj)]), names: vec![s(&obj), "triangles".into()], keep: good.clone() },
         Case { args: synth(&["--out", &g, "--sigma=-1"]), names: vec!["--sigma -1".into(), "non-negative".into()], keep: good.clone() },
+        // No exposure reaches a median for a black material.
+        Case {
+            args: synth(&["--out", &g, "--material", "lambert:0,0,0", "--target-median", "0.2"]),
+            names: vec!["--target-median".into(), "median luminance is 0".into()],
+            keep: good.clone(),
+        },
         Case { args: synth(&["--out", &s(&foreign)]), names: vec![s(&foreign), "not a data set".into()], keep: foreign.clone() },
     ];
 
@@ -231,6 +237,8 @@ fn study_blames_the_config_file_and_key_and_a_shard_never_takes_over_another_stu
     let views = config("views.json", &|v| v["views"] = 100_000_000.into());
     let pairs = config("pairs.json", &|v| v["energy_pairs"] = 1_000_000_000_000u64.into());
     let position = config("position.json", &|v| v["position"] = "intrinsic:100000".into());
+    let median = config("median.json", &|v| v["target_median"] = (-1.0).into());
+    let lambda = config("lambda.json", &|v| v["lambda_diffuse"] = (-1.0).into());
     let utf8 = d.join("utf8.json");
     std::fs::write(&utf8, with_invalid_utf8(&std::fs::read(&good).unwrap())).unwrap();
 
@@ -266,6 +274,8 @@ fn study_blames_the_config_file_and_key_and_a_shard_never_takes_over_another_stu
         blame(&views, "views", "100000000"),
         blame(&pairs, "energy_pairs", "1000000000000"),
         blame(&position, "position", "1..=4096"),
+        blame(&median, "target_median", "-1"),
+        blame(&lambda, "lambda_diffuse", "-1"),
         Case { args: study(&utf8, &fresh, None), names: vec![s(&utf8), "UTF-8".into()], keep: fresh.clone() },
         Case { args: study(&good, &done, Some("0/2")), names: vec!["--shard 0/2".into(), "unsharded study".into(), "study merge".into()], keep: done.clone() },
         Case { args: study(&sigma.with_file_name("batch.json"), &shard0, Some("0/2")), names: vec!["\"batch\"".into()], keep: shard0.clone() },
