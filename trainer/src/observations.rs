@@ -59,6 +59,26 @@ impl Observations {
         Ok(obs)
     }
 
+    /// The median over pixels and channels of the observed BRDF value `L_GT / (L_i cos θ_l)`, in 1/sr
+    /// (Eq. 9 solved for `f`): how bright the material is away from its highlights, robust to them.
+    /// `None` without a lit pixel.
+    pub fn median_brdf(&self) -> Option<f32> {
+        let mut f = Vec::with_capacity(3 * self.len());
+        for ((wi, irradiance), radiance) in self.wi.iter().zip(&self.irradiance).zip(&self.radiance) {
+            for (e, l) in irradiance.iter().zip(radiance) {
+                let e = e * wi.z;
+                if e > 0.0 && l.is_finite() {
+                    f.push(l.max(0.0) / e);
+                }
+            }
+        }
+        if f.is_empty() {
+            return None;
+        }
+        let mid = f.len() / 2;
+        Some(*f.select_nth_unstable_by(mid, f32::total_cmp).1)
+    }
+
     /// Number of pixels.
     pub fn len(&self) -> usize {
         self.wi.len()
@@ -125,5 +145,33 @@ impl Observations {
         }
         f.kept = out.len();
         Ok((out, f))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The median BRDF value solves Eq. 9 for `f` per pixel and channel, skips unlit values, and a
+    /// few bright highlights do not move it.
+    #[test]
+    fn median_brdf_is_radiance_over_irradiance() {
+        let up = [0.0, 0.0, 1.0];
+        let tilted = [0.6, 0.0, 0.8];
+        let n = 9;
+        let wi: Vec<[f32; 3]> = (0..n).map(|i| if i % 2 == 0 { up } else { tilted }).collect();
+        let irradiance: Vec<[f32; 3]> = (0..n).map(|i| if i == 0 { [0.0; 3] } else { [2.0; 3] }).collect();
+        // f = 0.05/sr everywhere but two highlights at 40/sr; the unlit pixel's radiance is ignored.
+        let radiance: Vec<[f32; 3]> = (0..n)
+            .map(|i| {
+                let f = if i == 3 || i == 4 { 40.0 } else { 0.05 };
+                [f * 2.0 * wi[i][2]; 3]
+            })
+            .collect();
+        let obs = Observations::from_arrays(Vec::new(), 0, &wi, &wi, &irradiance, &radiance).unwrap();
+        let m = obs.median_brdf().unwrap();
+        assert!((m - 0.05).abs() < 1e-6, "{m}");
+        let dark = Observations::from_arrays(Vec::new(), 0, &wi[..1], &wi[..1], &irradiance[..1], &radiance[..1]).unwrap();
+        assert_eq!(dark.median_brdf(), None, "no lit pixel");
     }
 }

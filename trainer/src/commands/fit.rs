@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use candle_core::Device;
 
-use crate::models::{Config, Model};
+use crate::models::{Config, Model, OutputStart};
 use crate::observations::Observations;
 use super::data::PositionTable;
 use crate::staging::{self, StagedFile};
@@ -241,7 +241,8 @@ pub fn run(
             filtered.non_finite, filtered.too_bright, opts.max_radiance, filtered.below_horizon, filtered.kept
         );
     }
-    let model = Model::init(config, opts.seed, &Device::Cpu)?;
+    let start = OutputStart::for_median(obs.median_brdf());
+    let model = Model::init_at(config, opts.seed, &Device::Cpu, start)?;
     let (resume, resumed_from) = resume.unzip();
     let setup = RunSetup { checkpoint: Some(outputs.partial_checkpoint.clone()), resume, resumed_from, progress, curve_points: CURVE_POINTS };
     let mut log = train::fit_probed(&model, &obs, opts, setup, probe)?;

@@ -53,6 +53,67 @@ pub const SPECULAR_START: f32 = -4.0;
 /// [`SPECULAR_START`].
 pub const DIFFUSE_START: f32 = -3.0;
 
+/// Where a fresh model's outputs start: the logits added to its output biases. For the purely neural
+/// models `f_s = softplus(specular)` (the Single MLP's whole `f`) and `f_d = σ(diffuse)/π` at a typical
+/// input; for the parametric ones the diffuse albedo `σ(albedo)` (raw outputs 0–2 of every parametric
+/// table: RP's and Torrance-Sparrow's `kd`, FMBRDF's `rho`, Disney's base colour, Lambert's `kd`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OutputStart {
+    pub specular: f32,
+    pub diffuse: f32,
+    pub albedo: f32,
+}
+
+impl OutputStart {
+    /// The fixed start for models without data to see: the purely neural outputs dark
+    /// ([`SPECULAR_START`], [`DIFFUSE_START`]), the parametric albedo at the tables' `σ(0) = 0.5`.
+    pub const DARK: OutputStart = OutputStart { specular: SPECULAR_START, diffuse: DIFFUSE_START, albedo: 0.0 };
+
+    /// [`OutputStart::DARK`], with each part that would start brighter than twice the data's median BRDF
+    /// value (`median`, 1/sr; [`crate::observations::Observations::median_brdf`]) starting at twice that
+    /// median instead.
+    ///
+    /// The fixed start overshoots a dark material. On MERL grease-covered steel (median 1.4e-3/sr) the
+    /// neural `f_s + f_d` started 24× too bright; the first hundred steps drove `s` so far below 0 that
+    /// `σ(s)`, softplus' slope, vanished, and Additive Separate (every seed) and Additive Shared stalled
+    /// at a diffuse-only fit (loss 3.2e-2 against 1.2e-3). On MERL nickel (median 1.7e-3/sr) the
+    /// parametric albedo `0.5/π` started 94× too bright and Torrance-Sparrow stalled at a black
+    /// rendering the same way (5.5e-2 against 1.0e-3). No usable median keeps the fixed start.
+    ///
+    /// ```
+    /// use trainer::models::OutputStart;
+    /// assert_eq!(OutputStart::for_median(None), OutputStart::DARK);
+    /// let (bright, dim) = (OutputStart::for_median(Some(0.3)), OutputStart::for_median(Some(1e-3)));
+    /// assert_eq!(bright, OutputStart::DARK);
+    /// assert!(dim.specular < bright.specular && dim.diffuse < bright.diffuse && dim.albedo < bright.albedo);
+    /// ```
+    pub fn for_median(median: Option<f32>) -> OutputStart {
+        let Some(m) = median.filter(|m| m.is_finite() && *m > 0.0) else { return OutputStart::DARK };
+        let ceiling = 2.0 * f64::from(m);
+        // Never darker than this: softplus(-16) = 1e-7/sr still lets a highlight grow.
+        const FLOOR: f64 = -16.0;
+        let sigmoid = |x: f64| 1.0 / (1.0 + (-x).exp());
+        // σ⁻¹(p) = ln(p / (1 - p)), at p = π · ceiling < 1 (the fixed starts are below 1/π)
+        let logit_of_brdf = |f: f64| {
+            let p = std::f64::consts::PI * f;
+            (p / (1.0 - p)).ln().max(FLOOR) as f32
+        };
+        let specular = if f64::from(SPECULAR_START).exp().ln_1p() > ceiling {
+            // softplus⁻¹(y) = ln(eʸ - 1)
+            ceiling.exp_m1().ln().max(FLOOR) as f32
+        } else {
+            SPECULAR_START
+        };
+        let diffuse = if sigmoid(f64::from(DIFFUSE_START)) / std::f64::consts::PI > ceiling {
+            logit_of_brdf(ceiling)
+        } else {
+            DIFFUSE_START
+        };
+        let albedo = if 0.5 / std::f64::consts::PI > ceiling { logit_of_brdf(ceiling) } else { 0.0 };
+        OutputStart { specular, diffuse, albedo }
+    }
+}
+
 /// A model: its configuration, networks and object parameters.
 pub struct Model {
     pub config: Config,
@@ -63,18 +124,24 @@ pub struct Model {
 
 impl Model {
     /// A freshly initialised model; the same seed gives the same weights. Layers start as PyTorch's
-    /// `nn.Linear`; the purely neural outputs start dark ([`SPECULAR_START`], [`DIFFUSE_START`]).
+    /// `nn.Linear`, then the outputs are shifted to [`OutputStart::DARK`].
     pub fn init(config: Config, seed: u64, device: &Device) -> Result<Model> {
+        Model::init_at(config, seed, device, OutputStart::DARK)
+    }
+
+    /// [`Model::init`] with the outputs starting at `start` (a fit starts at [`OutputStart::for_median`]
+    /// of its data).
+    pub fn init_at(config: Config, seed: u64, device: &Device, start: OutputStart) -> Result<Model> {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let nets: Vec<Mlp> = config.nets().into_iter().map(|d| Mlp::init(d, &mut rng, device)).collect::<Result<_>>()?;
         // The specular (Single MLP: whole) output is the last network; the diffuse one is the
         // position-only network before it (Additive Shared: the diffuse head after the trunk).
         match config.kind {
-            Kind::Parametric(_) => {}
-            Kind::SingleMlp => nets[nets.len() - 1].shift_output_bias(3, SPECULAR_START)?,
+            Kind::Parametric(_) => nets[nets.len() - 1].shift_output_bias(3, start.albedo)?,
+            Kind::SingleMlp => nets[nets.len() - 1].shift_output_bias(3, start.specular)?,
             Kind::AdditiveSeparate | Kind::AdditiveShared => {
-                nets[nets.len() - 1].shift_output_bias(3, SPECULAR_START)?;
-                nets[nets.len() - 2].shift_output_bias(3, DIFFUSE_START)?;
+                nets[nets.len() - 1].shift_output_bias(3, start.specular)?;
+                nets[nets.len() - 2].shift_output_bias(3, start.diffuse)?;
             }
         }
         let object = match config.n_object() {
@@ -202,5 +269,30 @@ mod tests {
             assert!(max < 0.2, "{}: max {max}", config.name());
             assert!(max > 1.05 * min, "{}: constant output {min}..{max}", config.name());
         }
+    }
+
+    /// A dark material's start puts each part at twice the median exactly, a bright one keeps the fixed
+    /// start, and no usable median keeps it too.
+    #[test]
+    fn output_start_follows_a_dark_material() {
+        assert_eq!(OutputStart::for_median(Some(0.1)), OutputStart::DARK);
+        for bad in [None, Some(0.0), Some(-1.0), Some(f32::NAN), Some(f32::INFINITY)] {
+            assert_eq!(OutputStart::for_median(bad), OutputStart::DARK, "{bad:?}");
+        }
+        let m = 1.4e-3f64;
+        let s = OutputStart::for_median(Some(m as f32));
+        let f_s = f64::from(s.specular).exp().ln_1p();
+        let f_d = 1.0 / (1.0 + (-f64::from(s.diffuse)).exp()) / std::f64::consts::PI;
+        assert!((f_s / (2.0 * m) - 1.0).abs() < 1e-5, "f_s {f_s}");
+        assert!((f_d / (2.0 * m) - 1.0).abs() < 1e-5, "f_d {f_d}");
+        let albedo = 1.0 / (1.0 + (-f64::from(s.albedo)).exp());
+        assert!((albedo / std::f64::consts::PI / (2.0 * m) - 1.0).abs() < 1e-5, "albedo {albedo}");
+        // The built-in sphere's median (0.018/sr) dims the parametric albedo only.
+        let sphere = OutputStart::for_median(Some(0.018));
+        assert_eq!((sphere.specular, sphere.diffuse), (SPECULAR_START, DIFFUSE_START));
+        assert!(sphere.albedo < 0.0);
+        // A black material starts at the floor, finite.
+        let black = OutputStart::for_median(Some(1e-30));
+        assert_eq!((black.specular, black.diffuse, black.albedo), (-16.0, -16.0, -16.0));
     }
 }

@@ -336,6 +336,23 @@ mod tests {
             assert!(c.scenes.iter().any(|s| s.material.contains(m)), "{m}");
         }
     }
+
+    /// The longer-budget config of docs/study.md fits the default's data sets (same scenes and synthesis
+    /// settings, so its rows pair with the default report's) for three times the steps.
+    #[test]
+    fn budget_config_is_the_default_at_three_times_the_steps() {
+        let path = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/study-budget.json"));
+        let c = StudyConfig::read(path).unwrap();
+        let d = StudyConfig::default_small();
+        assert_eq!(c.scenes, d.scenes);
+        let synth = |c: &StudyConfig| (c.size, c.views, c.train_views, c.train_lights, c.test_lights, c.seed, c.target_median);
+        assert_eq!(synth(&c), synth(&d));
+        assert_eq!((c.sigma, c.batch, c.lr, c.lr_final, &c.position, &c.reciprocity), (d.sigma, d.batch, d.lr, d.lr_final, &d.position, &d.reciprocity));
+        assert_eq!(c.steps, 3 * d.steps);
+        // Every variant is one of the default's, run on both objects.
+        let unrestricted = |m: &ModelSpec| ModelSpec { scenes: None, ..m.clone() };
+        assert!(c.models.iter().all(|m| d.models.iter().any(|dm| unrestricted(dm) == *m)));
+    }
 }
 
 #[cfg(test)]
