@@ -30,6 +30,14 @@ impl SceneConfig {
         };
         format!("{}__{}", clean(&self.mesh), clean(&self.material))
     }
+
+    /// How the report names the scene: the mesh's and the material's file stems, e.g.
+    /// `spot / grease-covered-steel` for `../shared/data/meshes/spot.obj` and
+    /// `../shared/data/nbrdf-merl/grease-covered-steel.json`; a built-in name as it is.
+    pub fn label(&self) -> String {
+        let stem = |s: &str| Path::new(s).file_stem().map_or_else(|| s.to_string(), |f| f.to_string_lossy().into_owned());
+        format!("{} / {}", stem(&self.mesh), stem(&self.material))
+    }
 }
 
 /// One model variant: `model` as `trainer fit --model` takes it, `enhanced` for Eq. 8.

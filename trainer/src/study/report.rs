@@ -333,7 +333,7 @@ pub fn curve_plots(out: &Path, config: &StudyConfig, results: &[JobResult]) -> R
             continue;
         }
         let rel = std::path::PathBuf::from(format!("figures/curves-{id}.png"));
-        let title = format!("Learning curves, {} / {}", scene.mesh, scene.material);
+        let title = format!("Learning curves, {}", scene.label());
         figures::curve_plot(&out.join(&rel), &title, &curves)?;
         written.push((title, rel));
     }
@@ -351,7 +351,7 @@ pub fn markdown(
 ) -> String {
     let s = summarize(results);
     let mut md = String::new();
-    let scenes: Vec<String> = config.scenes.iter().map(|sc| format!("{} / {}", sc.mesh, sc.material)).collect();
+    let scenes: Vec<String> = config.scenes.iter().map(|sc| sc.label()).collect();
     let paper_scale = config.steps >= 20_000 && config.size >= 256;
     let _ = writeln!(md, "# Neural BRDF study\n");
     if paper_scale {
@@ -360,10 +360,13 @@ pub fn markdown(
         let _ = writeln!(
             md,
             "**Reduced scale, not the paper's numbers.** {} steps at batch {} on {}² images (paper: 20k steps at 2^15 values on 256² \
-             renders of 25 meshes × 9 MERL materials): no model is converged and two objects are a small sample, so compare \
+             renders of 25 meshes × 9 MERL materials): no model is converged and {} objects are a small sample, so compare \
              rankings and differences, not values; the tables show that every measurement of Sec. 6 runs end to end and how the \
              variants compare at this budget.\n",
-            config.steps, config.batch, config.size
+            config.steps,
+            config.batch,
+            config.size,
+            config.scenes.len()
         );
     }
     let _ = writeln!(
@@ -444,9 +447,8 @@ pub fn markdown(
         .filter_map(|sc| {
             let e = results.iter().find(|r| r.scene == sc.id())?.exposure?;
             Some(format!(
-                "{} / {}: light intensity {:.3}, median object luminance {:.3}, {:.1} % of object pixels saturated",
-                sc.mesh,
-                sc.material,
+                "{}: light intensity {:.3}, median object luminance {:.3}, {:.1} % of object pixels saturated",
+                sc.label(),
                 e.light_intensity,
                 e.median_luminance,
                 100.0 * e.saturated_share
