@@ -1,6 +1,7 @@
 //! Outputs are all or nothing: `synth` and `fit` killed mid-run (SIGKILL, SIGINT) leave the previous
 //! output byte for byte as it was and loadable, and the next run removes what the killed one left.
 
+use std::os::unix::process::CommandExt;
 use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
@@ -11,6 +12,15 @@ use common::snapshot;
 fn trainer() -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_trainer"));
     c.stdout(Stdio::null()).stderr(Stdio::piped());
+    // A shell that starts the tests in the background (`cargo test &`) leaves SIGINT ignored, and exec
+    // keeps it ignored: the run must see the default disposition a terminal's Ctrl-C meets.
+    // SAFETY: `signal` is async-signal-safe, as code between fork and exec must be.
+    unsafe {
+        c.pre_exec(|| {
+            libc::signal(libc::SIGINT, libc::SIG_DFL);
+            Ok(())
+        });
+    }
     c
 }
 
