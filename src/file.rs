@@ -45,6 +45,10 @@ pub const MAX_INTRINSIC: u16 = 4096;
 pub const MAX_ANGLE_INPUT: usize = encoded_len(4, MAX_FREQUENCIES as usize);
 /// Largest extrinsic position encoding: xyz with 16 octaves.
 pub const MAX_POSITION_INPUT: usize = encoded_len(3, MAX_FREQUENCIES as usize);
+/// Largest model file read, 1 TiB: far above any real one (the networks are a few MB; a per-vertex
+/// table of `k` = 4096 values on a 60-million-vertex mesh fills it), so that a length given beside
+/// a pointer is refused before it is trusted.
+pub const MAX_FILE_BYTES: u64 = 1 << 40;
 
 /// Reciprocity strategy of a purely neural model (Sec. 4.3, Tab. 3).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -490,6 +494,10 @@ pub(crate) fn parse(bytes: &[u8]) -> Result<(ModelHeader, Sections), Error> {
         .ok_or(Error::TooLarge { what: "position table", found: usize::MAX, max: u32::MAX as usize })?;
     let table_end = checked(object_end, table_values)?;
     let total = checked(table_end, 4)?;
+    if total as u64 > MAX_FILE_BYTES || bytes.len() as u64 > MAX_FILE_BYTES {
+        let max = usize::try_from(MAX_FILE_BYTES).unwrap_or(usize::MAX);
+        return Err(Error::TooLarge { what: "model file bytes", found: total.max(bytes.len()), max });
+    }
     if bytes.len() < total {
         return Err(Error::Truncated { what: "model file", needed: total, got: bytes.len() });
     }

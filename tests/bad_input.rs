@@ -145,6 +145,14 @@ fn model_file_non_finite_content_in_every_section() {
 }
 
 #[test]
+fn inputs_larger_than_any_valid_one_are_refused_unread() {
+    // An NBRDF-json text past the cap: refused before a byte of it is parsed.
+    let big = vec![b' '; nbrdf::measured::nbrdf_json::MAX_JSON_BYTES + 1];
+    let err = nbrdf::measured::NbrdfNetwork::from_json_bytes(&big).unwrap_err();
+    assert!(matches!(err, Error::TooLarge { what: "NBRDF-json bytes", .. }), "{err}");
+}
+
+#[test]
 fn model_file_every_prefix_is_truncated_and_every_bit_flip_is_caught() {
     let h = ModelHeader::paper(ModelKind::AdditiveSeparate, true, Reciprocity::Swap, PositionEncoding::Intrinsic { k: 3 }, 1);
     let good = encode(&h, &small_weights(h.n_weights()), None).unwrap();

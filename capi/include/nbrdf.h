@@ -22,7 +22,11 @@
  * Errors: every fallible function returns an NbrdfStatus; NBRDF_STATUS_OK is 0. On any other value
  * nbrdf_last_error() describes this thread's last failure, and outputs are left untouched. Null or
  * misaligned pointers and wrong sizes are reported, never undefined behaviour; no panic crosses
- * the boundary.
+ * the boundary. Enum parameters are received as their int32_t and checked (any other value is
+ * NBRDF_STATUS_INVALID_VALUE); lengths are checked before any memory is read: more than PTRDIFF_MAX
+ * bytes, a range that wraps the address space or more bytes than any input of its kind has
+ * (a model file: 1 TiB, a MERL file: 34 992 012, NBRDF-json text: 64 MiB) is
+ * NBRDF_STATUS_BUFFER_SIZE.
  *
  * Threads: a loaded NbrdfBrdf is immutable; every function may be called on one handle from many
  * threads at once (with distinct output buffers). nbrdf_free must not race with other calls on the
@@ -74,21 +78,6 @@ typedef enum NbrdfStatus {
   NBRDF_STATUS_PANIC = 10,
 } NbrdfStatus;
 
-// The parametric models (the paper's Sec. 4.1.1).
-typedef enum NbrdfParametricKind {
-  // Lambert: `kd[3]`.
-  NBRDF_PARAMETRIC_KIND_LAMBERT = 0,
-  // The energy-preserving modified Phong "RP": `kd[3], ks[3], n` with `kd + ks <= 1`.
-  NBRDF_PARAMETRIC_KIND_PHONG = 1,
-  // Torrance-Sparrow: `kd[3], ks[3], alpha`.
-  NBRDF_PARAMETRIC_KIND_TORRANCE_SPARROW = 2,
-  // The FMBRDF: `rho[3], ks, alpha, beta, eta, norm`.
-  NBRDF_PARAMETRIC_KIND_FMBRDF = 3,
-  // Disney (Burley 2012): `base_color[3], subsurface, metallic, specular, specular_tint,
-  // roughness, sheen, sheen_tint, clearcoat, clearcoat_gloss`.
-  NBRDF_PARAMETRIC_KIND_DISNEY = 4,
-} NbrdfParametricKind;
-
 // What kind of BRDF a handle holds.
 typedef enum NbrdfKind {
   // A `.nbrdf` model file (neural or parametric network).
@@ -102,6 +91,33 @@ typedef enum NbrdfKind {
   // A built-in procedural material.
   NBRDF_KIND_BUILTIN = 4,
 } NbrdfKind;
+
+// The parametric models (the paper's Sec. 4.1.1). Functions receive it as its `int32_t` and name
+// any other value as an error (`NBRDF_STATUS_INVALID_VALUE`).
+enum NbrdfParametricKind
+#if defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+  : int32_t
+#endif // defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+ {
+  // Lambert: `kd[3]`.
+  NBRDF_PARAMETRIC_KIND_LAMBERT = 0,
+  // The energy-preserving modified Phong "RP": `kd[3], ks[3], n` with `kd + ks <= 1`.
+  NBRDF_PARAMETRIC_KIND_PHONG = 1,
+  // Torrance-Sparrow: `kd[3], ks[3], alpha`.
+  NBRDF_PARAMETRIC_KIND_TORRANCE_SPARROW = 2,
+  // The FMBRDF: `rho[3], ks, alpha, beta, eta, norm`.
+  NBRDF_PARAMETRIC_KIND_FMBRDF = 3,
+  // Disney (Burley 2012): `base_color[3], subsurface, metallic, specular, specular_tint,
+  // roughness, sheen, sheen_tint, clearcoat, clearcoat_gloss`.
+  NBRDF_PARAMETRIC_KIND_DISNEY = 4,
+};
+#ifndef __cplusplus
+#if __STDC_VERSION__ >= 202311L
+typedef enum NbrdfParametricKind NbrdfParametricKind;
+#else
+typedef int32_t NbrdfParametricKind;
+#endif // __STDC_VERSION__ >= 202311L
+#endif // __cplusplus
 
 // A loaded BRDF: a `.nbrdf` model, a MERL table, an NBRDF-json network, a parametric model or a
 // built-in material. Opaque; immutable once made, so one handle may be used by many threads at once.
@@ -217,7 +233,7 @@ enum NbrdfStatus nbrdf_nbrdf_json_from_bytes(const uint8_t *json,
 //
 // # Safety
 // `params` addresses `n` floats; `out` is writable.
-enum NbrdfStatus nbrdf_parametric(enum NbrdfParametricKind kind,
+enum NbrdfStatus nbrdf_parametric(NbrdfParametricKind kind,
                                   const float *params,
                                   size_t n,
                                   struct NbrdfBrdf **out);
@@ -229,7 +245,7 @@ enum NbrdfStatus nbrdf_parametric(enum NbrdfParametricKind kind,
 //
 // # Safety
 // `raw` addresses `n_raw` floats and `object` `n_object`; `out` is writable.
-enum NbrdfStatus nbrdf_parametric_from_raw(enum NbrdfParametricKind kind,
+enum NbrdfStatus nbrdf_parametric_from_raw(NbrdfParametricKind kind,
                                            const float *raw,
                                            size_t n_raw,
                                            const float *object,

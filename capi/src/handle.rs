@@ -2,16 +2,18 @@
 //! reports about itself, and freeing it.
 
 use std::ffi::{c_char, CStr};
-use std::path::PathBuf;
 
 use nbrdf_core::builtin::Builtin;
-use nbrdf_core::file::ModelKind;
+use nbrdf_core::file::{ModelKind, MAX_FILE_BYTES};
+use nbrdf_core::measured::merl::FILE_BYTES as MERL_BYTES;
+use nbrdf_core::measured::nbrdf_json::MAX_JSON_BYTES;
 use nbrdf_core::measured::{MerlTable, NbrdfNetwork};
 use nbrdf_core::parametric::{
     Disney, FresnelMicrofacet, Lambert, Parametric, ParametricKind, Phong, TorranceSparrow, MAX_OBJECT, MAX_RAW,
 };
 use nbrdf_core::{Brdf, Model, ModelBuf, Prepared};
 
+use crate::args::{bytes_of, exactly, floats_of, out_floats, parametric_kind, path_of, span};
 use crate::error::{fail, guard, NbrdfStatus, Result};
 
 /// A loaded BRDF: a `.nbrdf` model, a MERL table, an NBRDF-json network, a parametric model or a
@@ -81,8 +83,9 @@ pub enum NbrdfKind {
     Builtin = 4,
 }
 
-/// The parametric models (the paper's Sec. 4.1.1).
-#[repr(C)]
+/// The parametric models (the paper's Sec. 4.1.1). Functions receive it as its `int32_t` and name
+/// any other value as an error (`NBRDF_STATUS_INVALID_VALUE`).
+#[repr(i32)]
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum NbrdfParametricKind {
     /// Lambert: `kd[3]`.
@@ -98,17 +101,9 @@ pub enum NbrdfParametricKind {
     Disney = 4,
 }
 
-impl NbrdfParametricKind {
-    fn core(self) -> ParametricKind {
-        match self {
-            NbrdfParametricKind::Lambert => ParametricKind::Lambert,
-            NbrdfParametricKind::Phong => ParametricKind::Phong,
-            NbrdfParametricKind::TorranceSparrow => ParametricKind::TorranceSparrow,
-            NbrdfParametricKind::Fmbrdf => ParametricKind::FresnelMicrofacet,
-            NbrdfParametricKind::Disney => ParametricKind::Disney,
-        }
-    }
-}
+/// What C passes where the header says `NbrdfParametricKind`: its `int32_t`, any value, checked on
+/// use (the header names the enum; cbindgen.toml maps this name to it).
+pub type NbrdfParametricKindValue = i32;
 
 /// What [`nbrdf_info`] reports.
 #[repr(C)]
@@ -125,58 +120,6 @@ pub struct NbrdfInfo {
     /// Stored parameters: network weights (and per-object parameters), table entries, or the model's
     /// parameters.
     pub n_parameters: u64,
-}
-
-/// A path from a C string: its bytes as they are on Unix, UTF-8 elsewhere.
-fn path_of(path: *const c_char) -> Result<PathBuf> {
-    if path.is_null() {
-        return fail(NbrdfStatus::NullPointer, "path is null");
-    }
-    // SAFETY: non-null, and the caller passes a NUL-terminated string.
-    let bytes = unsafe { CStr::from_ptr(path) }.to_bytes();
-    #[cfg(unix)]
-    {
-        use std::os::unix::ffi::OsStrExt;
-        Ok(PathBuf::from(std::ffi::OsStr::from_bytes(bytes)))
-    }
-    #[cfg(not(unix))]
-    match std::str::from_utf8(bytes) {
-        Ok(s) => Ok(PathBuf::from(s)),
-        Err(_) => fail(NbrdfStatus::InvalidValue, "path is not UTF-8"),
-    }
-}
-
-/// `len` bytes at `bytes` (null allowed for 0).
-///
-/// # Safety
-/// `bytes` addresses `len` readable bytes that outlive the returned slice.
-unsafe fn bytes_of<'a>(bytes: *const u8, len: usize) -> Result<&'a [u8]> {
-    if len == 0 {
-        return Ok(&[]);
-    }
-    if bytes.is_null() {
-        return fail(NbrdfStatus::NullPointer, "bytes is null");
-    }
-    // SAFETY: the caller's contract.
-    Ok(unsafe { std::slice::from_raw_parts(bytes, len) })
-}
-
-/// `len` floats at `values` (null allowed for 0).
-///
-/// # Safety
-/// As [`bytes_of`], for floats.
-pub(crate) unsafe fn floats_of<'a>(values: *const f32, len: usize, what: &str) -> Result<&'a [f32]> {
-    if len == 0 {
-        return Ok(&[]);
-    }
-    if values.is_null() {
-        return fail(NbrdfStatus::NullPointer, format!("{what} is null"));
-    }
-    if !(values as usize).is_multiple_of(std::mem::align_of::<f32>()) {
-        return fail(NbrdfStatus::Misaligned, format!("{what} is not 4-byte aligned"));
-    }
-    // SAFETY: the caller's contract; non-null and aligned.
-    Ok(unsafe { std::slice::from_raw_parts(values, len) })
 }
 
 /// Stores a new handle in `*out`.
@@ -227,7 +170,7 @@ pub unsafe extern "C" fn nbrdf_load(path: *const c_char, out: *mut *mut NbrdfBrd
 #[no_mangle]
 pub unsafe extern "C" fn nbrdf_model_from_bytes(bytes: *const u8, len: usize, out: *mut *mut NbrdfBrdf) -> NbrdfStatus {
     // SAFETY: the caller's contract.
-    guard(|| unsafe { put(out, || Ok(Source::Model(ModelBuf::from_bytes(bytes_of(bytes, len)?)?))) })
+    guard(|| unsafe { put(out, || Ok(Source::Model(ModelBuf::from_bytes(bytes_of(bytes, len, MAX_FILE_BYTES, "model file")?)?))) })
 }
 
 /// A `.nbrdf` model over `len` bytes of the caller, borrowed without a copy (embedded models,
@@ -241,7 +184,7 @@ pub unsafe extern "C" fn nbrdf_model_from_bytes(bytes: *const u8, len: usize, ou
 pub unsafe extern "C" fn nbrdf_model_borrow(bytes: *const u8, len: usize, out: *mut *mut NbrdfBrdf) -> NbrdfStatus {
     guard(|| {
         // SAFETY: the caller keeps the bytes alive until nbrdf_free, which drops the handle.
-        let bytes: &'static [u8] = unsafe { bytes_of(bytes, len)? };
+        let bytes: &'static [u8] = unsafe { bytes_of(bytes, len, MAX_FILE_BYTES, "model file")? };
         if !(bytes.as_ptr() as usize).is_multiple_of(4) {
             return fail(NbrdfStatus::Misaligned, "bytes must be 4-byte aligned to be borrowed (nbrdf_model_from_bytes copies instead)");
         }
@@ -257,7 +200,7 @@ pub unsafe extern "C" fn nbrdf_model_borrow(bytes: *const u8, len: usize, out: *
 #[no_mangle]
 pub unsafe extern "C" fn nbrdf_merl_from_bytes(bytes: *const u8, len: usize, out: *mut *mut NbrdfBrdf) -> NbrdfStatus {
     // SAFETY: the caller's contract.
-    guard(|| unsafe { put(out, || Ok(Source::Merl(MerlTable::from_bytes(bytes_of(bytes, len)?)?))) })
+    guard(|| unsafe { put(out, || Ok(Source::Merl(MerlTable::from_bytes(bytes_of(bytes, len, MERL_BYTES as u64, "MERL file")?)?))) })
 }
 
 /// An NBRDF-json network from `len` bytes of JSON text (UTF-8, no NUL needed). Thread safe.
@@ -267,7 +210,7 @@ pub unsafe extern "C" fn nbrdf_merl_from_bytes(bytes: *const u8, len: usize, out
 #[no_mangle]
 pub unsafe extern "C" fn nbrdf_nbrdf_json_from_bytes(json: *const u8, len: usize, out: *mut *mut NbrdfBrdf) -> NbrdfStatus {
     // SAFETY: the caller's contract.
-    guard(|| unsafe { put(out, || Ok(Source::NbrdfJson(NbrdfNetwork::from_json_bytes(bytes_of(json, len)?)?))) })
+    guard(|| unsafe { put(out, || Ok(Source::NbrdfJson(NbrdfNetwork::from_json_bytes(bytes_of(json, len, MAX_JSON_BYTES as u64, "NBRDF-json file")?)?))) })
 }
 
 /// A parametric model from its parameters in natural units, `n` floats in the order
@@ -279,29 +222,28 @@ pub unsafe extern "C" fn nbrdf_nbrdf_json_from_bytes(json: *const u8, len: usize
 /// `params` addresses `n` floats; `out` is writable.
 #[no_mangle]
 pub unsafe extern "C" fn nbrdf_parametric(
-    kind: NbrdfParametricKind,
+    kind: NbrdfParametricKindValue,
     params: *const f32,
     n: usize,
     out: *mut *mut NbrdfBrdf,
 ) -> NbrdfStatus {
     guard(|| {
-        // SAFETY: the caller's contract.
-        let v = unsafe { floats_of(params, n, "params")? };
+        let kind = parametric_kind(kind)?;
         let want = match kind {
-            NbrdfParametricKind::Lambert => 3,
-            NbrdfParametricKind::Phong | NbrdfParametricKind::TorranceSparrow => 7,
-            NbrdfParametricKind::Fmbrdf => 8,
-            NbrdfParametricKind::Disney => 12,
+            ParametricKind::Lambert => 3,
+            ParametricKind::Phong | ParametricKind::TorranceSparrow => 7,
+            ParametricKind::FresnelMicrofacet => 8,
+            ParametricKind::Disney => 12,
         };
-        if v.len() != want {
-            return fail(NbrdfStatus::BufferSize, format!("{kind:?} takes {want} parameters, got {}", v.len()));
-        }
+        exactly(n, want, || format!("{} takes {want} parameters, got {n}", kind.id()))?;
+        // SAFETY: the caller's contract; n is the model's small count.
+        let v = unsafe { floats_of(params, n, "params")? };
         if let Some(i) = v.iter().position(|x| !x.is_finite()) {
-            return fail(NbrdfStatus::InvalidValue, format!("{kind:?} parameter {i} is not finite"));
+            return fail(NbrdfStatus::InvalidValue, format!("{} parameter {i} is not finite", kind.id()));
         }
         let unit = |range: std::ops::Range<usize>, what: &str| -> Result<()> {
             match v[range.clone()].iter().position(|x| !(0.0..=1.0).contains(x)) {
-                Some(i) => fail(NbrdfStatus::InvalidValue, format!("{kind:?} {what} (parameter {}) must lie in [0, 1]", range.start + i)),
+                Some(i) => fail(NbrdfStatus::InvalidValue, format!("{} {what} (parameter {}) must lie in [0, 1]", kind.id(), range.start + i)),
                 None => Ok(()),
             }
         };
@@ -309,22 +251,22 @@ pub unsafe extern "C" fn nbrdf_parametric(
             if v[i] > 0.0 {
                 Ok(())
             } else {
-                fail(NbrdfStatus::InvalidValue, format!("{kind:?} {what} (parameter {i}) must be > 0"))
+                fail(NbrdfStatus::InvalidValue, format!("{} {what} (parameter {i}) must be > 0", kind.id()))
             }
         };
         let rgb = |i: usize| [v[i], v[i + 1], v[i + 2]];
         let p = match kind {
-            NbrdfParametricKind::Lambert => {
+            ParametricKind::Lambert => {
                 unit(0..3, "kd")?;
                 Parametric::Lambert(Lambert { kd: rgb(0) })
             }
-            NbrdfParametricKind::Phong => Parametric::Phong(Phong::new(rgb(0), rgb(3), v[6])?),
-            NbrdfParametricKind::TorranceSparrow => {
+            ParametricKind::Phong => Parametric::Phong(Phong::new(rgb(0), rgb(3), v[6])?),
+            ParametricKind::TorranceSparrow => {
                 unit(0..6, "kd and ks")?;
                 positive(6, "alpha")?;
                 Parametric::TorranceSparrow(TorranceSparrow { kd: rgb(0), ks: rgb(3), alpha: v[6] })
             }
-            NbrdfParametricKind::Fmbrdf => {
+            ParametricKind::FresnelMicrofacet => {
                 unit(0..4, "rho and ks")?;
                 for (i, what) in [(4, "alpha"), (5, "beta"), (6, "eta"), (7, "norm")] {
                     positive(i, what)?;
@@ -338,7 +280,7 @@ pub unsafe extern "C" fn nbrdf_parametric(
                     norm: v[7],
                 })
             }
-            NbrdfParametricKind::Disney => {
+            ParametricKind::Disney => {
                 unit(0..12, "parameters")?;
                 Parametric::Disney(Disney {
                     base_color: rgb(0),
@@ -368,7 +310,7 @@ pub unsafe extern "C" fn nbrdf_parametric(
 /// `raw` addresses `n_raw` floats and `object` `n_object`; `out` is writable.
 #[no_mangle]
 pub unsafe extern "C" fn nbrdf_parametric_from_raw(
-    kind: NbrdfParametricKind,
+    kind: NbrdfParametricKindValue,
     raw: *const f32,
     n_raw: usize,
     object: *const f32,
@@ -376,18 +318,18 @@ pub unsafe extern "C" fn nbrdf_parametric_from_raw(
     out: *mut *mut NbrdfBrdf,
 ) -> NbrdfStatus {
     guard(|| {
-        let k = kind.core();
-        // SAFETY: the caller's contract.
-        let (raw, object) = unsafe { (floats_of(raw, n_raw, "raw")?, floats_of(object, n_object, "object")?) };
-        if raw.len() != k.n_raw() || object.len() != k.n_object() {
+        let k = parametric_kind(kind)?;
+        if (n_raw, n_object) != (k.n_raw(), k.n_object()) {
             return fail(
                 NbrdfStatus::BufferSize,
-                format!("{kind:?} takes {} raw values and {} object parameters, got {} and {}", k.n_raw(), k.n_object(), raw.len(), object.len()),
+                format!("{} takes {} raw values and {} object parameters, got {n_raw} and {n_object}", k.id(), k.n_raw(), k.n_object()),
             );
         }
-        debug_assert!(raw.len() <= MAX_RAW && object.len() <= MAX_OBJECT);
+        debug_assert!(n_raw <= MAX_RAW && n_object <= MAX_OBJECT);
+        // SAFETY: the caller's contract; the counts are the model's small ones.
+        let (raw, object) = unsafe { (floats_of(raw, n_raw, "raw")?, floats_of(object, n_object, "object")?) };
         if let Some(i) = raw.iter().chain(object).position(|x| !x.is_finite()) {
-            return fail(NbrdfStatus::InvalidValue, format!("{kind:?} raw value {i} is not finite"));
+            return fail(NbrdfStatus::InvalidValue, format!("{} raw value {i} is not finite", k.id()));
         }
         // SAFETY: the caller's contract.
         unsafe { put(out, || Ok(Source::Parametric(Parametric::from_raw(k, raw, object)))) }
@@ -507,22 +449,23 @@ pub unsafe extern "C" fn nbrdf_position_features(
         let Some(m) = h.model() else {
             return fail(NbrdfStatus::InvalidValue, "not a model: only intrinsically encoded models have position features");
         };
-        if tri.is_null() || out.is_null() {
-            return fail(NbrdfStatus::NullPointer, "tri or out is null");
+        // The output length is checked against the model's before anything is read or written.
+        exactly(out_len, m.position_len(), || format!("out has {out_len} floats; this model's position input has {}", m.position_len()))?;
+        if tri.is_null() {
+            return fail(NbrdfStatus::NullPointer, "tri is null");
         }
         if !(tri as usize).is_multiple_of(4) {
             return fail(NbrdfStatus::Misaligned, "tri is not 4-byte aligned");
         }
-        // SAFETY: non-null, 3 values by the caller's contract.
+        span(tri, 3, "tri")?;
+        // SAFETY: non-null, aligned, 3 values by the caller's contract.
         let tri = unsafe { [*tri, *tri.add(1), *tri.add(2)] };
         // SAFETY: the caller's contract.
         let bary = unsafe { floats_of(bary, 3, "bary")? };
-        if out_len != m.position_len() {
-            return fail(NbrdfStatus::BufferSize, format!("out has {out_len} floats; this model's position input has {}", m.position_len()));
+        if let Some(i) = bary.iter().position(|b| !b.is_finite()) {
+            return fail(NbrdfStatus::InvalidValue, format!("bary[{i}] is {}: barycentric weights must be finite", bary[i]));
         }
-        if !(out as usize).is_multiple_of(4) {
-            return fail(NbrdfStatus::Misaligned, "out is not 4-byte aligned");
-        }
+        out_floats(out, out_len, "out")?;
         let mut feat = vec![0.0f32; out_len];
         m.position_features(tri, [bary[0], bary[1], bary[2]], &mut feat)?;
         // SAFETY: out addresses out_len writable floats (caller's contract), aligned, checked non-null.

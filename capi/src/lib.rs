@@ -7,6 +7,7 @@
 //! `NBRDF_STATUS_PANIC`). A loaded BRDF is immutable: one handle may be used from many threads at
 //! once. The conventions (frame, `wi`/`wo`, units) are in the header's preamble (`cbindgen.toml`).
 
+mod args;
 mod error;
 mod handle;
 mod shade;

@@ -7,8 +7,9 @@ use std::mem::{align_of, size_of};
 use nbrdf_core::model::ModelAt;
 use nbrdf_core::{Brdf, BsdfSample, Prepared, Vec3};
 
+use crate::args::{exactly, floats_mut, floats_of, out_floats, overlaps, span};
 use crate::error::{fail, guard, NbrdfStatus, Result};
-use crate::handle::{floats_of, handle, NbrdfBrdf};
+use crate::handle::{handle, NbrdfBrdf};
 
 /// Bytes of point storage that are always enough ([`nbrdf_point_size`] is the exact need): for
 /// storage on the stack, `_Alignas(16) unsigned char point[NBRDF_POINT_MAX_SIZE];`.
@@ -65,7 +66,13 @@ pub unsafe extern "C" fn nbrdf_prepare(
     guard(|| {
         // SAFETY: the caller's contract.
         let h = unsafe { handle(brdf)? };
-        // SAFETY: the caller's contract.
+        // The length is checked against the model's before the floats are read.
+        let want = h.model().map_or(0, |m| m.position_len());
+        exactly(position_len, want, || match want {
+            0 => format!("position has {position_len} floats; this BRDF takes none"),
+            _ => format!("position has {position_len} floats; this model takes {want}"),
+        })?;
+        // SAFETY: the caller's contract; the length is the model's.
         let p = unsafe { floats_of(position, position_len, "position")? };
         if storage.is_null() {
             return fail(NbrdfStatus::NullPointer, "storage is null");
@@ -76,15 +83,10 @@ pub unsafe extern "C" fn nbrdf_prepare(
         if !(storage as usize).is_multiple_of(align_of::<Point>()) {
             return fail(NbrdfStatus::Misaligned, format!("storage must be {}-byte aligned (nbrdf_point_align)", align_of::<Point>()));
         }
+        span(storage.cast::<u8>().cast_const(), size_of::<Point>(), "storage")?;
         let prepared = match h.model() {
-            Some(m) => {
-                if p.len() != m.position_len() {
-                    return fail(NbrdfStatus::BufferSize, format!("position has {} floats; this model takes {}", p.len(), m.position_len()));
-                }
-                m.prepare(p)?
-            }
-            None if p.is_empty() => Prepared::default(),
-            None => return fail(NbrdfStatus::BufferSize, format!("position has {} floats; this BRDF takes none", p.len())),
+            Some(m) => m.prepare(p)?,
+            None => Prepared::default(),
         };
         // SAFETY: non-null, large enough and aligned, checked above.
         unsafe { storage.cast::<Point>().write(Point { magic: MAGIC, owner: brdf, prepared }) };
@@ -150,17 +152,6 @@ unsafe fn vec3(v: *const f32, what: &str) -> Result<Vec3> {
     Ok(Vec3::new(s[0], s[1], s[2]))
 }
 
-/// Checks an output pointer of floats.
-fn out_floats(out: *mut f32, what: &str) -> Result<()> {
-    if out.is_null() {
-        return fail(NbrdfStatus::NullPointer, format!("{what} is null"));
-    }
-    if !(out as usize).is_multiple_of(align_of::<f32>()) {
-        return fail(NbrdfStatus::Misaligned, format!("{what} is not 4-byte aligned"));
-    }
-    Ok(())
-}
-
 /// `f(wi, wo)` into `rgb[3]` (1/sr, cosine not included; 0 below the horizon or for invalid
 /// directions, never NaN). `point` is storage from [`nbrdf_prepare`], or null for a BRDF that is the
 /// same everywhere. Thread safe.
@@ -179,7 +170,7 @@ pub unsafe extern "C" fn nbrdf_eval(
     guard(|| {
         // SAFETY: the caller's contract, for every pointer.
         let (b, wi, wo) = unsafe { (at(handle(brdf)?, point)?, vec3(wi, "wi")?, vec3(wo, "wo")?) };
-        out_floats(rgb, "rgb")?;
+        out_floats(rgb, 3, "rgb")?;
         let f = b.brdf().eval(wi, wo);
         // SAFETY: checked non-null and aligned; 3 writable floats by the caller's contract.
         unsafe { std::ptr::copy_nonoverlapping(f.as_ptr(), rgb, 3) };
@@ -211,12 +202,6 @@ pub struct NbrdfRgbArrays {
     pub b: *mut f32,
 }
 
-/// Whether `[a, a + n)` and `[b, b + n)` floats overlap.
-fn overlaps(a: *const f32, b: *const f32, n: usize) -> bool {
-    let (a, b, len) = (a as usize, b as usize, n * size_of::<f32>());
-    a < b + len && b < a + len
-}
-
 /// `f(wi[i], wo[i])` for `i < n` at one point, into `out` (as [`nbrdf_eval`], bit for bit; models run
 /// in packets, faster than one call per pair). The outputs must not overlap the inputs or each other
 /// (`NBRDF_STATUS_INVALID_VALUE`). Thread safe.
@@ -239,25 +224,35 @@ pub unsafe extern "C" fn nbrdf_eval_many(
         if n == 0 {
             return Ok(());
         }
-        // SAFETY: each array addresses n floats by the caller's contract (checked non-null, aligned).
+        // Every array is checked (null, alignment, length, address wrap) before any slice is made.
+        let ins = [(wi.x, "wi.x"), (wi.y, "wi.y"), (wi.z, "wi.z"), (wo.x, "wo.x"), (wo.y, "wo.y"), (wo.z, "wo.z")];
+        for (p, what) in ins {
+            if p.is_null() {
+                return fail(NbrdfStatus::NullPointer, format!("{what} is null"));
+            }
+            span(p, n, what)?;
+        }
+        let outs = [out.r, out.g, out.b];
+        for (o, what) in outs.iter().zip(["out.r", "out.g", "out.b"]) {
+            out_floats(*o, n, what)?;
+        }
+        for (i, o) in outs.iter().enumerate() {
+            let inputs = ins.iter().map(|(p, _)| *p);
+            if inputs.chain(outs[..i].iter().map(|p| p.cast_const())).any(|p| overlaps(p, o.cast_const(), n)) {
+                return fail(NbrdfStatus::InvalidValue, "an output array overlaps an input or another output");
+            }
+        }
+        // SAFETY: each array addresses n floats by the caller's contract; checked non-null, aligned
+        // and a range a slice may describe.
         let (wi, wo) = unsafe {
             (
                 [floats_of(wi.x, n, "wi.x")?, floats_of(wi.y, n, "wi.y")?, floats_of(wi.z, n, "wi.z")?],
                 [floats_of(wo.x, n, "wo.x")?, floats_of(wo.y, n, "wo.y")?, floats_of(wo.z, n, "wo.z")?],
             )
         };
-        let outs = [out.r, out.g, out.b];
-        for (o, what) in outs.iter().zip(["out.r", "out.g", "out.b"]) {
-            out_floats(*o, what)?;
-        }
-        for (i, o) in outs.iter().enumerate() {
-            let inputs = wi.iter().chain(&wo).map(|s| s.as_ptr());
-            if inputs.chain(outs[..i].iter().map(|p| p.cast_const())).any(|p| overlaps(p, *o, n)) {
-                return fail(NbrdfStatus::InvalidValue, "an output array overlaps an input or another output");
-            }
-        }
-        // SAFETY: non-null, aligned, n writable floats each, disjoint from each other and the inputs.
-        let [r, g, bl] = outs.map(|o| unsafe { std::slice::from_raw_parts_mut(o, n) });
+        // SAFETY: n writable floats each by the caller's contract, disjoint from each other and the
+        // inputs (checked above).
+        let (r, g, bl) = unsafe { (floats_mut(out.r, n, "out.r")?, floats_mut(out.g, n, "out.g")?, floats_mut(out.b, n, "out.b")?) };
         match &b {
             At::Model(m) => m.model.eval_many_soa(&m.prepared, wi, wo, [r, g, bl]),
             At::Fixed(f) => {
@@ -334,7 +329,7 @@ pub unsafe extern "C" fn nbrdf_pdf(
     guard(|| {
         // SAFETY: the caller's contract.
         let (b, wi, wo) = unsafe { (at(handle(brdf)?, point)?, vec3(wi, "wi")?, vec3(wo, "wo")?) };
-        out_floats(pdf, "pdf")?;
+        out_floats(pdf, 1, "pdf")?;
         let p: f32 = b.brdf().pdf(wi, wo);
         // SAFETY: checked non-null and aligned; writable by the caller's contract.
         unsafe { pdf.write(p) };

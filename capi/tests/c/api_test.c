@@ -4,7 +4,9 @@
  * Usage: api_test [quick] DIR (quick: no chi-square test). Exit status 0 when every check passed. */
 #include "nbrdf.h"
 
+#include <limits.h>
 #include <math.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -184,6 +186,66 @@ static void error_paths(const char *dir) {
     nbrdf_free(NULL);
 }
 
+/* Values a C caller can pass that are no enum value, and lengths no buffer can have: each call returns
+ * its status without touching its outputs (the Rust side never holds an undeclared enum value nor
+ * makes a slice of an impossible length). */
+static void hostile_values(const char *dir) {
+    static const int kinds[] = {-1, 5, 99, INT_MAX, INT_MIN};
+    static const size_t lengths[] = {SIZE_MAX, SIZE_MAX / 4, (size_t)1 << 62, (size_t)PTRDIFF_MAX / 4 + 1};
+    char path[4096];
+    NbrdfBrdf *b = NULL;
+    float p[12] = {0.5f, 0.5f, 0.5f, 0.5f, 0.5f, 0.5f, 0.5f, 0.5f, 0.5f, 0.5f, 0.5f, 0.5f};
+    for (size_t i = 0; i < sizeof kinds / sizeof kinds[0]; i++) {
+        char needle[32];
+        snprintf(needle, sizeof needle, "kind %d", kinds[i]);
+        EXPECT(nbrdf_parametric((NbrdfParametricKind)kinds[i], p, 3, &b), NBRDF_STATUS_INVALID_VALUE, needle);
+        EXPECT(nbrdf_parametric_from_raw((NbrdfParametricKind)kinds[i], p, 3, NULL, 0, &b), NBRDF_STATUS_INVALID_VALUE, needle);
+        CHECK(b == NULL, "kind %d: *out untouched", kinds[i]);
+    }
+
+    snprintf(path, sizeof path, "%s/model.nbrdf", dir);
+    NbrdfBrdf *model = NULL, *varying = NULL;
+    CHECK(nbrdf_load(path, &model) == NBRDF_STATUS_OK, "load %s", path);
+    snprintf(path, sizeof path, "%s/varying.nbrdf", dir);
+    CHECK(nbrdf_load(path, &varying) == NBRDF_STATUS_OK, "load %s", path);
+    if (!model || !varying) return;
+    static float a[6][4], r[3][4];
+    unsigned char *storage = malloc(NBRDF_POINT_MAX_SIZE); /* malloc aligns for any type */
+    static uint32_t bytes[64]; /* 4-byte aligned, for the borrowed model */
+    memset(r, 0x5a, sizeof r);
+    unsigned char before[sizeof r];
+    memcpy(before, r, sizeof r);
+    NbrdfDirections wi = {a[0], a[1], a[2]}, wo = {a[3], a[4], a[5]};
+    NbrdfRgbArrays out = {r[0], r[1], r[2]};
+    uint32_t tri[3] = {0, 1, 2};
+    float bary[3] = {0.2f, 0.3f, 0.5f}, features[4] = {7, 7, 7, 7};
+    for (size_t i = 0; i < sizeof lengths / sizeof lengths[0]; i++) {
+        size_t n = lengths[i];
+        EXPECT(nbrdf_eval_many(model, NULL, n, wi, wo, out), NBRDF_STATUS_BUFFER_SIZE, "isize::MAX");
+        EXPECT(nbrdf_model_from_bytes((const uint8_t *)bytes, n, &b), NBRDF_STATUS_BUFFER_SIZE, "model file");
+        EXPECT(nbrdf_model_borrow((const uint8_t *)bytes, n, &b), NBRDF_STATUS_BUFFER_SIZE, "model file");
+        EXPECT(nbrdf_merl_from_bytes((const uint8_t *)bytes, n, &b), NBRDF_STATUS_BUFFER_SIZE, "MERL file");
+        EXPECT(nbrdf_nbrdf_json_from_bytes((const uint8_t *)bytes, n, &b), NBRDF_STATUS_BUFFER_SIZE, "NBRDF-json");
+        EXPECT(nbrdf_prepare(varying, a[0], n, storage, NBRDF_POINT_MAX_SIZE), NBRDF_STATUS_BUFFER_SIZE, "takes 3");
+        EXPECT(nbrdf_position_features(varying, tri, bary, features, n), NBRDF_STATUS_BUFFER_SIZE, "out has");
+        EXPECT(nbrdf_parametric(NBRDF_PARAMETRIC_KIND_LAMBERT, p, n, &b), NBRDF_STATUS_BUFFER_SIZE, "3 parameters");
+        EXPECT(nbrdf_parametric_from_raw(NBRDF_PARAMETRIC_KIND_LAMBERT, p, n, NULL, 0, &b), NBRDF_STATUS_BUFFER_SIZE, "raw values");
+        CHECK(b == NULL, "n = %zu: *out untouched", n);
+        CHECK(memcmp(r, before, sizeof r) == 0, "n = %zu: outputs untouched", n);
+    }
+    /* Arrays that would run past the end of the address space. */
+    NbrdfRgbArrays wrapping = {r[0], r[1], (float *)(uintptr_t)(UINTPTR_MAX - 7)};
+    EXPECT(nbrdf_eval_many(model, NULL, 4, wi, wo, wrapping), NBRDF_STATUS_BUFFER_SIZE, "end of the address space");
+    CHECK(memcmp(r, before, sizeof r) == 0, "wrapping output: outputs untouched");
+    /* Non-finite barycentric weights. */
+    bary[1] = NAN;
+    EXPECT(nbrdf_position_features(varying, tri, bary, features, 3), NBRDF_STATUS_INVALID_VALUE, "bary[1]");
+    CHECK(features[0] == 7 && features[3] == 7, "NaN barycentrics: out untouched");
+    free(storage);
+    nbrdf_free(varying);
+    nbrdf_free(model);
+}
+
 int main(int argc, char **argv) {
     if (argc < 2) return 2;
     /* "api_test quick DIR": no chi-square test (under valgrind). */
@@ -272,6 +334,7 @@ int main(int argc, char **argv) {
     if (cases) fclose(cases);
     CHECK(index > 0, "cases were read");
     error_paths(dir);
+    hostile_values(dir);
     free(pairs);
     if (failures) fprintf(stderr, "%d checks failed\n", failures);
     return failures ? 1 : 0;

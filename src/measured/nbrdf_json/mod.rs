@@ -40,6 +40,9 @@ pub const MAX_WIDTH: usize = 64;
 const _: () = assert!(MAX_WIDTH <= TINY_MAX_WIDTH && INPUTS == TINY_INPUTS);
 /// Most layers accepted.
 pub const MAX_LAYERS: usize = 16;
+/// Largest JSON text read, 64 MiB: the largest network accepted (16 layers 64 wide) is under 2 MB
+/// of numbers, so this leaves room for any formatting while a wrong length is refused unread.
+pub const MAX_JSON_BYTES: usize = 64 << 20;
 /// Network input size: `[hx, hy, hz, dx, dy, dz]`.
 pub const INPUTS: usize = 6;
 /// Network output size: RGB.
@@ -126,6 +129,9 @@ impl NbrdfNetwork {
 
     /// [`from_json_str`](Self::from_json_str) on raw bytes (which must be UTF-8 JSON).
     pub fn from_json_bytes(json: &[u8]) -> Result<Self, Error> {
+        if json.len() > MAX_JSON_BYTES {
+            return Err(Error::TooLarge { what: "NBRDF-json bytes", found: json.len(), max: MAX_JSON_BYTES });
+        }
         // serde_json skips the bytes of fields it ignores without checking them; the whole
         // document must be UTF-8 all the same.
         if let Err(e) = core::str::from_utf8(json) {
@@ -148,7 +154,9 @@ impl NbrdfNetwork {
     #[cfg(feature = "std")]
     pub fn load(path: impl AsRef<std::path::Path>) -> Result<Self, Error> {
         let path = path.as_ref();
-        let bytes = std::fs::read(path).map_err(|e| Error::io(path, &e))?;
+        // 64 MiB: the largest network accepted is under 2 MB of numbers; a device (`/dev/zero`) or a
+        // wrong file is refused without filling the memory.
+        let bytes = crate::io::read_at_most(path, 64 << 20)?;
         Self::from_json_bytes(&bytes).map_err(|e| match e {
             Error::Parse { message, .. } => Error::Parse {
                 what: alloc::format!("NBRDF-json file {}", path.display()),
