@@ -6,9 +6,41 @@ use std::vec::Vec;
 
 use crate::Error;
 
-/// Reads a whole file; the error names the path.
+/// Most bytes [`read`] reads of one file, 2 GiB: twice the largest per-vertex table a model file
+/// carries from the trainer (2^28 f32 values), so that a wrong path (`/dev/zero`, a disk image) is
+/// refused instead of filling the memory.
+pub const MAX_READ_BYTES: u64 = 2 << 30;
+
+/// Reads a whole file of at most [`MAX_READ_BYTES`]; the error names the path.
 pub fn read(path: &Path) -> Result<Vec<u8>, Error> {
-    std::fs::read(path).map_err(|e| Error::io(path, &e))
+    read_at_most(path, MAX_READ_BYTES)
+}
+
+/// Reads a whole file of at most `max` bytes; the error names the path. A longer regular file is
+/// refused by its length before a byte is read; a device or pipe, whose length says nothing, is read
+/// no further than `max + 1` bytes. Either is an [`Error::Io`] of kind `FileTooLarge`.
+///
+/// ```
+/// let err = nbrdf::io::read_at_most(std::path::Path::new("/dev/zero"), 1024).unwrap_err();
+/// assert!(err.to_string().contains("/dev/zero") && err.to_string().contains("1024 bytes"));
+/// ```
+pub fn read_at_most(path: &Path, max: u64) -> Result<Vec<u8>, Error> {
+    use std::io::Read;
+    let too_large = |found: &str| {
+        let e = std::io::Error::new(std::io::ErrorKind::FileTooLarge, std::format!("{found}, more than the {max} bytes read of such a file"));
+        Error::io(path, &e)
+    };
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, &e))?;
+    let len = file.metadata().map_err(|e| Error::io(path, &e))?.len();
+    if len > max {
+        return Err(too_large(&std::format!("{len} bytes")));
+    }
+    let mut bytes = Vec::with_capacity(len as usize);
+    file.take(max.saturating_add(1)).read_to_end(&mut bytes).map_err(|e| Error::io(path, &e))?;
+    if bytes.len() as u64 > max {
+        return Err(too_large("it yields more bytes"));
+    }
+    Ok(bytes)
 }
 
 /// Writes `bytes` to `path` through a temporary file in the same directory and a rename, so that an

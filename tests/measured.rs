@@ -434,12 +434,19 @@ fn merl_missing_and_unwritable_paths_are_io_errors() {
         }
         other => panic!("expected an I/O error, got {other:?}"),
     }
-    // A file with trailing data is rejected before it is read whole.
+    // A file with trailing data is rejected before it is read whole, naming the file and its length.
     let big = dir.0.join("big.binary");
     std::fs::write(&big, vec![0u8; FILE_BYTES + 8]).unwrap();
-    assert!(
-        matches!(MerlTable::read(&big), Err(Error::SizeMismatch { found, .. }) if found == FILE_BYTES + 8)
-    );
+    match MerlTable::read(&big) {
+        Err(Error::Context { what, message }) => {
+            assert_eq!(what, format!("MERL file {}", big.display()));
+            assert!(message.contains("trailing data") && message.contains(&(FILE_BYTES + 8).to_string()), "{message}");
+        }
+        other => panic!("expected the file named, got {other:?}"),
+    }
+    // A device that never ends is read no further than a table.
+    #[cfg(unix)]
+    assert!(MerlTable::read("/dev/zero").unwrap_err().to_string().contains("/dev/zero"));
 
     // Writing into a directory that does not exist fails and creates nothing.
     let table = MerlTable::from_raw(vec![0.0; 3 * SAMPLES_PER_CHANNEL]).unwrap();

@@ -403,6 +403,7 @@ impl MerlTable {
     #[cfg(feature = "std")]
     pub fn read(path: impl AsRef<std::path::Path>) -> Result<Self, Error> {
         let path = path.as_ref();
+        let at = || std::format!("MERL file {}", path.display());
         let len = std::fs::metadata(path)
             .map_err(|e| Error::io(path, &e))?
             .len();
@@ -411,10 +412,12 @@ impl MerlTable {
                 what: "MERL file length in bytes (trailing data)",
                 expected: FILE_BYTES,
                 found: usize::try_from(len).unwrap_or(usize::MAX),
-            });
+            }
+            .context(at()));
         }
-        let bytes = std::fs::read(path).map_err(|e| Error::io(path, &e))?;
-        Self::from_bytes(&bytes).map_err(|e| e.context(std::format!("MERL file {}", path.display())))
+        // A device or pipe has no length to check: read no more than a whole table.
+        let bytes = crate::io::read_at_most(path, FILE_BYTES as u64)?;
+        Self::from_bytes(&bytes).map_err(|e| e.context(at()))
     }
 
     /// Writes the table as a `.binary` file, atomically: into a temporary file in the same directory,

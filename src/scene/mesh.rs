@@ -105,14 +105,22 @@ impl Mesh {
         let path = path.as_ref();
         let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
         match ext.as_deref() {
+            // OBJ is read whole: through the capped reader, so that a device or a huge file is
+            // refused instead of filling the memory.
             Some("obj") => {
-                let file = std::fs::File::open(path).map_err(|e| Error::io(path, &e))?;
-                Self::from_obj_reader(&mut std::io::BufReader::new(file))
-                    .map_err(|e| with_path(e, path))
+                let bytes = crate::io::read(path)?;
+                Self::from_obj_reader(&mut bytes.as_slice()).map_err(|e| with_path(e, path))
             }
             Some("ply") => {
                 let file = std::fs::File::open(path).map_err(|e| Error::io(path, &e))?;
-                Self::from_ply_reader(&mut std::io::BufReader::new(file))
+                let len = file.metadata().map_err(|e| Error::io(path, &e))?.len();
+                if len > crate::io::MAX_READ_BYTES {
+                    let message = format!("{len} bytes, more than the {} bytes read of a mesh", crate::io::MAX_READ_BYTES);
+                    return Err(Error::io(path, &std::io::Error::new(std::io::ErrorKind::FileTooLarge, message)));
+                }
+                // The stream stops at the cap: a device that never ends is a PLY cut short.
+                let capped = std::io::Read::take(file, crate::io::MAX_READ_BYTES);
+                Self::from_ply_reader(&mut std::io::BufReader::new(capped))
                     .map_err(|e| with_path(e, path))
             }
             _ => Err(Error::Parse {
