@@ -64,10 +64,11 @@ struct Args {
     /// Constant environment radiance `R,G,B` (1,1,1 with a white Lambertian is the furnace test).
     #[arg(long, value_parser = parse_vec3)]
     env_color: Option<Vec3>,
-    /// Samples per pixel.
+    /// Samples per pixel (1..=1048576).
     #[arg(long, default_value_t = 16)]
     spp: u32,
-    /// Most surface vertices per path (where interreflections are simulated).
+    /// Most surface vertices per path (where interreflections are simulated); 1..=1024, 1 is direct
+    /// lighting only.
     #[arg(long, default_value_t = 8)]
     max_depth: u32,
     #[arg(long, default_value_t = 0)]
@@ -75,10 +76,11 @@ struct Args {
     /// Simulate every effect even where the scene cannot show it.
     #[arg(long)]
     force_all: bool,
-    /// Output OpenEXR; a PNG is written beside it.
+    /// Output OpenEXR; a PNG is written beside it (the same path with `.png`). Both paths are checked
+    /// before rendering.
     #[arg(long, default_value = "render.exr")]
     out: PathBuf,
-    /// Exposure scale of the PNG.
+    /// Exposure scale of the PNG: finite and > 0 (the EXR is written unscaled).
     #[arg(long, default_value_t = 1.0)]
     exposure: f32,
 }
@@ -169,13 +171,14 @@ fn brdf_of(spec: &str) -> Result<Material, String> {
 }
 
 fn light_of(spec: &str) -> Result<DirectionalLight, String> {
+    let named = |e: String| format!("--light {spec}: {e}");
     let (d, c) = spec.split_once(':').unwrap_or((spec, "1,1,1"));
-    let dir = parse_vec3(d)?;
-    let c = parse_floats(c, 3, "light intensity")?;
+    let dir = parse_vec3(d).map_err(|e| named(format!("direction {e}")))?;
+    let c = parse_floats(c, 3, "intensity").map_err(named)?;
     if c.iter().any(|x| *x < 0.0) {
-        return Err(format!("light `{spec}`: intensity must be ≥ 0"));
+        return Err(named("intensity must be ≥ 0".into()));
     }
-    DirectionalLight::new(dir, [c[0], c[1], c[2]]).ok_or(format!("light `{spec}`: zero direction"))
+    DirectionalLight::new(dir, [c[0], c[1], c[2]]).ok_or_else(|| named("zero direction".into()))
 }
 
 fn run(args: Args) -> Result<(), String> {
@@ -188,14 +191,23 @@ fn run(args: Args) -> Result<(), String> {
         "cosine" => Sampling::Cosine,
         s => return Err(format!("--sampling `{s}`: expected native or cosine")),
     };
-    // Every size and the output are checked before any work.
-    if args.spp > MAX_SPP {
-        return Err(format!("--spp {}: at most {MAX_SPP} samples per pixel", args.spp));
+    // Every size, number and output is checked before any work.
+    if args.spp == 0 || args.spp > MAX_SPP {
+        return Err(format!("--spp {}: allowed 1..={MAX_SPP} samples per pixel", args.spp));
     }
-    if args.max_depth > MAX_DEPTH {
-        return Err(format!("--max-depth {}: at most {MAX_DEPTH} bounces", args.max_depth));
+    if args.max_depth == 0 || args.max_depth > MAX_DEPTH {
+        return Err(format!("--max-depth {}: allowed 1..={MAX_DEPTH} surface vertices (1: direct lighting only)", args.max_depth));
     }
-    check_writable(&args.out)?;
+    // A negative or zero scale has no image to show (every pixel black), NaN none at all.
+    if !(args.exposure.is_finite() && args.exposure > 0.0) {
+        return Err(format!("--exposure {}: must be finite and > 0", args.exposure));
+    }
+    let png = args.out.with_extension("png");
+    if png == args.out {
+        return Err(format!("--out {}: the PNG beside it would take the same name; give a .exr path", args.out.display()));
+    }
+    check_writable(&args.out).map_err(|e| format!("--out {}: {e}", args.out.display()))?;
+    check_writable(&png).map_err(|e| format!("--out {}: the PNG beside it, {}, {e}", args.out.display(), png.display()))?;
     let fit_start = std::time::Instant::now();
     let material = brdf_of(&args.brdf)?.with_sampling(sampling);
     let fit_secs = fit_start.elapsed().as_secs_f64();
@@ -213,10 +225,15 @@ fn run(args: Args) -> Result<(), String> {
     if !(args.fov > 0.0 && args.fov < 180.0) {
         return Err(String::from("--fov: must lie in (0, 180) degrees"));
     }
-    let camera = Camera::look_at(args.eye, args.target, args.up, args.fov.to_radians(), args.width, args.height)
-        .map_err(|e| format!("--width {} --height {}: {e}", args.width, args.height))?;
+    // The flags a camera error is about: the pose's, or the image size's.
+    let camera = Camera::look_at(args.eye, args.target, args.up, args.fov.to_radians(), args.width, args.height).map_err(|e| match e {
+        Error::InvalidValue { what: "camera look-at", .. } => {
+            format!("--eye {} --target {} --up {}: {e}", args.eye, args.target, args.up)
+        }
+        _ => format!("--width {} --height {}: {e}", args.width, args.height),
+    })?;
     let scene = Scene { geometry: &geometry, material: &material, lights: &lights, env: env.as_ref(), camera: &camera };
-    let options = Options { spp: args.spp.max(1), max_depth: args.max_depth, seed: args.seed, force_all: args.force_all, ..Options::default() };
+    let options = Options { spp: args.spp, max_depth: args.max_depth, seed: args.seed, force_all: args.force_all, ..Options::default() };
 
     println!("mesh: {} ({n_tris} triangles, {})", args.mesh, if geometry.convex { "closed convex" } else { "not convex" });
     println!("material: {} (set up in {:.3} s)", material.describe(), fit_secs);
@@ -237,9 +254,7 @@ fn run(args: Args) -> Result<(), String> {
         out.stats.shadow_rays,
         out.stats.brdf_evals
     );
-    nbrdf::image::write_exr(&args.out, &out.image).map_err(|e| e.to_string())?;
-    let png = args.out.with_extension("png");
-    nbrdf::image::write_png_srgb(&png, &out.image, args.exposure).map_err(|e| e.to_string())?;
+    write_both(&args.out, &png, &out.image, args.exposure)?;
     println!("wrote {} and {}", args.out.display(), png.display());
     Ok(())
 }
@@ -249,22 +264,42 @@ const MAX_SPP: u32 = 1 << 20;
 /// Most bounces per path.
 const MAX_DEPTH: u32 = 1024;
 
+/// Writes the EXR and the PNG under temporary names beside them, then renames both into place, so
+/// that a failure of either leaves the earlier pair as it was.
+fn write_both(exr: &Path, png: &Path, image: &nbrdf::image::RgbImage, exposure: f32) -> Result<(), String> {
+    let temp = |p: &Path| {
+        let name = p.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        p.with_file_name(format!("{}{name}", nbrdf::io::temp_prefix()))
+    };
+    let (exr_tmp, png_tmp) = (temp(exr), temp(png));
+    let written = nbrdf::image::write_exr(&exr_tmp, image)
+        .and_then(|_| nbrdf::image::write_png_srgb(&png_tmp, image, exposure))
+        .map_err(|e| e.to_string())
+        .and_then(|_| std::fs::rename(&exr_tmp, exr).map_err(|e| format!("{}: {e}", exr.display())))
+        .and_then(|_| std::fs::rename(&png_tmp, png).map_err(|e| format!("{}: {e}", png.display())));
+    std::fs::remove_file(&exr_tmp).ok();
+    std::fs::remove_file(&png_tmp).ok();
+    written
+}
+
 /// Fails unless `out` can be written: its folder exists and accepts a new file (probed and removed),
-/// so that a long render never ends in an unwritable path.
+/// and `out` is no folder, so that a long render never ends in an unwritable path and no output is
+/// replaced before every other one is known to be writable. The error says why, for the caller to name
+/// the flag.
 fn check_writable(out: &std::path::Path) -> Result<(), String> {
     let dir = match out.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => std::path::Path::new("."),
     };
     if !dir.is_dir() {
-        return Err(format!("--out {}: the folder {} does not exist", out.display(), dir.display()));
+        return Err(format!("the folder {} does not exist", dir.display()));
     }
     if out.is_dir() {
-        return Err(format!("--out {}: is a folder", out.display()));
+        return Err("is a folder".into());
     }
     tempfile::NamedTempFile::new_in(dir)
         .map(drop)
-        .map_err(|e| format!("--out {}: cannot write in {}: {e}", out.display(), dir.display()))
+        .map_err(|e| format!("cannot write in {}: {e}", dir.display()))
 }
 
 fn main() -> ExitCode {

@@ -33,6 +33,8 @@ fn malformed_input_exits_1_names_the_flag_or_file_and_keeps_the_previous_render(
     let bad_model = write("garbage.nbrdf", b"not a model file at all");
     let bad_json = write("weights.json", b"{\"layers\": [");
     let bad_env = write("sky.exr", b"not an exr");
+    let endless = d.join("endless.json");
+    std::os::unix::fs::symlink("/dev/zero", &endless).unwrap();
     let s = |p: &Path| p.display().to_string();
     // (arguments, what the message must contain)
     let cases: Vec<(Vec<String>, Vec<String>)> = vec![
@@ -46,6 +48,19 @@ fn malformed_input_exits_1_names_the_flag_or_file_and_keeps_the_previous_render(
         (vec!["--brdf".into(), "lambert:0.5,nan,0.5".into()], vec!["lambert".into()]),
         (vec!["--env".into(), s(&bad_env)], vec!["sky.exr".into()]),
         (vec!["--sampling".into(), "psychic".into()], vec!["psychic".into()]),
+        // Numbers with no image to give: refused, never rounded up to one sample or one bounce.
+        (vec!["--spp".into(), "0".into()], vec!["--spp 0".into(), "1..=".into()]),
+        (vec!["--max-depth".into(), "0".into()], vec!["--max-depth 0".into(), "direct lighting".into()]),
+        (vec!["--exposure".into(), "nan".into()], vec!["--exposure NaN".into(), "finite".into()]),
+        (vec!["--exposure=-1".into()], vec!["--exposure -1".into(), "> 0".into()]),
+        (vec!["--light".into(), "nan,1,1".into()], vec!["--light nan,1,1".into(), "finite".into()]),
+        (vec!["--light".into(), "0,1,1:1,-1,1".into()], vec!["--light 0,1,1:1,-1,1".into(), "intensity".into()]),
+        // A degenerate pose is blamed on the pose's flags, not on the image size.
+        (vec!["--eye".into(), "0,0,0".into(), "--target".into(), "0,0,0".into()], vec!["--eye".into(), "coincide".into()]),
+        (vec!["--eye".into(), "0,3,0".into(), "--up".into(), "0,1,0".into()], vec!["--up".into(), "parallel".into()]),
+        // Files that never end are read no further than their format's largest size.
+        (vec!["--brdf".into(), format!("json:{}", s(&endless))], vec!["endless.json".into(), "bytes".into()]),
+        (vec!["--brdf".into(), "merl:/dev/zero".into()], vec!["/dev/zero".into(), "bytes".into()]),
     ];
     for (args, needles) in cases {
         let mut cmd = Command::new(&bin);
@@ -62,4 +77,32 @@ fn malformed_input_exits_1_names_the_flag_or_file_and_keeps_the_previous_render(
         assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
         assert_eq!(std::fs::read(&out).unwrap(), before, "{args:?} changed the earlier render");
     }
+}
+
+/// `--out x.exr` also writes `x.png`: both paths are checked before rendering, so a PNG path that is a
+/// folder leaves the earlier EXR as it was; a good run replaces both and leaves no temporary file.
+#[test]
+fn both_outputs_are_checked_before_the_first_write() {
+    let Some(bin) = path_tracer() else {
+        println!("SKIPPED: the path_tracer example is not built beside this test");
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let exr = dir.path().join("x.exr");
+    std::fs::write(&exr, b"an earlier render").unwrap();
+    std::fs::create_dir(dir.path().join("x.png")).unwrap();
+    let render = |out: &Path| Command::new(&bin).args(["--light", "0,1,1", "--width", "8", "--height", "8", "--spp", "1", "--out"]).arg(out).output().unwrap();
+    let run = render(&exr);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("x.png") && stderr.contains("is a folder") && stderr.contains("--out"), "{stderr}");
+    assert_eq!(std::fs::read(&exr).unwrap(), b"an earlier render");
+
+    std::fs::remove_dir(dir.path().join("x.png")).unwrap();
+    let run = render(&exr);
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    assert_eq!(nbrdf::image::read_exr(&exr).unwrap().width, 8);
+    assert!(dir.path().join("x.png").is_file());
+    let names: Vec<String> = std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    assert_eq!(names.len(), 2, "only the EXR and the PNG: {names:?}");
 }
