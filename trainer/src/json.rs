@@ -7,13 +7,22 @@ use serde::de::DeserializeOwned;
 
 use crate::{Error, Result};
 
+/// Most bytes of a JSON file read, 256 MiB: a checkpoint of the largest variant is a few MB and a
+/// paper-scale study's results some tens, so a longer file or a device (`/dev/zero`) is a wrong
+/// path, refused without filling the memory.
+pub const MAX_JSON_BYTES: u64 = 256 << 20;
+
 /// Reads `path` as JSON of type `T`; `what` says what the file should be ("study config").
 ///
 /// The whole file must be UTF-8: serde_json does not check the bytes of values it skips, so an
-/// invalid byte in an unknown field would otherwise pass.
+/// invalid byte in an unknown field would otherwise pass. At most [`MAX_JSON_BYTES`] are read.
 pub fn read<T: DeserializeOwned>(path: &Path, what: &str) -> Result<T> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    parse(path, what, &bytes)
+    parse(path, what, &read_bytes(path)?)
+}
+
+/// The bytes of a JSON file, at most [`MAX_JSON_BYTES`]; the error names the file.
+pub fn read_bytes(path: &Path) -> Result<Vec<u8>> {
+    nbrdf::io::read_at_most(path, MAX_JSON_BYTES).map_err(Error::Core)
 }
 
 /// [`read`] on bytes already read from `path`.

@@ -110,6 +110,7 @@ fn study(args: StudyArgs) -> trainer::Result<()> {
     }
     let out = if args.out.as_os_str().is_empty() { PathBuf::from("out/study") } else { args.out };
     if let Some(StudyAction::Merge { dirs }) = &args.action {
+        trainer::study::checks::check_out_folder(&out)?;
         let (config, results) = trainer::study::report::merge(dirs)?;
         trainer::study::checks::warn_missing_jobs(&config, &results);
         // The renderings come from the shard folders' data sets and fitted models.
@@ -165,6 +166,14 @@ fn run(cli: Cli) -> trainer::Result<()> {
             let position = commands::parse_position(&position)?;
             let mut configs = bench::default_configs(position);
             if !only.is_empty() {
+                // A name that matches nothing is a typo, not a request for an empty table.
+                if let Some(o) = only.iter().find(|o| !configs.iter().any(|c| c.name().contains(o.as_str()))) {
+                    let known: Vec<String> = configs.iter().map(|c| c.name()).collect();
+                    return Err(trainer::Error::Invalid(format!(
+                        "--only {o:?}: matches no architecture; known: {}",
+                        known.join(", ")
+                    )));
+                }
                 configs.retain(|c| only.iter().any(|o| c.name().contains(o.as_str())));
             }
             let t = bench::run(&configs, batch, steps, rounds, torch.then_some(torch_script.as_path()))?;

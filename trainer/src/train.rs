@@ -162,18 +162,47 @@ impl Checkpoint {
         write_atomic(path, &json)
     }
 
-    /// Reads a checkpoint written by [`Checkpoint::save`]; one whose weights are not all finite (a run
-    /// that diverged, a damaged file) is refused, never resumed from.
+    /// Reads a checkpoint written by [`Checkpoint::save`] and checks it ([`Checkpoint::check`]): one
+    /// that does not hold (a run that diverged, a damaged or edited file) is refused, never resumed
+    /// from.
     pub fn load(path: &Path) -> Result<Checkpoint> {
         let c: Checkpoint = crate::json::read(path, "trainer checkpoint")?;
-        if let Some(i) = c.weights.iter().position(|w| !w.is_finite()) {
-            return Err(Error::Invalid(format!(
-                "{}: weight {i} of the checkpoint is {}; a checkpoint must hold finite weights, so it cannot be resumed",
-                path.display(),
-                c.weights[i]
-            )));
-        }
+        c.check().map_err(|m| Error::Invalid(format!("{}: {m}; it cannot be resumed", path.display())))?;
         Ok(c)
+    }
+
+    /// What a checkpoint must hold to be resumed, or saved: as many weights as its variant has, all
+    /// finite; Adam's hyper-parameters in their domain (β1, β2 in [0, 1), ε finite and > 0); moments
+    /// of the weights' count, finite, the second ones ≥ 0. The error names the field and its value.
+    pub fn check(&self) -> std::result::Result<(), String> {
+        let n = self.config.n_weights();
+        if self.weights.len() != n {
+            return Err(format!("\"weights\" holds {} values, {} has {n}", self.weights.len(), self.config.name()));
+        }
+        if let Some(i) = self.weights.iter().position(|w| !w.is_finite()) {
+            return Err(format!("weight {i} of the checkpoint is {}; a checkpoint must hold finite weights", self.weights[i]));
+        }
+        let AdamParams { beta1, beta2, eps } = self.adam.params;
+        for (key, v) in [("beta1", beta1), ("beta2", beta2)] {
+            if !(0.0..1.0).contains(&v) {
+                return Err(format!("Adam's \"{key}\" is {v}; it must lie in [0, 1)"));
+            }
+        }
+        if !(eps.is_finite() && eps > 0.0) {
+            return Err(format!("Adam's \"eps\" is {eps}; it must be finite and > 0"));
+        }
+        for (key, moments) in [("m", &self.adam.m), ("v", &self.adam.v)] {
+            let count: usize = moments.iter().map(Vec::len).sum();
+            if count != n {
+                return Err(format!("Adam's \"{key}\" holds {count} values, {} has {n} weights", self.config.name()));
+            }
+            let bad = moments.iter().flatten().position(|x| !x.is_finite() || key == "v" && *x < 0.0);
+            if let Some(i) = bad {
+                let x = moments.iter().flatten().nth(i).copied().unwrap_or(f32::NAN);
+                return Err(format!("Adam's \"{key}\" value {i} is {x}; the moments must be finite (the second ones ≥ 0)"));
+            }
+        }
+        Ok(())
     }
 }
 
@@ -306,6 +335,19 @@ pub fn fit_probed(model: &Model, obs: &Observations, opts: &TrainOptions, setup:
             if c.step > opts.steps {
                 return Err(Error::Invalid(format!("the checkpoint is at step {}, past the {} steps asked for", c.step, opts.steps)));
             }
+            // Checked at load against the variant; the moments' split into variables is checked here,
+            // where the variables are known (a wrong split would index out of bounds in the update).
+            let sizes: Vec<usize> = vars.iter().map(|v| v.as_tensor().elem_count()).collect();
+            for (key, moments) in [("m", &c.adam.m), ("v", &c.adam.v)] {
+                let split: Vec<usize> = moments.iter().map(Vec::len).collect();
+                if split != sizes {
+                    let from = setup.resumed_from.as_ref().map_or("the checkpoint".to_string(), |p| p.display().to_string());
+                    return Err(Error::Invalid(format!(
+                        "{from}: Adam's \"{key}\" is split into variables of {split:?} values, {} has {sizes:?}",
+                        model.config.name()
+                    )));
+                }
+            }
             model.set_weights(&c.weights)?;
             (c.adam, c.step, c.log)
         }
@@ -346,9 +388,14 @@ pub fn fit_probed(model: &Model, obs: &Observations, opts: &TrainOptions, setup:
     // Only a checkpoint this run resumed from (checked finite at load) or wrote itself is good; a file
     // that merely exists at the checkpoint path may be another run's.
     let mut last_good = setup.resumed_from.clone();
-    let write = |step: usize, adam: &Adam, log: &TrainLog| -> Result<()> {
+    // Never persists a state that cannot be resumed: non-finite weights or moments stop the run, and
+    // the last good checkpoint stays as it was.
+    let write = |step: usize, adam: &Adam, log: &TrainLog, last_good: &Option<PathBuf>| -> Result<()> {
         if let Some(path) = &setup.checkpoint {
             let c = Checkpoint { config: model.config, options: opts.clone(), step, weights: model.weights()?, adam: adam.clone(), log: log.clone() };
+            if c.check().is_err() {
+                return Err(Error::NonFinite { step, what: "weights or optimiser state", last_good: last_good.clone() });
+            }
             c.save(path)?;
         }
         Ok(())
@@ -386,11 +433,11 @@ pub fn fit_probed(model: &Model, obs: &Observations, opts: &TrainOptions, setup:
         log.wall_s = wall_before + secs;
         log.samples_per_s = pixels as f64 / secs.max(1e-9);
         if opts.checkpoint_every > 0 && step % opts.checkpoint_every == 0 && step < opts.steps {
-            write(step, &adam, &log)?;
+            write(step, &adam, &log, &last_good)?;
             last_good = setup.checkpoint.clone();
         }
     }
-    write(step, &adam, &log)?;
+    write(step, &adam, &log, &last_good)?;
     bar.finish_and_clear();
     Ok(log)
 }
@@ -526,5 +573,26 @@ mod tests {
         fit(&model, &clean, &TrainOptions { steps: 10, ..opts }, RunSetup::default()).unwrap();
         assert!(model.weights().unwrap().iter().all(|w| w.is_finite()));
         std::fs::remove_dir_all(&dir).ok();
+    }
+
+    /// A state that would turn the weights NaN (an infinite Adam β1, past the checks at load) stops
+    /// the run before its checkpoint is written: the file on disk stays the last good one.
+    #[test]
+    fn a_non_finite_state_is_never_saved() {
+        let dir = tempfile::tempdir().unwrap();
+        let ckpt = dir.path().join("c.ckpt.json");
+        let c = config(Kind::SingleMlp, false, Reciprocity::Exact);
+        let model = Model::init(c, 1, &Device::Cpu).unwrap();
+        let obs = toy::observations(64, PositionEncoding::Intrinsic { k: 2 }, 3);
+        let opts = TrainOptions { batch: 64, ..small_opts(2) };
+        fit(&model, &obs, &opts, RunSetup { checkpoint: Some(ckpt.clone()), ..Default::default() }).unwrap();
+        let good = std::fs::read(&ckpt).unwrap();
+        let mut state = Checkpoint::load(&ckpt).unwrap();
+        state.adam.params.beta1 = f32::INFINITY;
+        assert!(state.check().unwrap_err().contains("beta1"));
+        let setup = RunSetup { checkpoint: Some(ckpt.clone()), resume: Some(state), resumed_from: Some(ckpt.clone()), ..Default::default() };
+        let err = fit(&model, &obs, &TrainOptions { steps: 3, ..opts }, setup).unwrap_err();
+        assert!(matches!(&err, Error::NonFinite { step: 3, last_good: Some(p), .. } if *p == ckpt), "{err}");
+        assert_eq!(std::fs::read(&ckpt).unwrap(), good, "the last good checkpoint is unchanged");
     }
 }

@@ -32,6 +32,16 @@ const CASES: &[Case] = &[
     Case { args: &["synth", "--train-lights", "100000000"], names: &["--train-lights", "10000"] },
     Case { args: &["synth", "--views", "5000", "--train-views", "5000", "--train-lights", "5000"], names: &["images", "200000"] },
     Case { args: &["synth", "--views", "2000", "--train-views", "2000", "--train-lights", "90", "--size", "2048"], names: &["bytes on disk"] },
+    // Values that used to run as something else: a stride of 0 as 1, a layer count out of range
+    // clamped while the variant kept the name, a data set without training images.
+    Case { args: &["fit", "--toy", "100", "--model", "single-mlp", "--pixel-stride", "0"], names: &["--pixel-stride 0", "at least 1"] },
+    Case { args: &["fit", "--toy", "100", "--model", "single-mlp", "--direction-layers", "255"], names: &["--direction-layers 255", "1..=6", "single-mlp"] },
+    Case { args: &["fit", "--toy", "100", "--model", "additive-shared", "--direction-layers", "0"], names: &["--direction-layers 0", "1..=16"] },
+    Case { args: &["fit", "--toy", "100", "--model", "rp", "--direction-layers", "2"], names: &["--direction-layers", "purely neural", "rp"] },
+    Case { args: &["synth", "--views", "4", "--train-views", "0"], names: &["--train-views 0", "1..=4"] },
+    Case { args: &["synth", "--train-lights", "0"], names: &["--train-lights 0", "training view"] },
+    Case { args: &["synth", "--views", "4", "--train-views", "2", "--test-lights", "0"], names: &["--test-lights 0", "2 test views"] },
+    Case { args: &["bench-step", "--batch", "64", "--only", "nonesuch"], names: &["--only \"nonesuch\"", "known", "single-mlp", "additive-shared"] },
 ];
 
 #[test]

@@ -112,6 +112,8 @@ fn synth_and_inspect_name_the_file_the_field_and_the_value() {
     std::fs::write(&merl, m).unwrap();
     let obj = d.join("no-faces.obj");
     std::fs::write(&obj, "v 0 0 0\nv 1 0 0\nv 0 1 0\n").unwrap();
+    let endless = d.join("endless.json");
+    std::os::unix::fs::symlink("/dev/zero", &endless).unwrap();
     let foreign = d.join("notes");
     std::fs::create_dir_all(&foreign).unwrap();
     std::fs::write(foreign.join("mine.txt"), "not a data set").unwrap();
@@ -127,6 +129,8 @@ fn synth_and_inspect_name_the_file_the_field_and_the_value() {
         Case { args: synth(&["--out", &g, "--material", &s(&overflow)]), names: vec![s(&overflow), "weight".into(), "NaN or infinite".into()], keep: good.clone() },
         Case { args: synth(&["--out", &g, "--material", &s(&merl)]), names: vec![s(&merl), "index 5".into(), "1e300".into()], keep: good.clone() },
         Case { args: synth(&["--out", &g, "--mesh", &s(&obj)]), names: vec![s(&obj), "triangles".into()], keep: good.clone() },
+        // synth records the material by its canonical path: the link's target is named.
+        Case { args: synth(&["--out", &g, "--material", &s(&endless)]), names: vec!["/dev/zero".into(), "bytes".into()], keep: good.clone() },
         Case { args: synth(&["--out", &g, "--sigma=-1"]), names: vec!["--sigma -1".into(), "non-negative".into()], keep: good.clone() },
         // No exposure reaches a median for a black material.
         Case {
@@ -166,6 +170,7 @@ fn synth_and_inspect_name_the_file_the_field_and_the_value() {
     ] {
         cases.push(case(&["inspect", "--dataset", &s(dir)], &names, dir));
     }
+    cases.push(case(&["inspect", "--dataset", &g, "--pixel-stride", "0"], &["--pixel-stride 0", "at least 1"], &good));
     check(&cases);
 }
 
@@ -195,6 +200,38 @@ fn fit_names_the_file_and_the_field_and_keeps_the_previous_fit() {
     copy_dir(&prev, &utf8);
     let p = utf8.join("lambert.ckpt.json");
     std::fs::write(&p, with_invalid_utf8(&std::fs::read(&p).unwrap())).unwrap();
+    // Checkpoints that would resume into NaN or fail deep in the tensors: Adam's β1 beyond f32 (it
+    // reads as infinite), a weight too few, a moment NaN.
+    let checkpoint_variant = |name: &str, edit: &dyn Fn(&mut serde_json::Value)| {
+        let dir = d.join(name);
+        copy_dir(&prev, &dir);
+        edit_json(&dir.join("lambert.ckpt.json"), edit);
+        dir
+    };
+    let beta = checkpoint_variant("beta", &|v| v["adam"]["params"]["beta1"] = serde_json::from_str("1e39").unwrap());
+    let short = checkpoint_variant("short", &|v| {
+        v["weights"].as_array_mut().unwrap().pop();
+    });
+    let moment = checkpoint_variant("moment", &|v| v["adam"]["v"][1][0] = f32::NAN.to_bits().into());
+    // An existing file where fit writes a folder.
+    let file_out = d.join("regular.txt");
+    std::fs::write(&file_out, "notes").unwrap();
+    // A data set whose cameras see the mesh at half the size their masks say: most masked pixels miss.
+    let wide = d.join("wide");
+    copy_dir(&good, &wide);
+    edit_json(&wide.join("dataset.json"), |v| {
+        for view in v["views"].as_array_mut().unwrap() {
+            for i in 0..2 {
+                view["K"][i][i] = (view["K"][i][i].as_f64().unwrap() * 0.5).into();
+            }
+        }
+    });
+    // The same variant name (parametric names leave the position input out), another position input.
+    let other_position: Vec<String> = ["fit", "--toy", "500", "--model", "lambert", "--position", "extrinsic:2", "--batch", "64", "--resume", "--steps", "9", "--out"]
+        .iter()
+        .map(|x| x.to_string())
+        .chain([s(&prev)])
+        .collect();
 
     let fit = |out: &Path, extra: &[&str]| {
         let mut a: Vec<String> = toy.iter().map(|x| x.to_string()).collect();
@@ -208,6 +245,13 @@ fn fit_names_the_file_and_the_field_and_keeps_the_previous_fit() {
         a
     };
     check(&[
+        Case { args: fit(&beta, &["--resume", "--steps", "9"]), names: vec![s(&beta.join("lambert.ckpt.json")), "\"beta1\"".into(), "inf".into(), "[0, 1)".into()], keep: beta.clone() },
+        Case { args: fit(&short, &["--resume", "--steps", "9"]), names: vec![s(&short.join("lambert.ckpt.json")), "\"weights\"".into(), "lambert has".into()], keep: short.clone() },
+        Case { args: fit(&moment, &["--resume", "--steps", "9"]), names: vec![s(&moment.join("lambert.ckpt.json")), "\"v\" value 0".into(), "NaN".into()], keep: moment.clone() },
+        Case { args: other_position, names: vec![s(&ckpt), "position encoding".into(), "uniform here, extrinsic:2 asked".into()], keep: prev.clone() },
+        Case { args: fit(&file_out, &[]), names: vec!["--out".into(), s(&file_out), "not a folder".into()], keep: d.to_path_buf() },
+        Case { args: fit(&prev, &["--pixel-stride", "0"]), names: vec!["--pixel-stride 0".into()], keep: prev.clone() },
+        Case { args: data(&wide), names: vec![s(&wide.join("dataset.json")), "miss the mesh".into(), "view 1".into(), "cameras".into()], keep: prev.clone() },
         Case { args: fit(&prev, &["--resume", "--steps", "2"]), names: vec![s(&ckpt), "step 3".into(), "--steps 2".into()], keep: prev.clone() },
         Case { args: fit(&nan, &["--resume", "--steps", "9"]), names: vec![s(&nan.join("lambert.ckpt.json")), "weight 3".into(), "NaN".into()], keep: nan.clone() },
         Case { args: fit(&utf8, &["--resume", "--steps", "9"]), names: vec![s(&p), "UTF-8".into()], keep: utf8.clone() },
@@ -239,6 +283,11 @@ fn study_blames_the_config_file_and_key_and_a_shard_never_takes_over_another_stu
     let position = config("position.json", &|v| v["position"] = "intrinsic:100000".into());
     let median = config("median.json", &|v| v["target_median"] = (-1.0).into());
     let lambda = config("lambda.json", &|v| v["lambda_diffuse"] = (-1.0).into());
+    let samples = config("samples.json", &|v| v["energy_samples"] = 0.into());
+    let layers = config("layers.json", &|v| v["models"][0] = serde_json::json!({ "model": "single-mlp", "enhanced": false, "direction_layers": 255 }));
+    // A device that never ends, under a config's name.
+    let endless = d.join("endless.json");
+    std::os::unix::fs::symlink("/dev/zero", &endless).unwrap();
     let utf8 = d.join("utf8.json");
     std::fs::write(&utf8, with_invalid_utf8(&std::fs::read(&good).unwrap())).unwrap();
 
@@ -276,6 +325,9 @@ fn study_blames_the_config_file_and_key_and_a_shard_never_takes_over_another_stu
         blame(&position, "position", "1..=4096"),
         blame(&median, "target_median", "-1"),
         blame(&lambda, "lambda_diffuse", "-1"),
+        blame(&samples, "energy_samples", "0"),
+        Case { args: study(&layers, &fresh, None), names: vec![s(&layers), "models[0]".into(), "\"direction_layers\" 255".into(), "1..=6".into()], keep: fresh.clone() },
+        Case { args: study(&endless, &fresh, None), names: vec![s(&endless), "bytes".into()], keep: fresh.clone() },
         Case { args: study(&utf8, &fresh, None), names: vec![s(&utf8), "UTF-8".into()], keep: fresh.clone() },
         Case { args: study(&good, &done, Some("0/2")), names: vec!["--shard 0/2".into(), "unsharded study".into(), "study merge".into()], keep: done.clone() },
         Case { args: study(&sigma.with_file_name("batch.json"), &shard0, Some("0/2")), names: vec!["\"batch\"".into()], keep: shard0.clone() },
@@ -371,4 +423,29 @@ fn study_merge_names_the_jobs_no_folder_holds() {
     assert_eq!(message.matches("no folder has a result for").count(), jobs.len(), "{message}");
     let scene = config.scenes[0].id();
     assert!(message.contains(&format!("{scene} / rp;")), "{message}");
+}
+
+/// `study merge` joins shards of one config only: folders of two configs would put unlike runs in one
+/// table, so the merge is refused, naming both folders and the keys that differ, and writes nothing.
+#[test]
+fn study_merge_refuses_folders_of_two_configs() {
+    let tmp = tempfile::tempdir().unwrap();
+    let config = trainer::study::StudyConfig::default_small();
+    let other = trainer::study::StudyConfig { steps: config.steps + 1, ..config.clone() };
+    let folder = |name: &str, c: &trainer::study::StudyConfig| {
+        let dir = tmp.path().join(name);
+        std::fs::create_dir_all(&dir).unwrap();
+        let results = serde_json::json!({ "config": c, "summary": [], "jobs": [] });
+        std::fs::write(dir.join("results.json"), serde_json::to_vec(&results).unwrap()).unwrap();
+        dir
+    };
+    let (a, b) = (folder("a", &config), folder("b", &other));
+    let merged = tmp.path().join("merged");
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    check(&[Case {
+        args: vec!["study".into(), "--out".into(), s(&merged), "merge".into(), s(&a), s(&b)],
+        names: vec![s(&a), s(&b), "another config".into(), "\"steps\"".into()],
+        keep: tmp.path().to_path_buf(),
+    }]);
+    assert!(!merged.exists());
 }

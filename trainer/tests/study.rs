@@ -165,6 +165,14 @@ fn tiny_study_writes_every_table_and_reuses_jobs() {
     assert!((again[1].train_wall_s - results[1].train_wall_s).abs() <= 1e-9 * results[1].train_wall_s);
     assert_eq!(std::fs::metadata(model_file(&results[1].model)).unwrap().modified().unwrap(), before);
 
+    // A finished job whose model file was cut short is not reused: it runs again and its file loads.
+    let cut = model_file(&results[0].model);
+    let whole = std::fs::read(&cut).unwrap();
+    std::fs::write(&cut, &whole[..100]).unwrap();
+    let rerun = study::run(&config, &out, None, false).unwrap();
+    nbrdf::ModelBuf::load(&cut).unwrap();
+    assert_eq!(rerun.len(), results.len());
+
     // Shards split the jobs between processes without overlap.
     let s0 = study::run(&config, &out, Some("0/2".parse().unwrap()), false).unwrap();
     let s1 = study::run(&config, &out, Some("1/2".parse().unwrap()), false).unwrap();

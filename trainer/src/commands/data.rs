@@ -35,6 +35,45 @@ pub struct PositionTable {
     pub mesh_hash: u64,
 }
 
+/// Most masked pixels of the training split whose rays may miss the mesh before `fit` refuses the
+/// data set: a tenth (a mask a pixel wider than the silhouette misses a few percent at most).
+pub const MAX_MISSED_SHARE: f64 = 0.1;
+/// Most masked pixels of one training view that may miss: half (a camera facing away misses all).
+pub const MAX_MISSED_SHARE_PER_VIEW: f64 = 0.5;
+/// Above this share of misses `fit` warns with the count.
+pub const WARN_MISSED_SHARE: f64 = 0.01;
+
+/// Warns when masked pixels' rays miss the mesh, and refuses the data set when too many do
+/// ([`MAX_MISSED_SHARE`], [`MAX_MISSED_SHARE_PER_VIEW`]): its cameras, mesh or masks disagree, and
+/// the pixels that remain would be trained on silently.
+fn check_coverage(coverage: &[crate::dataset::Coverage], args: &DataArgs) -> Result<()> {
+    let masked: usize = coverage.iter().map(|c| c.masked).sum();
+    let missed: usize = coverage.iter().map(|c| c.missed).sum();
+    let share = |missed: usize, masked: usize| missed as f64 / masked.max(1) as f64;
+    let worst = coverage.iter().max_by(|a, b| share(a.missed, a.masked).total_cmp(&share(b.missed, b.masked)));
+    let (Some(worst), true) = (worst, missed > 0) else { return Ok(()) };
+    let source = match (&args.dataset, &args.diligent) {
+        (Some(d), _) => d.join("dataset.json").display().to_string(),
+        (None, Some(d)) => format!("{} ({})", d.display(), args.object),
+        (None, None) => "the data set".into(),
+    };
+    let what = format!(
+        "{source}: {missed} of the {masked} masked training pixels miss the mesh (view {} misses {} of {})",
+        worst.view, worst.missed, worst.masked
+    );
+    if share(missed, masked) > MAX_MISSED_SHARE || share(worst.missed, worst.masked) > MAX_MISSED_SHARE_PER_VIEW {
+        return Err(Error::Invalid(format!(
+            "{what}; at most {:.0} % overall and {:.0} % of a view may: check the cameras (K, R, t), the mesh and the masks",
+            100.0 * MAX_MISSED_SHARE,
+            100.0 * MAX_MISSED_SHARE_PER_VIEW
+        )));
+    }
+    if share(missed, masked) > WARN_MISSED_SHARE {
+        eprintln!("warning: {what}; those pixels are not trained on");
+    }
+    Ok(())
+}
+
 /// Loads the training split of `args` and attaches the position input:
 /// - `Uniform`: none;
 /// - `Extrinsic`: the hit point in the unit sphere (the model encodes it);
@@ -68,6 +107,7 @@ pub fn load(args: &DataArgs, position: PositionEncoding, cache_dir: &Path) -> Re
         }
     }
     let s = samples(&ds, Split::Train, stride)?;
+    check_coverage(&s.coverage, args)?;
     if s.is_empty() {
         return Err(Error::Invalid("the data set's training split has no lit, unshadowed pixels".into()));
     }

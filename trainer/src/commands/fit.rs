@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use candle_core::Device;
 
-use crate::models::{Config, Model, OutputStart};
+use crate::models::{Config, Model, OutputStart, PositionEncoding};
 use crate::observations::Observations;
 use super::data::PositionTable;
 use crate::staging::{self, StagedFile};
@@ -114,7 +114,13 @@ pub fn run_args(args: &FitArgs, progress: bool) -> Result<(Outputs, train::Train
     if let Some(n) = args.toy.filter(|&n| n == 0 || n > MAX_TOY) {
         return Err(Error::Invalid(format!("--toy {n}: allowed 1..={MAX_TOY} pixels")));
     }
+    if args.pixel_stride == 0 {
+        return Err(Error::Invalid("--pixel-stride 0: at least 1 (1 uses every masked pixel)".into()));
+    }
     // The output folder and the resume point are checked before the data is loaded.
+    if args.out.exists() && !args.out.is_dir() {
+        return Err(Error::Invalid(format!("--out {}: exists and is not a folder; fit writes its files into a folder", args.out.display())));
+    }
     staging::check_writable(&args.out)?;
     let outputs = Outputs::in_dir(&args.out, &config);
     let resume = if args.resume { resume_point(&outputs, &config, args.steps)? } else { None };
@@ -192,10 +198,11 @@ pub fn resume_point(outputs: &Outputs, config: &Config, steps: usize) -> Result<
     let c = Checkpoint::load(path)?;
     if c.config != *config {
         return Err(Error::Invalid(format!(
-            "{}: a checkpoint of {}, not of {}; --resume continues the same variant",
+            "{}: a checkpoint of {}, not of {} (they differ in {}); --resume continues the same variant",
             path.display(),
             c.config.name(),
-            config.name()
+            config.name(),
+            differences(&c.config, config)
         )));
     }
     if c.step > steps {
@@ -210,6 +217,37 @@ pub fn resume_point(outputs: &Outputs, config: &Config, steps: usize) -> Result<
         eprintln!("{}: already at step {steps} (--steps); nothing to train, the model is exported again", path.display());
     }
     Ok(Some((c, path.clone())))
+}
+
+/// The flags in which the checkpoint's variant `was` differs from the asked one `is`, with both values:
+/// two variants of one name differ in what the name leaves out (position input, angle octaves).
+fn differences(was: &Config, is: &Config) -> String {
+    let position = |p: PositionEncoding| match p {
+        PositionEncoding::Uniform => "uniform".to_string(),
+        PositionEncoding::Intrinsic { k } => format!("intrinsic:{k}"),
+        PositionEncoding::Extrinsic { frequencies } => format!("extrinsic:{frequencies}"),
+    };
+    let layers = |n: Option<u8>| n.map_or("the default".to_string(), |n| n.to_string());
+    let mut d = Vec::new();
+    if was.kind != is.kind {
+        d.push(format!("--model ({} here, {} asked)", was.name(), is.name()));
+    }
+    if was.enhanced != is.enhanced {
+        d.push(format!("--enhanced ({} here, {} asked)", was.enhanced, is.enhanced));
+    }
+    if was.reciprocity != is.reciprocity {
+        d.push(format!("--reciprocity ({:?} here, {:?} asked)", was.reciprocity, is.reciprocity));
+    }
+    if was.position != is.position {
+        d.push(format!("the position encoding, --position ({} here, {} asked)", position(was.position), position(is.position)));
+    }
+    if was.angle_frequencies != is.angle_frequencies {
+        d.push(format!("--angle-frequencies ({} here, {} asked)", was.angle_frequencies, is.angle_frequencies));
+    }
+    if was.direction_layers != is.direction_layers {
+        d.push(format!("--direction-layers ({} here, {} asked)", layers(was.direction_layers), layers(is.direction_layers)));
+    }
+    d.join(", ")
 }
 
 /// Sanitizes `obs`, fits `config` (continuing from `resume`, a [`resume_point`], when given), and

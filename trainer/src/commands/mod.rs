@@ -44,6 +44,30 @@ pub fn parse_position(s: &str) -> Result<PositionEncoding> {
     }
 }
 
+/// The direction layer counts (Tab. 2) a kind takes: the Single MLP splits its six hidden layers into
+/// a position trunk and a head of `1..=6` (6: the paper's single network), the additive models give
+/// their specular part `1..=16` layers (the model file's most hidden layers of a network).
+pub fn direction_layers_range(kind: Kind) -> Option<std::ops::RangeInclusive<u8>> {
+    match kind {
+        Kind::Parametric(_) => None,
+        Kind::SingleMlp => Some(1..=6),
+        Kind::AdditiveSeparate | Kind::AdditiveShared => Some(1..=nbrdf::mlp::MAX_HIDDEN as u8),
+    }
+}
+
+/// Refuses a direction layer count outside [`direction_layers_range`]; `name` is the flag or config
+/// key. A count out of range would otherwise be clamped while the variant's name kept it.
+pub fn check_direction_layers(kind: Kind, model: &str, n: Option<u8>, name: &str) -> Result<()> {
+    let Some(n) = n else { return Ok(()) };
+    match direction_layers_range(kind) {
+        None => Err(Error::Invalid(format!("{name} applies to the purely neural models, not {model}"))),
+        Some(r) if !r.contains(&n) => {
+            Err(Error::Invalid(format!("{name} {n}: allowed {}..={} for {model}", r.start(), r.end())))
+        }
+        Some(_) => Ok(()),
+    }
+}
+
 /// The model configuration named on the command line.
 pub fn parse_config(
     model: &str,
@@ -62,9 +86,7 @@ pub fn parse_config(
     if enhanced && !matches!(kind, Kind::AdditiveSeparate | Kind::AdditiveShared) {
         return Err(Error::Invalid(format!("--enhanced (Eq. 8) applies to the additive models, not {model}")));
     }
-    if direction_layers.is_some() && matches!(kind, Kind::Parametric(_)) {
-        return Err(Error::Invalid("--direction-layers applies to the purely neural models".into()));
-    }
+    check_direction_layers(kind, model, direction_layers, "--direction-layers")?;
     if angle_frequencies > nbrdf::file::MAX_FREQUENCIES {
         return Err(Error::Invalid(format!(
             "--angle-frequencies {angle_frequencies}: allowed 0..={} (the model file's limit)",

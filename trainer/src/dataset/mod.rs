@@ -19,7 +19,7 @@ use nbrdf::scene::{Camera, DirectionalLight, Geometry, Mesh};
 use nbrdf::Error;
 use serde::{Deserialize, Serialize};
 
-pub use samples::{samples, Samples};
+pub use samples::{samples, Coverage, Samples};
 
 /// A parse-style error with a free message.
 pub(crate) fn err(what: &str, message: impl ToString) -> Error {
@@ -203,6 +203,9 @@ impl DataArgs {
 
 /// `trainer inspect`: loads a data set and prints its size and the samples of its training split.
 pub fn inspect(args: &DataArgs) -> Result<(), Error> {
+    if args.pixel_stride == 0 {
+        return Err(err("--pixel-stride 0", "at least 1 (1 uses every masked pixel)"));
+    }
     let ds = args.open()?;
     let train = ds.views.iter().filter(|v| v.split == Split::Train).count();
     println!(

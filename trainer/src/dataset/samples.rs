@@ -36,6 +36,20 @@ pub struct Samples {
     pub intensity: Vec<Rgb>,
     /// Observed radiance `L_o`.
     pub radiance: Vec<Rgb>,
+    /// Per view of the split: how many masked pixels (of the stride) its rays hit the mesh for.
+    pub coverage: Vec<Coverage>,
+}
+
+/// How well a view's mask and its camera's view of the mesh agree: masked pixels whose ray misses the
+/// mesh are a sign of wrong intrinsics, a camera facing away or another mesh.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Coverage {
+    /// View index in the data set.
+    pub view: u32,
+    /// Masked pixels (of the stride).
+    pub masked: usize,
+    /// Of those, the pixels whose ray misses the mesh.
+    pub missed: usize,
 }
 
 impl Samples {
@@ -61,6 +75,7 @@ impl Samples {
         self.wo.append(&mut o.wo);
         self.intensity.append(&mut o.intensity);
         self.radiance.append(&mut o.radiance);
+        self.coverage.append(&mut o.coverage);
     }
 }
 
@@ -80,6 +95,9 @@ pub fn samples(ds: &Dataset, split: Split, pixel_stride: usize) -> Result<Sample
             return Err(Error::SizeMismatch { what: "view mask pixel count", expected: n, found: view.mask.len() });
         }
         let gbuffer = GBuffer::cast(geometry, cam);
+        let masked: Vec<usize> = (0..n).step_by(stride).filter(|&p| view.mask[p]).collect();
+        let missed = masked.iter().filter(|&&p| gbuffer.samples[p].is_none()).count();
+        out.coverage.push(Coverage { view: vi as u32, masked: masked.len(), missed });
         let per_image: Vec<Result<Samples, Error>> = view
             .images
             .par_iter()

@@ -187,7 +187,10 @@ impl DatasetFile {
     /// Reads and validates `dir/dataset.json`.
     pub fn read(dir: &Path) -> Result<Self, Error> {
         let path = dir.join("dataset.json");
-        let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, &e))?;
+        let bytes = nbrdf::io::read_at_most(&path, crate::json::MAX_JSON_BYTES)?;
+        let text = String::from_utf8(bytes).map_err(|e| {
+            Error::io(&path, &std::io::Error::new(std::io::ErrorKind::InvalidData, format!("stream did not contain valid UTF-8 ({e})")))
+        })?;
         let file: DatasetFile = serde_json::from_str(&text)
             .map_err(|e| Error::Parse { what: path.display().to_string(), message: e.to_string() })?;
         file.validate().map_err(|e| match e {

@@ -130,7 +130,21 @@ impl SynthArgs {
         if self.train_views > self.views {
             return Err(bad("train_views", &self.train_views, format!("at most the {} views", self.views)));
         }
+        // A data set without training images fits nothing; test views without lights score nothing.
+        if self.train_views == 0 {
+            return Err(bad("train_views", &0, format!("allowed 1..={} (the views)", self.views)));
+        }
+        if self.train_lights == 0 {
+            return Err(bad("train_lights", &0, format!("allowed 1..={MAX_COUNT}: a training view needs an image")));
+        }
         let test_views = self.views - self.train_views;
+        if test_views > 0 && self.test_lights == 0 {
+            return Err(bad(
+                "test_lights",
+                &0,
+                format!("allowed 1..={MAX_COUNT} with {test_views} test views (give as many training views as views for none)"),
+            ));
+        }
         let images = self.train_views * self.train_lights + test_views * self.test_lights;
         if images > MAX_IMAGES {
             return Err(Error::Context {

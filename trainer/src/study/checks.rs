@@ -47,14 +47,19 @@ pub fn validate(config: &StudyConfig, source: &str) -> Result<()> {
     if config.pixel_stride == 0 {
         return bad("pixel_stride", &0, "at least 1 (every pixel)");
     }
+    // None of them may be 0: a mean over no pairs or samples is NaN in every row.
     for (k, v, max) in [
         ("reciprocity_pairs", config.reciprocity_pairs, MAX_PAIRS),
         ("energy_pairs", config.energy_pairs, MAX_PAIRS),
         ("energy_samples", config.energy_samples, MAX_ENERGY_SAMPLES),
     ] {
-        if v > max {
-            return bad(k, &v, &format!("at most {max}"));
+        if v == 0 || v > max {
+            return bad(k, &v, &format!("allowed 1..={max}"));
         }
+    }
+    // Every model spec resolves (known model, strategy, layer count, scenes) before any work.
+    for (i, m) in config.models.iter().enumerate() {
+        config.model_config(m).map_err(|e| Error::Invalid(format!("{}: {e}", key(&format!("models[{i}]")))))?;
     }
     Ok(())
 }
@@ -102,6 +107,7 @@ fn previous(out: &Path) -> Result<Option<RunRecord>> {
 /// Also removes the temporary files that crashed runs left in `out` and its `figures/` (the data sets
 /// and fits clean their own folders).
 pub fn check_output(out: &Path, config: &StudyConfig, shard: Option<Shard>) -> Result<()> {
+    check_out_folder(out)?;
     nbrdf::io::remove_stale_temps(out);
     nbrdf::io::remove_stale_temps(&out.join("figures"));
     // Only a shard run reads what the folder holds: an unsharded run replaces any report anyway.
@@ -120,6 +126,14 @@ pub fn check_output(out: &Path, config: &StudyConfig, shard: Option<Shard>) -> R
         Some(s) if prev.config != *config => refuse(format!("shard {s} of a study with another config")),
         Some(_) => Ok(()),
     }
+}
+
+/// Refuses an `--out` that exists and is no folder, before any work (the study writes a folder).
+pub fn check_out_folder(out: &Path) -> Result<()> {
+    if out.exists() && !out.is_dir() {
+        return Err(Error::Invalid(format!("--out {}: exists and is not a folder; the study writes a folder", out.display())));
+    }
+    Ok(())
 }
 
 /// Records which shard of which config `out` now holds (after its report is written).

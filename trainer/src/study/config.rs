@@ -221,6 +221,10 @@ impl StudyConfig {
             return Err(Error::Invalid(format!("study model {:?}: an empty scene list runs nothing", m.model)));
         }
         let reciprocity = if parametric { "none" } else { m.reciprocity.as_deref().unwrap_or(&self.reciprocity) };
+        if let Some(kind) = crate::models::arch::parse_kind(&m.model) {
+            let key = format!("study model {:?}: \"direction_layers\"", m.model);
+            crate::commands::check_direction_layers(kind, &m.model, m.direction_layers, &key)?;
+        }
         parse_config(
             &m.model,
             reciprocity,

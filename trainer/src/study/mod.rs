@@ -207,10 +207,17 @@ pub fn run(config: &StudyConfig, out: &Path, shard: Option<Shard>, progress: boo
             let hash = config.job_hash(scene, spec);
             let result_path = jdir.join("result.json");
             if let Some(r) = read_result(&result_path).filter(|r| r.hash == hash) {
-                bar.say(format!("{} / {name}: cached", scene.id()));
-                results.push(r);
-                bar.done();
-                continue;
+                // A result is reused only with the model files it scored, whole: a file cut short or
+                // damaged since means the job runs again.
+                match finished_models_load(&jdir, &model_config, spec) {
+                    Ok(()) => {
+                        bar.say(format!("{} / {name}: cached", scene.id()));
+                        results.push(r);
+                        bar.done();
+                        continue;
+                    }
+                    Err(e) => bar.say(format!("{} / {name}: the finished job's model does not load ({e}); running it again", scene.id())),
+                }
             }
             if training.is_none() {
                 bar.doing(format!("{}: loading the training pixels", scene.id()));
@@ -311,7 +318,19 @@ pub fn comparisons(config: &StudyConfig, roots: &[PathBuf], out: &Path, results:
 }
 
 fn read_result(path: &Path) -> Option<JobResult> {
-    serde_json::from_slice(&std::fs::read(path).ok()?).ok()
+    serde_json::from_slice(&crate::json::read_bytes(path).ok()?).ok()
+}
+
+/// Loads (and so validates: length, checksum, finite weights) the model files a finished job wrote
+/// in `jdir`: the `.nbrdf` and, for a purely neural model, its f16 twin.
+fn finished_models_load(jdir: &Path, model_config: &crate::models::Config, spec: &ModelSpec) -> Result<()> {
+    let model_path = fit::Outputs::in_dir(jdir, model_config).model;
+    nbrdf::ModelBuf::load(&model_path).map_err(|e| Error::Core(e.context(model_path.display())))?;
+    if !config::is_parametric(&spec.model) {
+        let path16 = model_path.with_extension("f16.nbrdf");
+        nbrdf::ModelBuf::load(&path16).map_err(|e| Error::Core(e.context(path16.display())))?;
+    }
+    Ok(())
 }
 
 /// Runs the study and writes the report into `out`; returns the results.

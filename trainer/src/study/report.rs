@@ -725,20 +725,32 @@ pub fn write(out: &Path, config: &StudyConfig, results: &[JobResult], comparison
 }
 
 /// Reads the `results.json` of several study outputs (e.g. one per shard) and joins their jobs; a job
-/// (scene, model) found twice keeps the later folder's result. The config is the first folder's.
+/// (scene, model) found twice keeps the later folder's result. Every folder must hold the same config
+/// (jobs of two configs in one table would compare unlike runs); one that differs is refused, naming
+/// both folders and the keys that differ.
 pub fn merge(dirs: &[std::path::PathBuf]) -> Result<(StudyConfig, Vec<JobResult>)> {
     #[derive(serde::Deserialize)]
     struct Saved {
         config: StudyConfig,
         jobs: Vec<JobResult>,
     }
-    let mut config = None;
+    let mut config: Option<(StudyConfig, &std::path::Path)> = None;
     let mut jobs: Vec<JobResult> = Vec::new();
     for d in dirs {
         let p = d.join("results.json");
-        let bytes = std::fs::read(&p).map_err(|e| Error::io(&p, e))?;
-        let saved: Saved = crate::json::parse(&p, "study results file", &bytes)?;
-        config.get_or_insert(saved.config);
+        let saved: Saved = crate::json::read(&p, "study results file")?;
+        match &config {
+            None => config = Some((saved.config, d)),
+            Some((first, first_dir)) if *first != saved.config => {
+                return Err(Error::Invalid(format!(
+                    "study merge: {} holds a study of another config than {} (they differ in {}); merge only shards of one config",
+                    d.display(),
+                    first_dir.display(),
+                    differing_keys(first, &saved.config)
+                )));
+            }
+            Some(_) => {}
+        }
         for j in saved.jobs {
             match jobs.iter_mut().find(|k| k.scene == j.scene && k.model == j.model) {
                 Some(k) => *k = j,
@@ -746,7 +758,7 @@ pub fn merge(dirs: &[std::path::PathBuf]) -> Result<(StudyConfig, Vec<JobResult>
             }
         }
     }
-    let config = config.ok_or_else(|| Error::Invalid("study merge: give at least one folder".into()))?;
+    let (config, _) = config.ok_or_else(|| Error::Invalid("study merge: give at least one folder".into()))?;
     // Config order (scene-major, as one unsharded run lists them), whatever the order of the folders.
     let order: Vec<(String, String)> = super::jobs(&config)
         .into_iter()
@@ -754,6 +766,17 @@ pub fn merge(dirs: &[std::path::PathBuf]) -> Result<(StudyConfig, Vec<JobResult>
         .collect();
     jobs.sort_by_key(|j| order.iter().position(|(s, m)| *s == j.scene && *m == j.model).unwrap_or(usize::MAX));
     Ok((config, jobs))
+}
+
+/// The top-level keys in which two configs differ, quoted and comma-separated.
+fn differing_keys(a: &StudyConfig, b: &StudyConfig) -> String {
+    let (a, b) = (serde_json::to_value(a).unwrap_or_default(), serde_json::to_value(b).unwrap_or_default());
+    let empty = serde_json::Map::new();
+    let (a, b) = (a.as_object().unwrap_or(&empty), b.as_object().unwrap_or(&empty));
+    let mut keys: Vec<&String> = a.keys().chain(b.keys()).filter(|k| a.get(*k) != b.get(*k)).collect();
+    keys.sort();
+    keys.dedup();
+    keys.iter().map(|k| format!("\"{k}\"")).collect::<Vec<_>>().join(", ")
 }
 
 #[cfg(test)]
