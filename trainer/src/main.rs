@@ -129,6 +129,8 @@ fn study(args: StudyArgs) -> trainer::Result<()> {
 }
 
 fn main() {
+    // First, before any thread starts: an interrupted run removes what it staged.
+    trainer::staging::remove_staging_on_interrupt();
     if let Err(e) = run(Cli::parse()) {
         eprintln!("error: {e}");
         std::process::exit(1);

@@ -2,10 +2,12 @@
 //! when complete ([`StagedDir`]), files are written under temporary names and renamed together at the
 //! end ([`StagedFile`]). An interrupted or failed run leaves the previous output as it was; what a
 //! crashed run left behind (named `.nbrdf-tmp-<pid>-…`, the pid no longer running) is removed by the
-//! next run that writes there.
+//! next run that writes there; what an interrupted one (SIGINT, SIGTERM) staged is removed as it exits
+//! ([`remove_staging_on_interrupt`]).
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
+use std::sync::{Mutex, MutexGuard};
 
 use nbrdf::io::{remove_stale_temps, temp_owner, temp_prefix};
 use nbrdf::Error;
@@ -69,6 +71,7 @@ impl StagedDir {
             std::fs::remove_dir_all(&staging).map_err(|e| Error::io(&staging, &e))?;
         }
         std::fs::create_dir(&staging).map_err(|e| Error::io(&staging, &e))?;
+        pending().push(staging.clone());
         Ok(StagedDir { staging, target: target.to_path_buf(), committed: false })
     }
 
@@ -81,6 +84,9 @@ impl StagedDir {
     /// (Linux `renameat2`), else two renames whose gap a crash can only leave recoverable (the previous
     /// output under a temporary name, restored by the next [`StagedDir::new`]).
     pub fn commit(mut self) -> Result<(), Error> {
+        // Held until the swap is done, so that an interrupt removes the staging folder before the swap
+        // or not at all.
+        let mut pending = pending();
         let target = self.target.clone();
         let io = |e: std::io::Error| Error::io(&target, &e);
         sync_dir(&self.staging);
@@ -100,6 +106,7 @@ impl StagedDir {
         }
         sync_dir(parent_of(&target));
         self.committed = true;
+        pending.retain(|p| *p != self.staging);
         Ok(())
     }
 }
@@ -107,10 +114,89 @@ impl StagedDir {
 impl Drop for StagedDir {
     fn drop(&mut self) {
         if !self.committed {
+            let mut pending = pending();
             std::fs::remove_dir_all(&self.staging).ok();
+            pending.retain(|p| *p != self.staging);
         }
     }
 }
+
+/// The staging folders and files of this process not committed yet: what an interrupt removes.
+static PENDING: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+fn pending() -> MutexGuard<'static, Vec<PathBuf>> {
+    // A panic while holding the list leaves it as it was; it stays usable.
+    PENDING.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// Removes every staged folder and file not committed yet: each is first renamed aside (so that a
+/// writer still running fails to create anything more in it), then removed.
+fn remove_pending() {
+    let mut pending = pending();
+    for p in pending.drain(..) {
+        let aside = p.with_file_name(format!("{}-interrupted", p.file_name().unwrap_or_default().to_string_lossy()));
+        let target = if std::fs::rename(&p, &aside).is_ok() { aside } else { p };
+        match std::fs::symlink_metadata(&target) {
+            Ok(m) if m.is_dir() => std::fs::remove_dir_all(&target).ok(),
+            _ => std::fs::remove_file(&target).ok(),
+        };
+    }
+}
+
+/// On SIGINT or SIGTERM, removes what this process staged and not yet committed ([`StagedDir`],
+/// [`StagedFile`]), then ends the process by the same signal, as it would have ended without this.
+/// Without it an interrupted `synth` left its staging folder (as large as the data set) until the
+/// next run in that folder. A signal the process started with ignored stays ignored.
+///
+/// Call it first in `main`, before any thread starts: the signals are blocked in every thread and
+/// taken by one thread of their own (`sigwait`), so no handler runs amid other work. Child
+/// processes start with the signals unblocked (std's `Command` resets the mask).
+#[cfg(unix)]
+pub fn remove_staging_on_interrupt() {
+    // SAFETY: plain libc calls on a zeroed, then initialised signal set owned here.
+    let set = unsafe {
+        let mut set: libc::sigset_t = std::mem::zeroed();
+        libc::sigemptyset(&mut set);
+        for sig in [libc::SIGINT, libc::SIGTERM] {
+            let mut old: libc::sigaction = std::mem::zeroed();
+            if libc::sigaction(sig, std::ptr::null(), &mut old) == 0 && old.sa_sigaction == libc::SIG_IGN {
+                continue;
+            }
+            libc::sigaddset(&mut set, sig);
+        }
+        if libc::pthread_sigmask(libc::SIG_BLOCK, &set, std::ptr::null_mut()) != 0 {
+            return;
+        }
+        set
+    };
+    let spawned = std::thread::Builder::new().name("interrupt".into()).spawn(move || {
+        let mut sig = 0;
+        // SAFETY: `set` is an initialised signal set, `sig` a valid out-parameter.
+        if unsafe { libc::sigwait(&set, &mut sig) } != 0 {
+            return;
+        }
+        remove_pending();
+        // SAFETY: restores the default action and delivers the signal again, now unblocked here.
+        unsafe {
+            libc::signal(sig, libc::SIG_DFL);
+            let mut one: libc::sigset_t = std::mem::zeroed();
+            libc::sigemptyset(&mut one);
+            libc::sigaddset(&mut one, sig);
+            libc::pthread_sigmask(libc::SIG_UNBLOCK, &one, std::ptr::null_mut());
+            libc::raise(sig);
+        }
+        std::process::exit(128 + sig);
+    });
+    if spawned.is_err() {
+        // No thread to take them: the signals act as before.
+        // SAFETY: unblocks the set blocked above in this thread.
+        unsafe { libc::pthread_sigmask(libc::SIG_UNBLOCK, &set, std::ptr::null_mut()) };
+    }
+}
+
+/// Elsewhere interrupts end the process as before; the next run removes what it staged.
+#[cfg(not(unix))]
+pub fn remove_staging_on_interrupt() {}
 
 /// The temporary name of a previous output between the two renames of a non-atomic swap.
 fn swapped_out_name(parent: &Path, name: &str) -> PathBuf {
@@ -172,6 +258,7 @@ impl StagedFile {
         let name = name_of(dest)?;
         let tmp = parent_of(dest).join(format!("{}{name}", temp_prefix()));
         let staged = StagedFile { tmp, dest: dest.to_path_buf(), owned: true };
+        pending().push(staged.tmp.clone());
         let mut f = std::fs::File::create(&staged.tmp).map_err(|e| Error::io(&staged.tmp, &e))?;
         f.write_all(bytes).and_then(|_| f.sync_all()).map_err(|e| Error::io(dest, &e))?;
         Ok(staged)
@@ -187,7 +274,9 @@ impl StagedFile {
 impl Drop for StagedFile {
     fn drop(&mut self) {
         if self.owned {
+            let mut pending = pending();
             std::fs::remove_file(&self.tmp).ok();
+            pending.retain(|p| *p != self.tmp);
         }
     }
 }
@@ -201,9 +290,12 @@ pub fn check_writable(dir: &Path) -> Result<(), Error> {
 
 /// Renames every staged file over its destination, back to back, once all of them are complete.
 pub fn commit_all(files: Vec<StagedFile>) -> Result<(), Error> {
+    let mut pending = pending();
     for f in &files {
         std::fs::rename(&f.tmp, &f.dest).map_err(|e| Error::io(&f.dest, &e))?;
+        pending.retain(|p| *p != f.tmp);
     }
+    drop(pending);
     if let Some(f) = files.first() {
         sync_dir(parent_of(&f.dest));
     }

@@ -1,7 +1,8 @@
-//! Outputs are all or nothing: `synth` and `fit` killed mid-run (SIGKILL, SIGINT) leave the previous
-//! output byte for byte as it was and loadable, and the next run removes what the killed one left.
+//! Outputs are all or nothing: `synth` and `fit` killed mid-run (SIGKILL, SIGINT, SIGTERM) leave the
+//! previous output byte for byte as it was and loadable; an interrupted run removes its staging folder
+//! as it exits, and the next run removes what a killed one left.
 
-use std::os::unix::process::CommandExt;
+use std::os::unix::process::{CommandExt, ExitStatusExt};
 use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
@@ -38,8 +39,9 @@ fn temps_in(dir: &Path) -> Vec<String> {
         .collect()
 }
 
-/// Waits until `ready` holds (the run is under way), then sends `signal` and reaps the child.
-fn kill_when(mut child: Child, signal: i32, ready: impl Fn() -> bool) {
+/// Waits until `ready` holds (the run is under way), then sends `signal`, reaps the child and returns
+/// how it ended.
+fn kill_when(mut child: Child, signal: i32, ready: impl Fn() -> bool) -> std::process::ExitStatus {
     let start = Instant::now();
     while !ready() {
         if let Some(status) = child.try_wait().unwrap() {
@@ -52,6 +54,7 @@ fn kill_when(mut child: Child, signal: i32, ready: impl Fn() -> bool) {
     assert_eq!(unsafe { libc::kill(child.id() as i32, signal) }, 0);
     let status = child.wait().unwrap();
     assert!(!status.success(), "the run was interrupted");
+    status
 }
 
 #[test]
@@ -64,16 +67,24 @@ fn synth_killed_mid_run_leaves_the_previous_data_set_intact() {
     let before = snapshot(&out);
     trainer::dataset::Dataset::open(&out).unwrap();
 
-    // A longer run of other arguments into the same folder, interrupted once its images are being written.
+    // A longer run of other arguments into the same folder, interrupted once its images are being
+    // written: an interrupt (Ctrl-C, a scheduler's SIGTERM) removes the staging folder on the way out,
+    // SIGKILL cannot.
     let long = ["synth", "--quiet", "--size", "128", "--views", "20", "--train-lights", "30", "--seed", "7", "--out", out_s];
-    for signal in [libc::SIGKILL, libc::SIGINT] {
+    for signal in [libc::SIGINT, libc::SIGTERM, libc::SIGKILL] {
         let child = trainer().args(long).spawn().unwrap();
         let pid = child.id();
         let staging = root.path().join(format!(".nbrdf-tmp-{pid}-ds"));
-        kill_when(child, signal, || staging.join("views").join("00").join("001.exr").exists());
+        let status = kill_when(child, signal, || staging.join("views").join("00").join("001.exr").exists());
+        assert_eq!(status.signal(), Some(signal), "the run ends by the signal it got");
         assert_eq!(snapshot(&out), before, "signal {signal}: the previous data set is unchanged");
         trainer::dataset::Dataset::open(&out).unwrap();
-        assert!(!temps_in(root.path()).is_empty(), "the killed run left its staging folder");
+        let left = temps_in(root.path());
+        if signal == libc::SIGKILL {
+            assert!(!left.is_empty(), "the killed run left its staging folder");
+        } else {
+            assert_eq!(left, Vec::<String>::new(), "signal {signal}: the interrupted run removed its staging folder");
+        }
     }
 
     // The next run removes the dead runs' staging folders and replaces the data set whole.
