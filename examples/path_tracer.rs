@@ -185,7 +185,7 @@ fn run(args: Args) -> Result<(), String> {
     nbrdf::kernels::requested().map_err(|e| e.to_string())?;
     let mesh = mesh_of(&args.mesh)?;
     let n_tris = mesh.triangles.len();
-    let geometry = Geometry::new(mesh).map_err(|e| format!("mesh: {e}"))?;
+    let geometry = Geometry::new(mesh).map_err(|e| format!("--mesh {}: {e}", args.mesh))?;
     let sampling = match args.sampling.as_str() {
         "native" => Sampling::Native,
         "cosine" => Sampling::Cosine,
@@ -214,16 +214,16 @@ fn run(args: Args) -> Result<(), String> {
     material.check_mesh(&geometry.mesh).map_err(|e| format!("--brdf on --mesh {}: {e}", args.mesh))?;
     let lights: Vec<DirectionalLight> = args.light.iter().map(|l| light_of(l)).collect::<Result<_, _>>()?;
     let env = match (&args.env, args.env_color) {
-        (Some(p), _) => Some(Environment::load_exr(p).map_err(|e| format!("environment: {e}"))?),
+        (Some(p), _) => Some(Environment::load_exr(p).map_err(|e| format!("--env {}: {e}", p.display()))?),
         (None, Some(c)) if c.min_element() >= 0.0 => Some(Environment::Constant(c.to_array())),
-        (None, Some(_)) => return Err(String::from("--env-color: radiance must be ≥ 0")),
+        (None, Some(c)) => return Err(format!("--env-color {c}: radiance must be ≥ 0")),
         (None, None) => None,
     };
     if lights.is_empty() && env.is_none() {
         return Err(String::from("no light: give --light, --env or --env-color"));
     }
     if !(args.fov > 0.0 && args.fov < 180.0) {
-        return Err(String::from("--fov: must lie in (0, 180) degrees"));
+        return Err(format!("--fov {}: must lie in (0, 180) degrees", args.fov));
     }
     // The flags a camera error is about: the pose's, or the image size's.
     let camera = Camera::look_at(args.eye, args.target, args.up, args.fov.to_radians(), args.width, args.height).map_err(|e| match e {

@@ -46,7 +46,7 @@ fn malformed_input_exits_1_names_the_flag_or_file_and_keeps_the_previous_render(
         (vec!["--brdf".into(), format!("model:{}", s(&bad_model))], vec!["garbage.nbrdf".into()]),
         (vec!["--brdf".into(), format!("json:{}", s(&bad_json))], vec!["weights.json".into()]),
         (vec!["--brdf".into(), "lambert:0.5,nan,0.5".into()], vec!["lambert".into()]),
-        (vec!["--env".into(), s(&bad_env)], vec!["sky.exr".into()]),
+        (vec!["--env".into(), s(&bad_env)], vec!["--env".into(), "sky.exr".into()]),
         (vec!["--sampling".into(), "psychic".into()], vec!["psychic".into()]),
         // Numbers with no image to give: refused, never rounded up to one sample or one bounce.
         (vec!["--spp".into(), "0".into()], vec!["--spp 0".into(), "1..=".into()]),
@@ -61,6 +61,8 @@ fn malformed_input_exits_1_names_the_flag_or_file_and_keeps_the_previous_render(
         // Files that never end are read no further than their format's largest size.
         (vec!["--brdf".into(), format!("json:{}", s(&endless))], vec!["endless.json".into(), "bytes".into()]),
         (vec!["--brdf".into(), "merl:/dev/zero".into()], vec!["/dev/zero".into(), "bytes".into()]),
+        (vec!["--fov".into(), "180".into()], vec!["--fov 180".into(), "(0, 180)".into()]),
+        (vec!["--env-color".into(), "1,-1,1".into()], vec!["--env-color".into(), "≥ 0".into()]),
     ];
     for (args, needles) in cases {
         let mut cmd = Command::new(&bin);
