@@ -170,7 +170,7 @@ mod tests {
         }
         assert_eq!(status(span(p, 4, "wi.x")), NbrdfStatus::Ok);
         // A range that would wrap: a pointer near the top of the address space.
-        let top = (usize::MAX - 7) as *const f32;
+        let top = std::ptr::without_provenance::<f32>(usize::MAX - 7);
         let Err(f) = span(top, 4, "out.r") else { panic!("wraps") };
         assert!(f.1.contains("end of the address space"), "{}", f.1);
         let bytes = [0u8; 8];
@@ -183,9 +183,9 @@ mod tests {
 
     #[test]
     fn overlap_is_decided_without_wrapping() {
-        let top = (usize::MAX - 15) as *const f32;
+        let top = std::ptr::without_provenance::<f32>(usize::MAX - 15);
         assert!(overlaps(top, top, 4));
-        assert!(!overlaps(top, 16 as *const f32, 4));
+        assert!(!overlaps(top, std::ptr::without_provenance(16), 4));
         let x = [0.0f32; 8];
         assert!(overlaps(x.as_ptr(), x[3..].as_ptr(), 4));
         assert!(!overlaps(x.as_ptr(), x[4..].as_ptr(), 4));

@@ -11,6 +11,8 @@ mod args;
 mod error;
 mod handle;
 mod shade;
+#[cfg(test)]
+mod tests;
 
 pub use error::{nbrdf_last_error, NbrdfStatus};
 pub use handle::*;
