@@ -322,3 +322,50 @@ echo 4242
     let (_, reversed) = study::report::merge(&[sharded.join("shard-1"), sharded.join("shard-0")]).unwrap();
     assert_eq!(reversed.iter().map(|r| r.model.as_str()).collect::<Vec<_>>(), ["rp", "single-mlp+exact"]);
 }
+
+/// A semi-synthetic data set of a Lambertian sphere (albedo 0.5) with noise, and a model file that
+/// is that material exactly: a parametric Lambert network whose weights are all zero predicts
+/// `sigmoid(0) = 0.5` everywhere.
+fn lambert_scene_and_its_perfect_model(dir: &std::path::Path) -> (trainer::dataset::Dataset, std::path::PathBuf) {
+    use nbrdf::file::{encode, ModelHeader, ModelKind, PositionEncoding, Reciprocity};
+    use nbrdf::parametric::ParametricKind;
+    use trainer::dataset::synth::{synthesize, SynthArgs};
+    let data = dir.join("data");
+    let args = SynthArgs {
+        material: "lambert:0.5".into(),
+        size: 24,
+        views: 3,
+        train_views: 1,
+        train_lights: 2,
+        test_lights: 2,
+        sigma: 0.01,
+        quiet: true,
+        ..SynthArgs::new(&data)
+    };
+    synthesize(&args).unwrap();
+    let h = ModelHeader::paper(ModelKind::Parametric(ParametricKind::Lambert), false, Reciprocity::None, PositionEncoding::Uniform, 2);
+    let path = dir.join("perfect.nbrdf");
+    std::fs::write(&path, encode(&h, &vec![0.0; h.n_weights()], None).unwrap()).unwrap();
+    (trainer::dataset::Dataset::open(&data).unwrap(), path)
+}
+
+#[test]
+fn a_perfect_model_scores_infinity_against_the_clean_reference_and_the_ceiling_against_the_capture() {
+    let dir = std::env::temp_dir().join(format!("nbrdf-clean-ref-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let (ds, perfect) = lambert_scene_and_its_perfect_model(&dir);
+    let lpips: Result<trainer::metrics::Lpips, String> = Err("n/a: not needed here".into());
+    let eval = study::evaluate::evaluate(&ds, &perfect, &lpips, &tiny()).unwrap();
+    assert_eq!(eval.reference, study::evaluate::Reference::Clean);
+    assert_eq!(eval.image.psnr, f64::INFINITY, "the clean reference is the ground truth's own render");
+    assert_eq!(eval.image.flip, 0.0);
+    // Against the noisy capture the perfect model reads exactly the ceiling: clean vs. captured.
+    let ceiling = study::evaluate::ceiling(&ds, &lpips).unwrap().expect("a ground truth");
+    let captured = eval.captured_psnr.expect("scored against the capture too");
+    assert!(captured.is_finite() && captured > 20.0, "σ = 0.01 leaves a finite ceiling: {captured}");
+    assert!((captured - ceiling.psnr).abs() < 1e-9, "{captured} vs ceiling {}", ceiling.psnr);
+    // The learning curve's probe scores against the clean reference as well.
+    let views = study::evaluate::TestViews::load(&ds).unwrap();
+    assert_eq!(views.psnr(&std::fs::read(&perfect).unwrap()).unwrap(), f64::INFINITY);
+    std::fs::remove_dir_all(&dir).unwrap();
+}

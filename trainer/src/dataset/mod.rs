@@ -108,6 +108,8 @@ pub struct Dataset {
     pub views: Vec<View>,
     /// The description, for semi-synthetic data sets.
     pub description: Option<spec::DatasetFile>,
+    /// The folder the description's relative paths start from.
+    pub dir: Option<PathBuf>,
 }
 
 /// Resolves `--mesh`: a built-in id, or an OBJ/PLY path.
@@ -169,7 +171,14 @@ impl Dataset {
                 .collect::<Result<_, Error>>()?;
             views.push(View { camera, split: v.split, mask, images });
         }
-        Ok(Dataset { geometry, views, description: Some(file) })
+        Ok(Dataset { geometry, views, description: Some(file), dir: Some(dir.to_path_buf()) })
+    }
+
+    /// The ground-truth material of a semi-synthetic data set, which renders its noise-free (clean)
+    /// reference images; `None` for captured data, which has only its images.
+    pub fn ground_truth(&self) -> Result<Option<material::Material>, Error> {
+        let (Some(d), Some(dir)) = (&self.description, &self.dir) else { return Ok(None) };
+        d.material.load(dir).map(Some).map_err(|e| e.context(format!("{}: the ground-truth material", dir.join("dataset.json").display())))
     }
 }
 

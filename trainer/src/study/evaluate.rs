@@ -1,7 +1,11 @@
 //! Evaluation of one fitted model on its scene's test views, through the core evaluator only (the
 //! exported `.nbrdf`, as a renderer would use it):
 //! - every test image is re-rendered with Eq. 9 (same camera, light and shadow visibility as the
-//!   reference, no noise) and scored against the reference (PSNR, DSSIM, LPIPS, HDR-FLIP, object mask);
+//!   reference, no noise) and scored (PSNR, DSSIM, LPIPS, HDR-FLIP, object mask) against the clean
+//!   reference where the data set has a ground truth — the same render of its material, so a perfect
+//!   model scores +inf — and against the captured images otherwise; on semi-synthetic data the PSNR
+//!   against the noisy capture is kept beside it, and [`ceiling`] scores the clean reference itself
+//!   against the capture: the best any model can read there;
 //! - the rendered BRDF values are compared with the stored raw ground-truth ones in cube-root RMSE, on
 //!   lit pixels within the angle limit of [`brdf_rmse::keep`];
 //! - reciprocity RMSE and the energy analysis use points and directions of the test samples;
@@ -22,6 +26,7 @@ use nbrdf::scene::DirectionalLight;
 use nbrdf::{Rgb, Vec3};
 use serde::{Deserialize, Serialize};
 
+use crate::dataset::material::Material;
 use crate::dataset::{samples, Dataset, Split, View};
 use crate::metrics::brdf_rmse::{self, CubeRootRmse};
 use crate::metrics::energy::{self, EnergyConfig, EnergySummary, LightPair};
@@ -29,11 +34,39 @@ use crate::metrics::reciprocity::{reciprocity_rmse, DirectionPair};
 use crate::metrics::{ImageMetrics, Lpips, PreparedReference};
 use crate::{Error, Result};
 
+/// What a model's test renderings were scored against.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Reference {
+    /// The noise-free Eq. 9 render of the data set's ground-truth material.
+    Clean,
+    /// The captured images: data without a ground truth (DiLiGenT-MV), and results written before
+    /// clean references existed.
+    #[default]
+    Captured,
+}
+
+impl Reference {
+    /// The word the report prints.
+    pub fn name(self) -> &'static str {
+        match self {
+            Reference::Clean => "clean",
+            Reference::Captured => "captured",
+        }
+    }
+}
+
 /// Everything measured on one fitted model.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Evaluation {
-    /// Image metrics averaged over the test images.
+    /// Image metrics averaged over the test images, against [`Evaluation::reference`].
     pub image: ImageMetrics,
+    /// What [`Evaluation::image`] was scored against.
+    #[serde(default)]
+    pub reference: Reference,
+    /// Mean PSNR (dB) against the captured (noisy) images, where `image` is against clean ones.
+    #[serde(default)]
+    pub captured_psnr: Option<f64>,
     pub brdf_rmse_cbrt: CubeRootRmse,
     pub reciprocity_rmse: f64,
     pub energy: EnergySummary,
@@ -89,6 +122,36 @@ fn lights_of(view: &View) -> Vec<DirectionalLight> {
     view.images.iter().map(|im| im.light).collect()
 }
 
+/// The clean reference of every image of `view`: the noise-free Eq. 9 render of the ground truth
+/// (same camera, lights and shadows as the capture), or `None` without a ground truth.
+fn clean_images(truth: Option<&Material>, ds: &Dataset, view: &View) -> Result<Option<Vec<RgbImage>>> {
+    let Some(truth) = truth else { return Ok(None) };
+    let rendered = render_view(&ds.geometry, &view.camera, &lights_of(view), |_, wi, wo| truth.eval(wi, wo), &RenderOptions::default());
+    let cam = &view.camera;
+    let images = rendered.images.into_iter().map(|im| RgbImage::from_data(cam.width, cam.height, im.radiance));
+    images.collect::<std::result::Result<Vec<_>, _>>().map(Some).map_err(Error::Core)
+}
+
+/// PSNR (sRGB, masked to the object) of `test` against `reference`, both linear: the study's PSNR.
+fn masked_psnr(reference: &RgbImage, test: &RgbImage, mask: &[bool]) -> f64 {
+    crate::metrics::psnr::psnr(&crate::metrics::to_srgb(reference), &crate::metrics::to_srgb(test), Some(mask))
+}
+
+/// The best score any model can reach on the test split of `ds`: its clean reference scored
+/// against the captured images (every image metric), or `None` for data without a ground truth.
+pub fn ceiling(ds: &Dataset, lpips: &std::result::Result<Lpips, String>) -> Result<Option<ImageMetrics>> {
+    let Some(truth) = ds.ground_truth().map_err(Error::Core)? else { return Ok(None) };
+    let mut scores = Vec::new();
+    for view in ds.views.iter().filter(|v| v.split == Split::Test) {
+        let clean = clean_images(Some(&truth), ds, view)?.expect("a ground truth");
+        for (im, clean) in view.images.iter().zip(&clean) {
+            let captured = im.load().map_err(Error::Core)?;
+            scores.push(PreparedReference::new(&captured, Some(&view.mask), lpips).evaluate(clean));
+        }
+    }
+    Ok((!scores.is_empty()).then(|| ImageMetrics::mean(&scores)))
+}
+
 /// Evaluates the model file `model_path` on the test split of `ds` (see the module docs).
 pub fn evaluate(
     ds: &Dataset,
@@ -99,15 +162,24 @@ pub fn evaluate(
     let held = ModelBuf::from_bytes_as_is(&nbrdf::io::read(model_path).map_err(Error::Core)?).map_err(Error::Core)?;
     let model = held.model();
     let eval = |p: &Prepared, wi: Vec3, wo: Vec3| model.eval(p, wi, wo);
+    let ground_truth = ds.ground_truth().map_err(Error::Core)?;
     let mut image_metrics = Vec::new();
+    let mut captured_psnr = Vec::new();
     let (mut pred_brdf, mut ref_brdf, mut keep) = (Vec::<Rgb>::new(), Vec::<Rgb>::new(), Vec::new());
     for view in ds.views.iter().filter(|v| v.split == Split::Test) {
         let cam = &view.camera;
         let rendered = render_with(&model, ds, view, &lights_of(view));
-        for (im, out) in view.images.iter().zip(&rendered.images) {
+        let clean = clean_images(ground_truth.as_ref(), ds, view)?;
+        for (j, (im, out)) in view.images.iter().zip(&rendered.images).enumerate() {
             let reference = im.load().map_err(Error::Core)?;
             let test = RgbImage::from_data(cam.width, cam.height, out.radiance.clone()).map_err(Error::Core)?;
-            image_metrics.push(PreparedReference::new(&reference, Some(&view.mask), lpips).evaluate(&test));
+            match &clean {
+                Some(clean) => {
+                    image_metrics.push(PreparedReference::new(&clean[j], Some(&view.mask), lpips).evaluate(&test));
+                    captured_psnr.push(masked_psnr(&reference, &test, &view.mask));
+                }
+                None => image_metrics.push(PreparedReference::new(&reference, Some(&view.mask), lpips).evaluate(&test)),
+            }
             let Some(brdf_path) = &im.brdf else { continue };
             let truth = read_exr(brdf_path).map_err(Error::Core)?;
             for (p, g) in rendered.gbuffer.samples.iter().enumerate() {
@@ -156,6 +228,8 @@ pub fn evaluate(
 
     Ok(Evaluation {
         image: ImageMetrics::mean(&image_metrics),
+        reference: if ground_truth.is_some() { Reference::Clean } else { Reference::Captured },
+        captured_psnr: (!captured_psnr.is_empty()).then(|| captured_psnr.iter().sum::<f64>() / captured_psnr.len() as f64),
         brdf_rmse_cbrt: brdf_rmse::cube_root_rmse(&pred_brdf, &ref_brdf, &keep),
         reciprocity_rmse: reciprocity,
         energy,
@@ -262,12 +336,16 @@ pub struct TestViews<'a> {
 }
 
 impl<'a> TestViews<'a> {
-    /// Loads the references of every test view of `ds`.
+    /// Loads the references of every test view of `ds`: the clean ones where it has a ground truth.
     pub fn load(ds: &'a Dataset) -> Result<TestViews<'a>> {
-        let mut views = Vec::new();
+        let truth = ds.ground_truth().map_err(Error::Core)?;
+        let mut views: Vec<(usize, Vec<RgbImage>)> = Vec::new();
         for (i, view) in ds.views.iter().enumerate().filter(|(_, v)| v.split == Split::Test) {
-            let refs = view.images.iter().map(|im| im.load().map(|r| crate::metrics::to_srgb(&r))).collect::<std::result::Result<Vec<_>, _>>();
-            views.push((i, refs.map_err(Error::Core)?));
+            let refs = match clean_images(truth.as_ref(), ds, view)? {
+                Some(clean) => clean,
+                None => view.images.iter().map(|im| im.load()).collect::<std::result::Result<Vec<_>, _>>().map_err(Error::Core)?,
+            };
+            views.push((i, refs.iter().map(crate::metrics::to_srgb).collect()));
         }
         if views.iter().all(|(_, r)| r.is_empty()) {
             return Err(Error::Invalid("the data set has no test images".into()));
@@ -299,7 +377,7 @@ impl<'a> TestViews<'a> {
     }
 }
 
-/// The first image of the first test view: reference, the model's rendering (Eq. 9, as in
+/// The first image of the first test view: reference (clean where the data set has a ground truth), the model's rendering (Eq. 9, as in
 /// [`evaluate`]) and the object mask.
 pub fn first_test_image(ds: &Dataset, model_path: &std::path::Path) -> Result<(RgbImage, RgbImage, Vec<bool>)> {
     let buf = ModelBuf::load(model_path).map_err(Error::Core)?;
@@ -311,7 +389,13 @@ pub fn first_test_image(ds: &Dataset, model_path: &std::path::Path) -> Result<(R
         .ok_or_else(|| Error::Invalid("the data set has no test images".into()))?;
     let im = &view.images[0];
     let rendered = render_with(&model, ds, view, &[im.light]);
-    let reference = im.load().map_err(Error::Core)?;
+    let reference = match ds.ground_truth().map_err(Error::Core)? {
+        Some(truth) => {
+            let clean = render_view(&ds.geometry, &view.camera, &[im.light], |_, wi, wo| truth.eval(wi, wo), &RenderOptions::default());
+            RgbImage::from_data(view.camera.width, view.camera.height, clean.images[0].radiance.clone()).map_err(Error::Core)?
+        }
+        None => im.load().map_err(Error::Core)?,
+    };
     let test = RgbImage::from_data(view.camera.width, view.camera.height, rendered.images[0].radiance.clone())
         .map_err(Error::Core)?;
     Ok((reference, test, view.mask.clone()))

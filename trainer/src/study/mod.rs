@@ -59,6 +59,10 @@ pub struct JobResult {
     /// its description records one.
     #[serde(default)]
     pub exposure: Option<crate::dataset::spec::ExposureSpec>,
+    /// The scene's ceiling: its clean reference scored against the captured images, the best any
+    /// model can read against the capture (`None` without a ground truth, or written before).
+    #[serde(default)]
+    pub ceiling: Option<crate::metrics::ImageMetrics>,
 }
 
 /// Which jobs this process runs: job `j` (in scene-major order) belongs to shard `j % count`.
@@ -200,6 +204,7 @@ pub fn run(config: &StudyConfig, out: &Path, shard: Option<Shard>, progress: boo
         let args = DataArgs { dataset: Some(dir.clone()), diligent: None, object: String::new(), pixel_stride: config.pixel_stride };
         let mut training: Option<data::TrainingData> = None;
         let mut test_views: Option<evaluate::TestViews> = None;
+        let mut ceiling: Option<Option<crate::metrics::ImageMetrics>> = None;
         for m in here {
             let (spec, model_config) = (&config.models[m], configs[m]);
             let name = model_config.name();
@@ -260,6 +265,10 @@ pub fn run(config: &StudyConfig, out: &Path, shard: Option<Shard>, progress: boo
                 size_bytes_f16,
                 curve: log.curve.clone(),
                 exposure: ds.description.as_ref().and_then(|d| d.exposure),
+                ceiling: match &ceiling {
+                    Some(c) => c.clone(),
+                    None => ceiling.insert(evaluate::ceiling(&ds, &lpips)?).clone(),
+                },
             };
             let json = serde_json::to_vec_pretty(&r).map_err(|e| Error::io(&result_path, e))?;
             crate::train::write_atomic(&result_path, &json)?;
