@@ -399,3 +399,40 @@ fn synth_command_line_writes_and_reports() {
     assert!(String::from_utf8_lossy(&bad.stderr).contains("unknown material 'felt'"));
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn a_specular_object_whose_median_pixel_is_black_is_exposed_on_its_lit_pixels() {
+    // A mirror-like table: light only near the specular direction, black elsewhere, so more than half
+    // of the object's pixels are 0 (as MERL chrome-steel on a mesh): metered on the lit ones.
+    let dir = tmpdir("specular-exposure");
+    let table = dir.join("mirror.binary");
+    nbrdf::measured::MerlTable::tabulate(|wi, wo| {
+        let h = (wi + wo).normalize();
+        if h.z > 0.99 { [40.0; 3] } else { [0.0; 3] }
+    })
+    .write(&table)
+    .unwrap();
+    let data = std::env::var("NBRDF_DATA")
+        .map(PathBuf::from)
+        .unwrap_or_else(|_| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data"));
+    let mut cases = vec![("sphere".to_string(), table.display().to_string())];
+    let (chrome, spot, rocker) =
+        (data.join("nbrdf-merl/chrome-steel.json"), data.join("meshes/spot.obj"), data.join("meshes/rocker-arm.obj"));
+    if chrome.is_file() && spot.is_file() && rocker.is_file() {
+        for mesh in [&spot, &rocker] {
+            cases.push((mesh.display().to_string(), chrome.display().to_string()));
+        }
+    } else {
+        eprintln!("skipping chrome-steel on spot and rocker-arm: {} not found (set NBRDF_DATA)", data.display());
+    }
+    for (i, (mesh, material)) in cases.iter().enumerate() {
+        let out = dir.join(format!("c{i}"));
+        let args = SynthArgs { material: material.clone(), target_median: Some(0.2), ..small(&out, mesh, 1e-3, 2) };
+        let (file, _) = synthesize(&args).unwrap_or_else(|e| panic!("{mesh} / {material}: {e}"));
+        let e = file.exposure.expect("a calibrated exposure is recorded");
+        assert!(e.light_intensity.is_finite() && e.light_intensity > 0.0, "{mesh}: {e:?}");
+        // The highlight cap still holds: a few percent saturate at most (the probe is one view).
+        assert!(e.saturated_share < 0.1, "{mesh} / {material}: {e:?}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -242,7 +242,8 @@ const PROBE_SIZE: u32 = 96;
 pub const MAX_SATURATED: f32 = 0.02;
 
 /// The light intensity that gives the object a median luminance of `target` over the images of one
-/// view (noise-free, at most [`PROBE_SIZE`]² pixels), or the dimmer one that saturates
+/// view (noise-free, at most [`PROBE_SIZE`]² pixels; over its lit pixels where more than half are
+/// black, as for a specular object), or the dimmer one that saturates
 /// [`MAX_SATURATED`] of its pixels: rendering is linear in the intensity, so one probe at intensity 1
 /// fixes both.
 fn calibrate_intensity(
@@ -260,11 +261,16 @@ fn calibrate_intensity(
     let object: Vec<[f32; 3]> =
         probe.images.iter().flat_map(|im| im.radiance.iter().zip(&mask).filter(|(_, m)| **m).map(|(c, _)| *c)).collect();
     let mut lum: Vec<f32> = object.iter().map(|c| luminance(*c)).collect();
-    let median = ExposureSpec::median(&mut lum);
+    let mut median = ExposureSpec::median(&mut lum);
+    if median <= 0.0 {
+        // A specular object is dark at most pixels; a photographer meters on the lit part then.
+        let mut lit: Vec<f32> = lum.into_iter().filter(|&l| l > 0.0).collect();
+        median = if lit.is_empty() { 0.0 } else { ExposureSpec::median(&mut lit) };
+    }
     if !(median.is_finite() && median > 0.0) {
         return Err(Error::Context {
             what: "--target-median".into(),
-            message: "the object's median luminance is 0 (a black material, or the mesh is not in view)".into(),
+            message: "no object pixel receives light (a black material, or the mesh is not in view)".into(),
         });
     }
     // The brightest channel of the pixel at the (1 - MAX_SATURATED) quantile maps to SATURATED.
