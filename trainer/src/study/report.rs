@@ -428,6 +428,19 @@ pub fn markdown(
         config.energy_pairs,
         config.energy_samples
     );
+    let missing = results.iter().find_map(|r| match &r.eval.image.lpips {
+        crate::metrics::MaybeMetric::NotAvailable { na } => Some(na.clone()),
+        crate::metrics::MaybeMetric::Value(_) => None,
+    });
+    if let Some(why) = missing {
+        let _ = writeln!(
+            md,
+            "**LPIPS is n/a** ({why}). To enable it, point `NBRDF_DATA` at a folder holding \
+             `lpips/alexnet-lpips-v0.1.safetensors` (the AlexNet-LPIPS v0.1 weights; `../shared/data` in this \
+             repository's layout, see its README) and run the study again into a fresh `--out` folder (a finished job \
+             keeps the scores it was evaluated with).\n"
+        );
+    }
     let _ = writeln!(md, "{}", references(config, results));
     let tab1: Vec<&ModelSummary> = s.iter().filter(|m| in_tab1(&m.model, config)).collect();
     let _ = writeln!(md, "## Tab. 1 — reconstruction quality\n");
