@@ -20,7 +20,7 @@ use nbrdf::builtin::Builtin;
 use nbrdf::ModelBuf;
 use nbrdf::measured::{MerlTable, NbrdfNetwork};
 use nbrdf::parametric::{Lambert, Parametric, ParametricKind, Phong, TorranceSparrow};
-use nbrdf::pathtrace::{render, Environment, Material, Options, Sampling, Scene};
+use nbrdf::pathtrace::{render, Environment, Material, Options, Sampling, Scene, MAX_DEPTH, MAX_SPP};
 use nbrdf::scene::{builtin::BuiltinMesh, Camera, DirectionalLight, Geometry, Mesh};
 use nbrdf::{Error, Vec3};
 
@@ -258,11 +258,6 @@ fn run(args: Args) -> Result<(), String> {
     println!("wrote {} and {}", args.out.display(), png.display());
     Ok(())
 }
-
-/// Most samples per pixel: beyond this a render takes days at any size.
-const MAX_SPP: u32 = 1 << 20;
-/// Most bounces per path.
-const MAX_DEPTH: u32 = 1024;
 
 /// Writes the EXR and the PNG under temporary names beside them, then renames both into place, so
 /// that a failure of either leaves the earlier pair as it was.

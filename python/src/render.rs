@@ -7,10 +7,10 @@ use std::path::PathBuf;
 
 use numpy::ndarray::{Array2, Array3};
 use numpy::{IntoPyArray, PyArray2, PyArray3};
-use pyo3::exceptions::PyValueError;
+use pyo3::exceptions::{PyOverflowError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 
-use nbrdf::pathtrace::{render as trace, Environment, Material, Options, Sampling, Scene};
+use nbrdf::pathtrace::{render as trace, Environment, Material, Options, Sampling, Scene, MAX_DEPTH, MAX_SPP};
 use nbrdf::scene::{builtin::BuiltinMesh, Camera, DirectionalLight, Geometry, Mesh};
 use nbrdf::{ModelBuf, Vec3};
 
@@ -54,6 +54,23 @@ pub(crate) fn mesh<'py>(
     })
 }
 
+/// `x` as an integer in `lo..=hi`: `TypeError` for a non-integer, `OverflowError` for one past the
+/// 128-bit range, `ValueError` outside `lo..=hi`, each naming `name`.
+fn integer(x: &Bound<'_, PyAny>, name: &str, lo: u64, hi: u64) -> PyResult<u64> {
+    let v: i128 = x.extract().map_err(|e: PyErr| {
+        if e.is_instance_of::<PyOverflowError>(x.py()) {
+            PyOverflowError::new_err(format!("{name} {x}: must lie in {lo}..={hi}"))
+        } else {
+            let ty = x.get_type().name().map(|n| n.to_string()).unwrap_or_default();
+            PyTypeError::new_err(format!("{name}: expected an integer, got {ty}"))
+        }
+    })?;
+    match u64::try_from(v) {
+        Ok(v) if (lo..=hi).contains(&v) => Ok(v),
+        _ => Err(PyValueError::new_err(format!("{name} {v}: must lie in {lo}..={hi}"))),
+    }
+}
+
 /// Path-traces `mesh` with `brdf` (see `nbrdf.render` in the package for the arguments); returns the
 /// mean radiance per pixel and the variance of that mean, both (height, width, 3) float32.
 #[pyfunction]
@@ -67,17 +84,24 @@ pub(crate) fn render<'py>(
     target: [f32; 3],
     up: [f32; 3],
     fov: f32,
-    width: u32,
-    height: u32,
+    width: &Bound<'_, PyAny>,
+    height: &Bound<'_, PyAny>,
     lights: Vec<([f32; 3], [f32; 3])>,
     env_color: Option<[f32; 3]>,
     env: Option<PathBuf>,
-    spp: u32,
-    max_depth: u32,
-    seed: u64,
+    spp: &Bound<'_, PyAny>,
+    max_depth: &Bound<'_, PyAny>,
+    seed: &Bound<'_, PyAny>,
     sampling: &str,
 ) -> PyResult<(Bound<'py, PyArray3<f32>>, Bound<'py, PyArray3<f32>>)> {
     guard(|| {
+        // Integers are checked against the path tracer's limits before any work, naming the argument.
+        // The ranges fit u32, so the narrowing casts are exact.
+        let width = integer(width, "width", 1, 16384)? as u32;
+        let height = integer(height, "height", 1, 16384)? as u32;
+        let spp = integer(spp, "spp", 1, MAX_SPP.into())? as u32;
+        let max_depth = integer(max_depth, "max_depth", 1, MAX_DEPTH.into())? as u32;
+        let seed = integer(seed, "seed", 0, u64::MAX)?;
         let sampling = match sampling {
             "native" => Sampling::Native,
             "cosine" => Sampling::Cosine,
@@ -85,9 +109,6 @@ pub(crate) fn render<'py>(
         };
         if !(fov > 0.0 && fov < 180.0) {
             return Err(PyValueError::new_err(format!("fov {fov}: must lie in (0, 180) degrees")));
-        }
-        if width == 0 || height == 0 || width > 16384 || height > 16384 {
-            return Err(PyValueError::new_err(format!("image size {width}×{height}: each side must lie in 1..=16384")));
         }
         let lights: Vec<DirectionalLight> = lights
             .iter()
@@ -119,7 +140,7 @@ pub(crate) fn render<'py>(
                 let camera =
                     Camera::look_at(Vec3::from_array(eye), Vec3::from_array(target), Vec3::from_array(up), fov.to_radians(), width, height)?;
                 let scene = Scene { geometry: &geometry, material: &material, lights: &lights, env: env.as_ref(), camera: &camera };
-                let options = Options { spp: spp.max(1), max_depth, seed, ..Options::default() };
+                let options = Options { spp, max_depth, seed, ..Options::default() };
                 Ok(trace(&scene, &options, &|_| {}))
             })
             .map_err(error::core)?;

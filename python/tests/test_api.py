@@ -255,3 +255,27 @@ def test_render_returns_the_mean_and_its_variance():
         nbrdf.render(nbrdf.lambert([1.0] * 3), width=8, height=8)
     with pytest.raises(FileNotFoundError):
         nbrdf.render(nbrdf.lambert([1.0] * 3), mesh="/nonexistent.obj", env_color=[1, 1, 1])
+
+
+@pytest.mark.parametrize(
+    "kwargs, error, names",
+    [
+        ({"spp": 0}, ValueError, "spp 0"),
+        ({"spp": 2**20 + 1}, ValueError, "spp"),
+        ({"spp": -1}, ValueError, "spp -1"),
+        ({"spp": 2**200}, OverflowError, "spp"),
+        ({"spp": 4.5}, TypeError, "spp"),
+        ({"max_depth": 0}, ValueError, "max_depth 0"),
+        ({"max_depth": 1025}, ValueError, "max_depth"),
+        ({"width": 2**32 + 8}, ValueError, "width"),
+        ({"height": -5}, ValueError, "height -5"),
+        ({"seed": -1}, ValueError, "seed -1"),
+        ({"seed": 2**64}, ValueError, "seed"),
+    ],
+)
+def test_render_integers_are_checked_before_any_work_naming_the_argument(kwargs, error, names):
+    args = {"width": 8, "height": 8, "env_color": [1, 1, 1], "spp": 1, **kwargs}
+    with pytest.raises(error, match=names):
+        nbrdf.render(nbrdf.lambert([0.5] * 3), **args)
+    # The limits themselves are accepted, and numpy integers are integers.
+    nbrdf.render(nbrdf.lambert([0.5] * 3), width=np.int64(4), height=4, env_color=[1, 1, 1], spp=1, max_depth=1024, seed=2**64 - 1)

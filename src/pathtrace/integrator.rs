@@ -37,6 +37,11 @@ pub struct Scene<'a> {
     pub camera: &'a Camera,
 }
 
+/// Most samples per pixel a front end accepts: beyond this a render takes days at any size.
+pub const MAX_SPP: u32 = 1 << 20;
+/// Most surface vertices per path a front end accepts.
+pub const MAX_DEPTH: u32 = 1024;
+
 /// Render settings.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Options {

@@ -1,6 +1,6 @@
 //! A small path tracer (feature `std`) that renders one mesh with any BRDF of the crate under
-//! directional lights and an environment map, with importance sampling that works for neural BRDFs
-//! (issue 6). `examples/path_tracer.rs` is its command line; the tests call it directly.
+//! directional lights and an environment map, with importance sampling that works for neural BRDFs.
+//! `examples/path_tracer.rs` is its command line; the tests call it directly.
 //!
 //! - [`material`]: the BRDF and how it is sampled (own lobes, a fitted proxy, or cosine).
 //! - [`environment`]: constant or lat-long environment light, importance-sampled.
@@ -32,6 +32,6 @@ pub mod plan;
 pub mod rng;
 
 pub use environment::Environment;
-pub use integrator::{render, Options, Rendered, Scene, Stats};
+pub use integrator::{render, Options, Rendered, Scene, Stats, MAX_DEPTH, MAX_SPP};
 pub use material::{Material, Sampling, Shading};
 pub use plan::Plan;
