@@ -1,7 +1,7 @@
 //! Evaluation cost of every model: ns per `eval` (one direction pair at a prepared point) and per
 //! `prepare` (one shading point; at the best level also `prepare-many-1024`, 1 024 points at once),
 //! f32 and f16 weights, single queries and batches of many directions at one point, at every kernel level this CPU has (`portable` is the pre-SIMD scalar path, the
-//! "before" of issue 8; the neural models' batches also with independent random directions,
+//! baseline of the SIMD levels; the neural models' batches also with independent random directions,
 //! `batch-1024-random`, and in calls of 32 pairs, `batch-32`, at the best level), plus the NBRDF-json networks, plus the neural models'
 //! batched throughput with one thread per core (`eval-f32-N-threads`, wall time), and the floor that
 //! L2 bandwidth puts under a single Single MLP query (`eval-floor`). Run: `cargo bench --bench eval`,
@@ -260,7 +260,7 @@ fn bench_nbrdf_json(c: &mut Criterion<Clock>) {
 }
 
 /// Batched evaluation over every core: the throughput a renderer sees when each of its threads
-/// evaluates its own batch (the machine-wide figure of issue 8, where the FLOP limit of the paper-size
+/// evaluates its own batch (the machine-wide figure, where the FLOP limit of the paper-size
 /// Single MLP is quoted for the whole two-core machine). Wall time per query over all threads; each
 /// thread owns its output and its own prepared point, as in a renderer.
 fn bench_all_cores(c: &mut Criterion<WallTime>) {

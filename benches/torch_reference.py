@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """PyTorch twin of `trainer bench-step`: one training step (forward, backward, Adam) of each nbrdf
-architecture, for the issue 8 comparison "ours at most 0.7x PyTorch's time".
+architecture, for the side-by-side comparison of docs/speed.md.
 
 The architectures are not transcribed here: `trainer bench-step --torch` writes them (layer sizes in
 file order, ReLU count, skip layer, what each network reads, the output head) to a JSON spec that this

@@ -1,4 +1,4 @@
-//! Bad input (issue 7): every input format the crate reads, its malformed variants and the specific
+//! Bad input: every input format the crate reads, its malformed variants and the specific
 //! error each one gets, and every writer's behaviour when its output cannot be written.
 //!
 //! `docs/bad-input.md` is the table of these cases (with the rows that `tests/model_file.rs` and
@@ -209,7 +209,7 @@ fn obj_malformed_variants() {
     // tobj checks face indices itself ("face vertex index out of bounds").
     assert_err!("index past the vertices", obj(&format!("{TRI}f 1 2 4\n")), Error::Parse { what, .. } if what == "OBJ");
     assert_err!("index 0", obj(&format!("{TRI}f 0 1 2\n")), Error::Parse { what, .. } if what == "OBJ");
-    // Regression (issue 7, found by fuzz target mesh_parse): normal and texture indices whose bounds
+    // Regression (found by fuzz target mesh_parse): normal and texture indices whose bounds
     // arithmetic overflows inside tobj. 6148914691236517206 - 1 = 0x5555555555555555, times 3 wraps to
     // u64::MAX, plus 2 wraps to 1: past tobj's check and out of bounds, a panic even in release builds.
     assert_err!("wrapping normal index", obj(&format!("{TRI}vn 0 0 1\nf 1//6148914691236517206 2//1 3//1\n")),

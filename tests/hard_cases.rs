@@ -1,4 +1,4 @@
-//! Hard cases stay numerically stable (issue 7): every model of the crate on a dense grid of direction
+//! Hard cases stay numerically stable: every model of the crate on a dense grid of direction
 //! pairs that includes the edges of the domain, with extreme parameters and weights.
 //!
 //! The grid holds normal incidence (θ = 0), grazing directions (θ → π/2, and z = 1e-7, 0 and -0 exactly),
@@ -590,7 +590,7 @@ fn published_nbrdf_networks_are_finite_on_the_dense_grid() {
 
 #[test]
 fn overflowing_diffuse_network_reads_as_zero_not_nan() {
-    // Regression (issue 7): with weights at f32's limits the diffuse network's activations overflow, the
+    // Regression: with weights at f32's limits the diffuse network's activations overflow, the
     // inf - inf inside it gives NaN, and `Prepared::diffuse` returned NaN (eval itself was sanitised, but
     // a renderer reading the diffuse term, e.g. for a diffuse-only pass, got NaN).
     let h = ModelHeader::paper(ModelKind::AdditiveSeparate, false, Reciprocity::None, PositionEncoding::Uniform, 0);

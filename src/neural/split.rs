@@ -15,7 +15,7 @@ use crate::Rgb;
 pub fn diffuse(raw: &[f32]) -> Rgb {
     // A network whose activations overflowed (inf - inf inside it, e.g. f16 weights near ±65504) emits
     // NaN, and sigmoid(NaN) is NaN: like every degenerate value of the crate it reads as 0, so that
-    // `Prepared::diffuse` never hands a renderer NaN (issue 7; tests/hard_cases.rs).
+    // `Prepared::diffuse` never hands a renderer NaN (tests/hard_cases.rs).
     // Through the same map as the trainer's sigmoid op, so the candle twin's `f_d` is this one's bits.
     let mut s = [raw[0], raw[1], raw[2]];
     sigmoid_slice(&mut s);

@@ -1,4 +1,4 @@
-//! Importance sampling of the parametric models (issue 6, "Sampling (core, no_std)"): warps from the unit
+//! Importance sampling of the parametric models (core, no_std): warps from the unit
 //! square to directions, the pdfs of those warps, and per model a `sample`/`pdf` pair that renderers use
 //! for path tracing.
 //!

@@ -407,7 +407,7 @@ impl Mesh {
 /// tobj 4.0.5 bounds-checks texture and normal indices with unchecked arithmetic (`vt * 2 + 1`,
 /// `vn * 3 + 2`): a huge index, or a relative one reaching before the first element, overflows it — a
 /// panic with overflow checks, and for normals an index that wraps past the check out of bounds, a panic
-/// in release too (found by the `mesh_parse` fuzz target, issue 7). So faces are checked here first, the
+/// in release too (found by the `mesh_parse` fuzz target). So faces are checked here first, the
 /// way tobj reads them (line by line, whitespace-separated `v/vt/vn` triples, relative indices counted
 /// from the elements declared so far): an absolute index must fit `u32`, a relative one must not reach
 /// before the first element. Tokens that are not integers are left to tobj, which rejects them.

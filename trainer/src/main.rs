@@ -6,7 +6,7 @@ use clap::{Parser, Subcommand};
 use trainer::commands;
 
 // Training allocates and frees batch-sized tensors every step; the system allocator returns them to the
-// OS and page-faults them back in, mimalloc keeps them (issue 4 "Speed").
+// OS and page-faults them back in, mimalloc keeps them (docs/speed.md).
 #[global_allocator]
 static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
 

@@ -260,8 +260,7 @@ fn draw_batch(config: &Config, obs: &Observations, targets: &Targets, opts: &Tra
 ///
 /// A step allocates and frees dozens of `[2^15, 128]` activation buffers; with mimalloc's default
 /// 10 ms purge delay they go back to the OS between steps and come back as fresh pages that the kernel
-/// zeroes on first touch (`clear_page_erms` was 14% of a step's profile). A training process wants the
-/// memory of its largest step kept. `mi_option_purge_delay` is option 15 in mimalloc v2 and v3
+/// zeroes on first touch (docs/speed.md). A training process wants the memory of its largest step kept. `mi_option_purge_delay` is option 15 in mimalloc v2 and v3
 /// (include/mimalloc.h); `-1` disables purging.
 pub fn keep_freed_memory() {
     // Links libmimalloc-sys, which defines the symbol, also into binaries that do not install mimalloc
@@ -271,10 +270,8 @@ pub fn keep_freed_memory() {
         fn mi_option_set(option: std::ffi::c_int, value: std::ffi::c_long);
     }
     const MI_OPTION_PURGE_DELAY: std::ffi::c_int = 15;
-    // A step of the Additive Shared model (three networks, 16 MiB activations) outgrows mimalloc's
-    // first 1 GiB arena, and its steady state still spent ~8% in the kernel's `clear_page_erms`; with
-    // further arenas reserved 4 GiB at a time (option 23, `mi_option_arena_reserve`, in KiB, in the v2
-    // sources that libmimalloc-sys builds by default) its step went from 246-259 to 211-231 ms here.
+    // The largest steps outgrow mimalloc's first 1 GiB arena; further arenas are reserved 4 GiB at a
+    // time (option 23, `mi_option_arena_reserve`, in KiB, in the v2 sources libmimalloc-sys builds).
     // Reserved address space that is never touched costs no memory.
     const MI_OPTION_ARENA_RESERVE: std::ffi::c_int = 23;
     // SAFETY: mimalloc's documented option setter, thread-safe, with valid options and values.

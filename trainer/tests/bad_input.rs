@@ -1,4 +1,4 @@
-//! Bad input for the trainer's files (issue 7; the table is `docs/bad-input.md`): the intrinsic-encoding
+//! Bad input for the trainer's files (the table is `docs/bad-input.md`): the intrinsic-encoding
 //! cache's malformed variants that `tests/intrinsic.rs` does not already assert (it covers a flipped
 //! bit, a cut file and a 5-byte file), each with the reason it gets, and a failed save that leaves the
 //! existing cache file intact.

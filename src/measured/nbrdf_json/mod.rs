@@ -156,7 +156,7 @@ impl NbrdfNetwork {
         let path = path.as_ref();
         // 64 MiB: the largest network accepted is under 2 MB of numbers; a device (`/dev/zero`) or a
         // wrong file is refused without filling the memory.
-        let bytes = crate::io::read_at_most(path, 64 << 20)?;
+        let bytes = crate::io::read_at_most(path, MAX_JSON_BYTES as u64)?;
         Self::from_json_bytes(&bytes).map_err(|e| match e {
             Error::Parse { message, .. } => Error::Parse {
                 what: alloc::format!("NBRDF-json file {}", path.display()),

@@ -1,6 +1,6 @@
 //! `trainer bench-step`: milliseconds per training step (forward, backward and Adam) of each
-//! architecture at batch 32768, and with `--torch` the same step in PyTorch side by side (issue 8: ours
-//! should take at most 0.7× PyTorch's time on the same machine and thread count).
+//! architecture at batch 32768, and with `--torch` the same step in PyTorch side by side on the same machine and
+//! thread count (docs/speed.md has the method and the figures).
 //!
 //! The PyTorch twin is `benches/torch_reference.py`. It does not transcribe our layer sizes: this
 //! command writes every architecture's networks ([`ArchSpec`]) to a JSON file the script reads, so the

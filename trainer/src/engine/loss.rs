@@ -11,7 +11,7 @@ const SRGB_KNEE: f64 = 0.003_130_8;
 ///
 /// sRGB rather than a pure power `x^(1/2.2)`: both compress HDR highlights the way Mildenhall et al.
 /// (2022) motivate, but the power's slope is infinite at 0, so a dark pixel would give an unbounded
-/// gradient; sRGB's linear toe keeps the slope at most 12.92. Evaluation (issue 5) converts to sRGB the
+/// gradient; sRGB's linear toe keeps the slope at most 12.92. Evaluation converts to sRGB the
 /// same way.
 pub fn gamma(x: f32) -> f32 {
     let x = x.clamp(0.0, 1.0) as f64;

@@ -9,7 +9,7 @@ use crate::{Error, Result};
 /// The file bytes of `model`; `position_table` is the per-vertex intrinsic encoding (`n_vertices × k`)
 /// a renderer interpolates itself, if it should travel with the model.
 ///
-/// Purely neural models also get their importance-sampling proxy (issue 6): a cosine + GGX mixture
+/// Purely neural models also get their importance-sampling proxy: a cosine + GGX mixture
 /// fitted to the exported network averaged over a few surface points — rows of the position table,
 /// points on the unit sphere for the extrinsic encoding, the one point of a uniform material — so that a
 /// renderer can sample the model without knowing anything about it. Parametric models sample their own

@@ -41,12 +41,9 @@ pub enum Raw {
 
 /// Start of the specular (and Single MLP) output logit: `softplus(-4) = 0.018`/sr.
 ///
-/// With PyTorch's default initialisation the outputs start near 0, i.e. `f_s = softplus(0) = 0.69`/sr
-/// plus `f_d = σ(0)/π = 0.16`/sr, brighter than almost every measured material away from its highlight.
-/// The first steps then push the whole specular network down so hard that the ReLUs of a plain 4-layer
-/// network die and `f_s` stays a constant: the Additive Separate model stalled at the loss of a
-/// diffuse-only fit on the sphere / two-lobe-metal study scene (1.8e-2 after 1000 steps, 2.4e-4 after
-/// 200 when starting dark). Starting dark lets the highlight grow from below instead.
+/// PyTorch's default start (`f_s + f_d ≈ 0.85`/sr) is brighter than almost every measured material
+/// away from its highlight; the first steps then push the specular network into dead ReLUs. Starting
+/// dark lets the highlight grow from below (docs/training.md, "Initialisation", has the losses).
 pub const SPECULAR_START: f32 = -4.0;
 
 /// Start of the diffuse logit of the additive models: `σ(-3)/π = 0.015`/sr (albedo 0.047); see
@@ -73,15 +70,10 @@ impl OutputStart {
     /// [`crate::observations::Observations::median_brdf`]): a purely neural part that would start
     /// brighter than `2m` starts at `2m`, a parametric albedo brighter than `10m` at `10m`.
     ///
-    /// The fixed start overshoots a dark material. On MERL grease-covered steel (median 1.4e-3/sr) the
-    /// neural `f_s + f_d` started 24× too bright; the first hundred steps drove `s` so far below 0 that
-    /// `σ(s)`, softplus' slope, vanished, and Additive Separate (every seed) and Additive Shared stalled
-    /// at a diffuse-only fit (loss 3.2e-2 against 1.2e-3). On MERL nickel (median 1.7e-3/sr) the
-    /// parametric albedo `0.5/π` started 94× too bright and Torrance-Sparrow stalled at a black
-    /// rendering the same way (5.5e-2 against 1.0e-3). The parametric albedo keeps more headroom: its
-    /// formulas add their lobes to it, and dimmed to `2m` it cost Disney 8 dB on the built-in sphere
-    /// (median 0.018/sr, start 8.8× the median, which `10m` leaves as it was). No usable median keeps
-    /// the fixed start.
+    /// The fixed start overshoots a dark material so far that the first steps drive the logits into
+    /// the flat tails of softplus and σ, where Adam's steps vanish; the parametric albedo keeps more
+    /// headroom because its formulas add their lobes to it (docs/training.md, "Initialisation", has
+    /// the measured stalls and what each limit cost). No usable median keeps the fixed start.
     ///
     /// ```
     /// use trainer::models::OutputStart;
