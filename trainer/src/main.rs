@@ -131,10 +131,14 @@ fn study(args: StudyArgs) -> trainer::Result<()> {
 fn main() {
     // First, before any thread starts: an interrupted run removes what it staged.
     trainer::staging::remove_staging_on_interrupt();
-    if let Err(e) = run(Cli::parse()) {
-        eprintln!("error: {e}");
-        std::process::exit(1);
+    let result = run(Cli::parse());
+    if let Err(e) = &result {
+        // An interrupt that removed the run's staged outputs caused this error: let it end the run.
+        if !trainer::staging::interrupted() {
+            eprintln!("error: {e}");
+        }
     }
+    trainer::staging::exit(i32::from(result.is_err()));
 }
 
 fn run(cli: Cli) -> trainer::Result<()> {

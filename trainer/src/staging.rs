@@ -175,6 +175,7 @@ pub fn remove_staging_on_interrupt() {
         if unsafe { libc::sigwait(&set, &mut sig) } != 0 {
             return;
         }
+        INTERRUPTED.store(true, std::sync::atomic::Ordering::SeqCst);
         remove_pending();
         // SAFETY: restores the default action and delivers the signal again, now unblocked here.
         unsafe {
@@ -192,6 +193,26 @@ pub fn remove_staging_on_interrupt() {
         // SAFETY: unblocks the set blocked above in this thread.
         unsafe { libc::pthread_sigmask(libc::SIG_UNBLOCK, &set, std::ptr::null_mut()) };
     }
+}
+
+/// Set once an interrupt is being handled: the process is about to end by its signal.
+static INTERRUPTED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// Ends the process with `code` — unless an interrupt is being handled, whose removal of the staged
+/// outputs may be what made the work fail: then it waits for the interrupt to end the process by its
+/// signal, so an interrupted run never exits with an error (or success) of its own.
+pub fn exit(code: i32) -> ! {
+    if INTERRUPTED.load(std::sync::atomic::Ordering::SeqCst) {
+        loop {
+            std::thread::park();
+        }
+    }
+    std::process::exit(code)
+}
+
+/// Whether an interrupt is being handled (see [`exit`]).
+pub fn interrupted() -> bool {
+    INTERRUPTED.load(std::sync::atomic::Ordering::SeqCst)
 }
 
 /// Elsewhere interrupts end the process as before; the next run removes what it staged.
