@@ -1,9 +1,10 @@
 """nbrdf: neural BRDFs from Python (On Neural BRDFs: A Thorough Comparison of State-of-the-Art
-Approaches), over float32 numpy arrays.
+Approaches), over numpy arrays.
 
 - ``Model``: one class for every BRDF (``Model.load`` a ``.nbrdf`` model, an NBRDF-json network or a
   MERL table; ``merl``, ``nbrdf_json``, ``lambert``, ``phong``, ``torrance_sparrow``, ``fmbrdf``,
-  ``disney``, ``builtin``, ``from_spec``) with ``eval``, ``sample`` and ``pdf`` over (N, 3) arrays.
+  ``disney``, ``builtin``, ``from_spec``) with ``eval``, ``sample`` and ``pdf`` over directions, (3,) or
+  (N, 3).
 - ``render`` and ``mesh``: nbrdf's own path tracer and the meshes it draws.
 - ``synth``, ``fit``, ``compare``, ``brdf_rmse``: the trainer's data sets, fitting and metrics.
 - ``nbrdf.mitsuba``: a Mitsuba 3 BSDF plugin, ``"nbrdf"``.
@@ -11,6 +12,16 @@ Approaches), over float32 numpy arrays.
 Conventions: local shading frame with the normal on +z; ``wi`` points toward the light and ``wo``
 toward the viewer, both away from the surface; values in 1/sr without the cosine; 0 below the horizon
 and for non-finite directions. Every call releases the GIL and spreads large batches over all cores.
+
+Arrays follow numpy's conventions. An array argument is any array-like of real numbers (any dtype
+from bool and integers to float64, lists, tuples, numpy scalars, views of any strides); the leading
+dimensions of a call's arguments broadcast by numpy's rules (``wi`` (N, 3) with ``wo`` (3,) or (1, 3);
+a single (3,) query gives a (3,) value and a scalar density); results are float32 with the broadcast
+leading shape. The cost: every input is read once into the call's own buffer (so that the work runs
+without the GIL); aligned float32 and float64 arrays are read in place, float64 rounded as
+``astype(np.float32)`` rounds, so its results equal the float32 call's bit for bit; anything else is
+converted to float32 once. Strings, objects, complex numbers and shapes that do not broadcast raise
+ValueError or TypeError naming the argument.
 """
 
 from __future__ import annotations
@@ -18,9 +29,10 @@ from __future__ import annotations
 import os
 import sys
 from pathlib import Path
-from typing import Any, Dict, NamedTuple, Optional, Sequence, Tuple, Union
+from typing import Any, Dict, List, NamedTuple, Optional, Tuple, Union
 
 import numpy as np
+import numpy.typing as npt
 
 from . import _nbrdf
 from ._nbrdf import (
@@ -72,7 +84,7 @@ def _interactive() -> bool:
         return False
 
 
-def _argv(options: Dict[str, Any]) -> list:
+def _argv(options: Dict[str, Any]) -> List[str]:
     """Keyword arguments as the trainer's command-line flags: ``pixel_stride=2`` -> ``--pixel-stride 2``,
     ``True`` -> a bare flag, ``False``/``None`` -> omitted."""
     argv = []
@@ -87,7 +99,7 @@ def _argv(options: Dict[str, Any]) -> list:
     return argv
 
 
-def _floats(spec: str, rest: str, n: int) -> list:
+def _floats(spec: str, rest: str, n: int) -> List[float]:
     try:
         values = [float(x) for x in rest.split(",")]
     except ValueError:
@@ -143,38 +155,38 @@ def render(
     brdf: Model,
     *,
     mesh: PathLike = "sphere",
-    eye: Sequence[float] = (0.0, 0.6, 3.4),
-    target: Sequence[float] = (0.0, 0.0, 0.0),
-    up: Sequence[float] = (0.0, 1.0, 0.0),
+    eye: npt.ArrayLike = (0.0, 0.6, 3.4),
+    target: npt.ArrayLike = (0.0, 0.0, 0.0),
+    up: npt.ArrayLike = (0.0, 1.0, 0.0),
     fov: float = 40.0,
     width: int = 128,
     height: int = 128,
-    lights: Sequence[Tuple[Sequence[float], Sequence[float]]] = (),
-    env_color: Optional[Sequence[float]] = None,
+    lights: npt.ArrayLike = (),
+    env_color: Optional[npt.ArrayLike] = None,
     env: Optional[PathLike] = None,
     spp: int = 16,
     max_depth: int = 8,
     seed: int = 0,
     sampling: str = "native",
-) -> Tuple[np.ndarray, np.ndarray]:
+) -> Tuple[npt.NDArray[np.float32], npt.NDArray[np.float32]]:
     """Path-traces ``mesh`` ("sphere", "torus", "grooved" or an OBJ/PLY file, scaled into the unit
     sphere) with ``brdf``, as ``cargo run --example path_tracer`` does: a pinhole camera at ``eye``
     looking at ``target`` (vertical field of view ``fov`` degrees), directional ``lights`` given as
-    ``(direction toward the light, RGB intensity)``, and a constant environment ``env_color`` or a
+    ``(direction toward the light, RGB intensity)`` pairs (a list of pairs or an (L, 2, 3) array), and a constant environment ``env_color`` or a
     lat-long OpenEXR map ``env`` (+y up). ``sampling`` is "native" (the BRDF's lobes or fitted proxy) or
     "cosine". Returns the mean radiance per pixel and the variance of that mean, both
     (height, width, 3) float32; rows run top to bottom."""
     return _nbrdf.render(
         brdf,
         os.fspath(mesh),
-        [float(x) for x in eye],
-        [float(x) for x in target],
-        [float(x) for x in up],
+        eye,
+        target,
+        up,
         float(fov),
         width,
         height,
-        [([float(x) for x in d], [float(x) for x in c]) for d, c in lights],
-        None if env_color is None else [float(x) for x in env_color],
+        lights,
+        env_color,
         None if env is None else os.fspath(env),
         spp,
         max_depth,
@@ -269,14 +281,14 @@ def fit(
 
 
 def compare(
-    reference: np.ndarray,
-    test: np.ndarray,
-    mask: Optional[np.ndarray] = None,
+    reference: npt.ArrayLike,
+    test: npt.ArrayLike,
+    mask: Optional[npt.ArrayLike] = None,
     *,
     lpips_weights: Optional[PathLike] = None,
 ) -> Dict[str, Any]:
     """The study's image metrics (Sec. 6, Tab. 1) of a **linear** RGB rendering ``test`` against
-    ``reference``, both (H, W, 3) float32, over the object pixels ``mask`` ((H, W) bool) where given:
+    ``reference``, both (H, W, 3) (any real dtype; read as float32), over the object pixels ``mask`` ((H, W) bool) where given:
     ``psnr`` (dB on sRGB, inf when equal), ``dssim``, ``lpips`` (AlexNet v0.1; None where its weights
     are missing, the reason in ``lpips_na``) and ``flip`` (mean HDR-FLIP). The LPIPS weights are read
     from ``lpips_weights``, else ``$NBRDF_DATA/lpips/alexnet-lpips-v0.1.safetensors``."""

@@ -1,6 +1,7 @@
 //! `nbrdf.Model`: one class for every BRDF of the core (a `.nbrdf` model, a MERL table, an NBRDF-json
 //! network, a parametric model, a built-in material), like the C ABI's handle, with `eval`, `sample`
-//! and `pdf` over `(N, 3)` float32 arrays, and the functions that make one.
+//! and `pdf` over arrays of directions (`(3,)`, `(N, 3)` or any `(..., 3)`, broadcast by numpy's rules;
+//! see `arrays`), and the functions that make one.
 //!
 //! Values are the Rust API's bit for bit: a batch at one point goes through `Model::eval_many` (the
 //! bits of `eval`), per-pair points through `Model::prepare_many` (the bits of `prepare`), and every
@@ -10,9 +11,9 @@
 use std::ops::Range;
 use std::path::PathBuf;
 
+use numpy::PyArrayDyn;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use numpy::PyUntypedArrayMethods;
 use pyo3::types::PyBytes;
 use rayon::prelude::*;
 
@@ -23,7 +24,7 @@ use nbrdf::model::ModelAt;
 use nbrdf::parametric::{Disney, FresnelMicrofacet, Lambert, Parametric, ParametricKind, Phong, TorranceSparrow};
 use nbrdf::{Brdf, BsdfSample, ModelBuf, Prepared, Vec3};
 
-use crate::arrays::{self, PointsIn};
+use crate::arrays::{self, Input, Kind};
 use crate::error::{self, guard};
 
 /// Pairs per task of a parallel batch: large enough that a task's work (~0.1-3 ms) dwarfs rayon's
@@ -39,8 +40,8 @@ pub(crate) enum Source {
 }
 
 /// A BRDF: a fitted `.nbrdf` model, a MERL table, an NBRDF-json network, a parametric model or a
-/// built-in material. Directions are float32 arrays of shape (N, 3) in the local shading frame
-/// (normal +z), `wi` toward the light, `wo` toward the viewer; values are in 1/sr without the cosine,
+/// built-in material. Directions are arrays of shape (3,) or (N, 3) (any real dtype, any array-like) in
+/// the local shading frame (normal +z), `wi` toward the light, `wo` toward the viewer; values are in 1/sr without the cosine,
 /// 0 below the horizon or for non-finite directions. Immutable; safe to share between threads.
 #[pyclass(frozen, module = "nbrdf")]
 pub struct Model {
@@ -59,6 +60,15 @@ enum At {
     Same(Option<Prepared>),
     /// A model with one point input per pair, `position_len` values each.
     PerPair(Vec<f32>),
+}
+
+/// The inputs of one call: two direction arguments (or a direction and `u`) as one `Vec3` per pair,
+/// the BRDF at each pair, and the leading shape of the outputs.
+struct Pairs {
+    a: Vec<Vec3>,
+    b: Vec<Vec3>,
+    at: At,
+    lead: Vec<usize>,
 }
 
 /// One sampled direction, or zeros where none was produced.
@@ -120,27 +130,37 @@ impl Model {
         }
     }
 
-    /// Resolves the `points` argument of a call of `n` pairs.
-    fn at(&self, points: Option<&Bound<'_, PyAny>>, n: usize) -> PyResult<At> {
+    /// The `points` argument checked against the BRDF: None where it takes none, else the input.
+    fn points_arg<'py>(&self, points: Option<&Bound<'py, PyAny>>) -> PyResult<Option<Input<'py>>> {
         let k = self.position_len_();
         let Source::Model(buf) = &self.source else {
             return match points {
-                None => Ok(At::Same(None)),
+                None => Ok(None),
                 Some(_) => Err(PyValueError::new_err(format!("points given, but this {} is the same at every point", self.kind()))),
             };
         };
         match points {
-            None if k == 0 => Ok(At::Same(self.uniform)),
+            None if k == 0 => Ok(None),
             None => Err(PyValueError::new_err(format!(
                 "this model varies over the surface: pass points ({k} values per point: {})",
                 if buf.header().n_vertices > 0 { "the intrinsic features, see position_features" } else { "the point x, y, z" }
             ))),
             Some(_) if k == 0 => Err(PyValueError::new_err("points given, but this model is the same at every point (position_len 0)")),
-            Some(p) => match arrays::points(p, k, n)? {
-                PointsIn::One(p) => Ok(At::Same(Some(buf.model().prepare(&p).map_err(error::core)?))),
-                PointsIn::PerPair(p) => Ok(At::PerPair(p)),
-            },
+            Some(p) => Ok(Some(arrays::real(p, "points")?)),
         }
+    }
+
+    /// The BRDF at each pair of a call with the leading shape `lead`: one point (a `points` with a
+    /// single row) is prepared once, more are read per pair.
+    fn at(&self, points: Option<&Input<'_>>, lead: &[usize]) -> PyResult<At> {
+        let Source::Model(buf) = &self.source else { return Ok(At::Same(None)) };
+        Ok(match points {
+            None => At::Same(self.uniform),
+            Some(p) if p.lead().iter().product::<usize>() == 1 => {
+                At::Same(Some(buf.model().prepare(&p.floats(p.lead())).map_err(error::core)?))
+            }
+            Some(p) => At::PerPair(p.floats(lead)),
+        })
     }
 
     /// Runs `each(brdf, i)` for every pair `i` of `range`, with the BRDF at that pair's point.
@@ -182,17 +202,25 @@ impl Model {
         })
     }
 
-    /// Two (N, 3) direction arguments (or a direction and `u`) and the points of the call.
+    /// Two direction arguments (or a direction and `u`) and the points of a call, their leading
+    /// shapes broadcast by numpy's rules.
     fn inputs(
         &self,
         (a, a_name): (&Bound<'_, PyAny>, &str),
         (b, b_name): (&Bound<'_, PyAny>, &str),
         points: Option<&Bound<'_, PyAny>>,
-    ) -> PyResult<(Vec<Vec3>, Vec<Vec3>, At)> {
-        let (a, b) = (arrays::vec3s(a, a_name)?, arrays::vec3s(b, b_name)?);
-        let n = arrays::same_len(&[(a_name, a.len()), (b_name, b.len())])?;
-        let at = self.at(points, n)?;
-        Ok((a, b, at))
+    ) -> PyResult<Pairs> {
+        let (a, b) = (arrays::real(a, a_name)?, arrays::real(b, b_name)?);
+        let points = self.points_arg(points)?;
+        let want3 = arrays::WANT3;
+        let mut leads = vec![(a_name, a.rows_of(3, want3)?), (b_name, b.rows_of(3, want3)?)];
+        if let Some(p) = &points {
+            let k = self.position_len_();
+            leads.push(("points", p.rows_of(k, &format!("({k},) for one point or (N, {k}) for one per direction pair"))?));
+        }
+        let lead = arrays::broadcast(&leads)?;
+        let at = self.at(points.as_ref(), &lead)?;
+        Ok(Pairs { a: a.vec3s(&lead), b: b.vec3s(&lead), at, lead })
     }
 
     /// `each(brdf, i)` for every pair `i < n` with the BRDF at its point, without the GIL, in parallel
@@ -269,7 +297,8 @@ impl Model {
         })
     }
 
-    /// `f(wi, wo)` per pair as (N, 3) float32, 1/sr, cosine not included.
+    /// `f(wi, wo)` per pair, 1/sr, cosine not included: float32 of the arguments' broadcast leading
+    /// shape followed by 3 ((N, 3) for (N, 3) directions, (3,) for single ones).
     #[pyo3(signature = (wi, wo, points = None))]
     fn eval<'py>(
         &self,
@@ -277,18 +306,19 @@ impl Model {
         wi: &Bound<'py, PyAny>,
         wo: &Bound<'py, PyAny>,
         points: Option<&Bound<'py, PyAny>>,
-    ) -> PyResult<Bound<'py, numpy::PyArray2<f32>>> {
+    ) -> PyResult<Bound<'py, PyArrayDyn<f32>>> {
         guard(|| {
-            let (wi, wo, at) = self.inputs((wi, "wi"), (wo, "wo"), points)?;
+            let Pairs { a: wi, b: wo, at, lead } = self.inputs((wi, "wi"), (wo, "wo"), points)?;
             let f = py.detach(|| self.eval_pairs(&at, &wi, &wo)).map_err(error::core)?;
-            Ok(arrays::out3(py, f))
+            Ok(arrays::out3(py, &lead, f))
         })
     }
 
     /// Importance-samples `wi` for each view `wo` from three uniform numbers `u` in [0, 1) per row
     /// (`u[:, 0:2]` place the direction, `u[:, 2]` picks the lobe). Returns `(wi, weight, pdf)`:
-    /// (N, 3), (N, 3) and (N,) float32, `weight = f cos / pdf`; a row where no direction was produced
-    /// (`wo` below the horizon, a lobe reflected below it) is all zeros.
+    /// (N, 3), (N, 3) and (N,) float32 for N rows (the broadcast leading shape of `wo` and `u`; a
+    /// single `wo` gives (3,), (3,) and a scalar), `weight = f cos / pdf`; a row where no direction was
+    /// produced (`wo` below the horizon, a lobe reflected below it) is all zeros.
     #[pyo3(signature = (wo, u, points = None))]
     #[allow(clippy::type_complexity)]
     fn sample<'py>(
@@ -297,19 +327,20 @@ impl Model {
         wo: &Bound<'py, PyAny>,
         u: &Bound<'py, PyAny>,
         points: Option<&Bound<'py, PyAny>>,
-    ) -> PyResult<(Bound<'py, numpy::PyArray2<f32>>, Bound<'py, numpy::PyArray2<f32>>, Bound<'py, numpy::PyArray1<f32>>)> {
+    ) -> PyResult<(Bound<'py, PyArrayDyn<f32>>, Bound<'py, PyArrayDyn<f32>>, Bound<'py, PyAny>)> {
         guard(|| {
-            let (wo, u, at) = self.inputs((wo, "wo"), (u, "u"), points)?;
+            let Pairs { a: wo, b: u, at, lead } = self.inputs((wo, "wo"), (u, "u"), points)?;
             let s: Vec<Sampled> = self.per_pair(py, &at, wo.len(), |b, i| b.sample(wo[i], u[i].to_array()).into())?;
             Ok((
-                arrays::out3(py, s.iter().map(|s| s.wi).collect()),
-                arrays::out3(py, s.iter().map(|s| s.weight).collect()),
-                arrays::out1(py, s.iter().map(|s| s.pdf).collect()),
+                arrays::out3(py, &lead, s.iter().map(|s| s.wi).collect()),
+                arrays::out3(py, &lead, s.iter().map(|s| s.weight).collect()),
+                arrays::out1(py, &lead, s.iter().map(|s| s.pdf).collect())?,
             ))
         })
     }
 
-    /// Density of `sample` at `wi` for the view `wo`, per unit solid angle, as (N,) float32.
+    /// Density of `sample` at `wi` for the view `wo`, per unit solid angle: float32 of the arguments'
+    /// broadcast leading shape ((N,) for (N, 3) directions, a scalar for single ones).
     #[pyo3(signature = (wi, wo, points = None))]
     fn pdf<'py>(
         &self,
@@ -317,34 +348,35 @@ impl Model {
         wi: &Bound<'py, PyAny>,
         wo: &Bound<'py, PyAny>,
         points: Option<&Bound<'py, PyAny>>,
-    ) -> PyResult<Bound<'py, numpy::PyArray1<f32>>> {
+    ) -> PyResult<Bound<'py, PyAny>> {
         guard(|| {
-            let (wi, wo, at) = self.inputs((wi, "wi"), (wo, "wo"), points)?;
+            let Pairs { a: wi, b: wo, at, lead } = self.inputs((wi, "wi"), (wo, "wo"), points)?;
             let p = self.per_pair(py, &at, wi.len(), |b, i| b.pdf(wi[i], wo[i]))?;
-            Ok(arrays::out1(py, p))
+            arrays::out1(py, &lead, p)
         })
     }
 
     /// The point inputs of an intrinsically encoded model at triangles `triangles` ((N, 3) vertex
-    /// indices of the mesh the model was fitted on, uint32) with barycentric weights `bary` ((N, 3)
-    /// float32), interpolated from the per-vertex table the file carries: (N, position_len) float32,
-    /// what `points` takes.
+    /// indices of the mesh the model was fitted on, any integer dtype) with barycentric weights `bary`
+    /// ((N, 3) real), the two broadcast by numpy's rules, interpolated from the per-vertex table the
+    /// file carries: (N, position_len) float32, what `points` takes.
     fn position_features<'py>(
         &self,
         py: Python<'py>,
-        triangles: numpy::PyReadonlyArray2<'py, u32>,
+        triangles: &Bound<'py, PyAny>,
         bary: &Bound<'py, PyAny>,
-    ) -> PyResult<Bound<'py, numpy::PyArray2<f32>>> {
+    ) -> PyResult<Bound<'py, PyArrayDyn<f32>>> {
         guard(|| {
             let Source::Model(buf) = &self.source else {
                 return Err(PyValueError::new_err(format!("a {} has no position features", self.kind())));
             };
-            if triangles.shape()[1] != 3 {
-                return Err(PyValueError::new_err("triangles must have shape (N, 3)"));
-            }
-            let tri: Vec<u32> = triangles.as_array().iter().copied().collect();
-            let bary = arrays::rgbs(bary, "bary")?;
-            let n = arrays::same_len(&[("triangles", tri.len() / 3), ("bary", bary.len())])?;
+            let (t, b) = (arrays::input(triangles, "triangles", Kind::Index)?, arrays::real(bary, "bary")?);
+            let lead = arrays::broadcast(&[
+                ("triangles", t.rows_of(3, "(3,) or (N, 3) vertex indices")?),
+                ("bary", b.rows_of(3, "(3,) or (N, 3) barycentric weights")?),
+            ])?;
+            let (tri, bary) = (t.indices(&lead)?, b.rgbs(&lead));
+            let n = bary.len();
             let model = buf.model();
             let k = model.position_len();
             let mut out = vec![0.0f32; n * k];
@@ -354,8 +386,8 @@ impl Model {
                 })
             })
             .map_err(error::core)?;
-            let a = numpy::ndarray::Array2::from_shape_vec((n, k), out).expect("n rows of k");
-            Ok(numpy::IntoPyArray::into_pyarray(a, py))
+            debug_assert_eq!(out.len(), n * k);
+            Ok(arrays::out(py, &lead, &[k], out))
         })
     }
 

@@ -14,6 +14,7 @@ use nbrdf::pathtrace::{render as trace, Environment, Material, Options, Sampling
 use nbrdf::scene::{builtin::BuiltinMesh, Camera, DirectionalLight, Geometry, Mesh};
 use nbrdf::{ModelBuf, Vec3};
 
+use crate::arrays;
 use crate::brdf::{Model, Source};
 use crate::error::{self, guard};
 
@@ -71,6 +72,17 @@ fn integer(x: &Bound<'_, PyAny>, name: &str, lo: u64, hi: u64) -> PyResult<u64> 
     }
 }
 
+/// `lights` as (direction, RGB intensity) pairs: any array-like of shape (L, 2, 3), or an empty one.
+fn light_pairs(lights: &Bound<'_, PyAny>) -> PyResult<Vec<([f32; 3], [f32; 3])>> {
+    let a = arrays::real(lights, "lights")?;
+    let want = "(L, 2, 3): (direction toward the light, RGB intensity) per light";
+    match *a.shape() {
+        [0] | [0, ..] => Ok(Vec::new()),
+        [l, 2, 3] => Ok(a.floats(&[l, 2]).chunks_exact(6).map(|c| ([c[0], c[1], c[2]], [c[3], c[4], c[5]])).collect()),
+        _ => Err(a.shape_error(want)),
+    }
+}
+
 /// Path-traces `mesh` with `brdf` (see `nbrdf.render` in the package for the arguments); returns the
 /// mean radiance per pixel and the variance of that mean, both (height, width, 3) float32.
 #[pyfunction]
@@ -80,14 +92,14 @@ pub(crate) fn render<'py>(
     py: Python<'py>,
     brdf: &Model,
     mesh: &str,
-    eye: [f32; 3],
-    target: [f32; 3],
-    up: [f32; 3],
+    eye: &Bound<'_, PyAny>,
+    target: &Bound<'_, PyAny>,
+    up: &Bound<'_, PyAny>,
     fov: f32,
     width: &Bound<'_, PyAny>,
     height: &Bound<'_, PyAny>,
-    lights: Vec<([f32; 3], [f32; 3])>,
-    env_color: Option<[f32; 3]>,
+    lights: &Bound<'_, PyAny>,
+    env_color: Option<&Bound<'_, PyAny>>,
     env: Option<PathBuf>,
     spp: &Bound<'_, PyAny>,
     max_depth: &Bound<'_, PyAny>,
@@ -102,6 +114,9 @@ pub(crate) fn render<'py>(
         let spp = integer(spp, "spp", 1, MAX_SPP.into())? as u32;
         let max_depth = integer(max_depth, "max_depth", 1, MAX_DEPTH.into())? as u32;
         let seed = integer(seed, "seed", 0, u64::MAX)?;
+        let (eye, target, up) = (arrays::vec3(eye, "eye")?, arrays::vec3(target, "target")?, arrays::vec3(up, "up")?);
+        let env_color = env_color.map(|c| arrays::vec3(c, "env_color")).transpose()?;
+        let lights = light_pairs(lights)?;
         let sampling = match sampling {
             "native" => Sampling::Native,
             "cosine" => Sampling::Cosine,

@@ -6,8 +6,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
 use clap::Parser;
-use numpy::{PyReadonlyArray2, PyUntypedArrayMethods};
-use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -74,18 +73,16 @@ fn lpips(path: Option<&Path>) -> Result<Lpips, String> {
     l
 }
 
-/// An (H, W, 3) float32 image.
+/// An (H, W, 3) image of real linear RGB values (any real dtype or array-like, read as float32).
 fn image(x: &Bound<'_, PyAny>, name: &str) -> PyResult<RgbImage> {
-    let a = x.cast::<numpy::PyArray3<f32>>().map_err(|_| {
-        PyValueError::new_err(format!("{name} must be a float32 array of shape (H, W, 3) (linear RGB)"))
-    })?;
-    let shape = a.shape().to_vec();
-    if shape[2] != 3 || shape[0] == 0 || shape[1] == 0 {
-        return Err(PyValueError::new_err(format!("{name} must have shape (H, W, 3) with H, W > 0; got {shape:?}")));
-    }
-    let data: Vec<f32> = numpy::PyArrayMethods::readonly(a).as_array().iter().copied().collect();
-    let pixels = data.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
-    RgbImage::from_data(shape[1] as u32, shape[0] as u32, pixels).map_err(error::core)
+    let a = arrays::real(x, name)?;
+    let want = "(H, W, 3) with H, W > 0 (linear RGB)";
+    let (h, w) = match *a.rows_of(3, want)? {
+        [h, w] if h > 0 && w > 0 => (h, w),
+        _ => return Err(a.shape_error(want)),
+    };
+    let pixels = a.rgbs(&[h, w]);
+    RgbImage::from_data(w as u32, h as u32, pixels).map_err(error::core)
 }
 
 /// The study's image metrics of a **linear** test rendering against the reference (masked the way
@@ -112,17 +109,16 @@ pub(crate) fn compare<'py>(
         let mask: Option<Vec<bool>> = match mask {
             None => None,
             Some(m) => {
-                let m: PyReadonlyArray2<'py, bool> =
-                    m.extract().map_err(|_| PyTypeError::new_err("mask must be a bool array of shape (H, W)"))?;
-                if m.shape() != [r.height as usize, r.width as usize] {
+                let m = arrays::input(m, "mask", arrays::Kind::Bool)?;
+                let hw = [r.height as usize, r.width as usize];
+                if m.shape() != hw {
                     return Err(PyValueError::new_err(format!(
-                        "mask has shape {:?}; the images are ({}, {})",
-                        m.shape(),
-                        r.height,
-                        r.width
+                        "mask has shape {}; the images are {}",
+                        arrays::shape_str(m.shape()),
+                        arrays::shape_str(&hw)
                     )));
                 }
-                Some(m.as_array().iter().copied().collect())
+                Some(m.bools(&hw))
             }
         };
         let m = py.detach(|| {
@@ -144,20 +140,26 @@ pub(crate) fn compare<'py>(
     })
 }
 
-/// The study's BRDF-space error: RMSE of the cube roots of (N, 3) float32 values, over the rows
-/// `keep` marks (all when None). Returns (rmse, rows used).
+/// The study's BRDF-space error: RMSE of the cube roots of (N, 3) real values, over the rows `keep`
+/// ((N,) booleans) marks (all when None); the three broadcast by numpy's rules over the rows. Returns
+/// (rmse, rows used).
 #[pyfunction]
 #[pyo3(signature = (predicted, reference, keep = None))]
 pub(crate) fn brdf_rmse(
     py: Python<'_>,
     predicted: &Bound<'_, PyAny>,
     reference: &Bound<'_, PyAny>,
-    keep: Option<Vec<bool>>,
+    keep: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<(f64, usize)> {
     guard(|| {
-        let (p, r) = (arrays::rgbs(predicted, "predicted")?, arrays::rgbs(reference, "reference")?);
-        let keep = keep.unwrap_or_else(|| vec![true; p.len()]);
-        arrays::same_len(&[("predicted", p.len()), ("reference", r.len()), ("keep", keep.len())])?;
+        let (p, r) = (arrays::real(predicted, "predicted")?, arrays::real(reference, "reference")?);
+        let keep = keep.map(|k| arrays::input(k, "keep", arrays::Kind::Bool)).transpose()?;
+        let want = "(N, 3) (or (3,) for one row)";
+        let mut leads = vec![("predicted", p.rows_of(3, want)?), ("reference", r.rows_of(3, want)?)];
+        leads.extend(keep.as_ref().map(|k| ("keep", k.shape())));
+        let lead = arrays::broadcast(&leads)?;
+        let (p, r) = (p.rgbs(&lead), r.rgbs(&lead));
+        let keep = keep.map_or_else(|| vec![true; p.len()], |k| k.bools(&lead));
         let e = py.detach(|| cube_root_rmse(&p, &r, &keep));
         Ok((e.value, e.samples))
     })

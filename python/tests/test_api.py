@@ -74,8 +74,10 @@ def test_points_per_pair_and_one_point(fitted_extrinsic):
     np.testing.assert_array_equal(m.eval(wi[7:8], wo[7:8], p[7])[0], per_pair[7])
     with pytest.raises(ValueError, match="varies over the surface"):
         m.eval(wi, wo)
-    with pytest.raises(ValueError, match="points must have shape"):
+    with pytest.raises(ValueError, match=r"wi \(50,\), wo \(50,\), points \(10,\) do not broadcast"):
         m.eval(wi, wo, p[:10])
+    with pytest.raises(ValueError, match=r"points must have shape \(3,\) for one point"):
+        m.eval(wi, wo, p[:, :2])
     with pytest.raises(ValueError, match="same at every point"):
         nbrdf.lambert([0.5] * 3).eval(wi, wo, p)
 
@@ -108,17 +110,11 @@ def test_bad_input_raises_instead_of_crashing(tmp_path):
 
     m = nbrdf.lambert([0.5] * 3)
     good = np.array([[0.0, 0.0, 1.0]], np.float32)
-    with pytest.raises(ValueError, match="float32 array of shape \\(N, 3\\); got float64"):
-        m.eval(good.astype(np.float64), good)
-    with pytest.raises(ValueError, match="wo must be a float32 array of shape \\(N, 3\\); got float32 array of shape \\(1, 4\\)"):
+    with pytest.raises(ValueError, match=r"wo must have shape \(3,\) or \(N, 3\).*; got float32 array of shape \(1, 4\)"):
         m.eval(good, np.zeros((1, 4), np.float32))
-    with pytest.raises(ValueError, match="shape"):
-        m.eval(np.zeros(3, np.float32), good)
-    with pytest.raises(TypeError, match="wi must be a float32 array"):
-        m.eval([[0.0, 0.0, 1.0]], good)
-    with pytest.raises(ValueError, match="has 1 rows but wo has 2"):
-        m.eval(good, np.repeat(good, 2, axis=0))
-    with pytest.raises(ValueError, match="u must be"):
+    with pytest.raises(ValueError, match=r"wi \(2,\), wo \(3,\) do not broadcast"):
+        m.eval(np.repeat(good, 2, axis=0), np.repeat(good, 3, axis=0))
+    with pytest.raises(ValueError, match="u must have shape"):
         m.sample(good, np.zeros((1, 2), np.float32))
     # Empty batches are fine.
     assert m.eval(np.zeros((0, 3), np.float32), np.zeros((0, 3), np.float32)).shape == (0, 3)
