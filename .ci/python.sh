@@ -1,20 +1,21 @@
 #!/usr/bin/env bash
-# The Python package (python/): makes a virtual environment, installs maturin, pytest, numpy and
-# Mitsuba 3 from PyPI, builds the extension with maturin, installs the wheel and runs python/tests.
+# The Python package (python/): makes a virtual environment, installs maturin, pytest, numpy, mypy and
+# Mitsuba 3 from PyPI, builds the extension with maturin, installs the wheel, checks its type stubs
+# against it and runs python/tests.
 # Only where PyPI cannot be reached does it print SKIPPED with the reason and exit 0.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
 venv="${NBRDF_VENV:-.venv}"
 [ -x "$venv/bin/python" ] || python3 -m venv "$venv"
-py="$venv/bin/python"
+py="$(cd "$venv" && pwd)/bin/python"
 # Already-installed packages need no network, so a rerun works offline.
-if ! "$py" -m pip install -q maturin pytest numpy mitsuba; then
+if ! "$py" -m pip install -q maturin pytest numpy mypy mitsuba; then
     if ! "$py" -m pip download -q --no-deps -d "$(mktemp -d)" pip >/dev/null 2>&1; then
         echo "SKIPPED: PyPI cannot be reached: the Python package was not built or tested"
         exit 0
     fi
-    echo "pip could not install maturin, pytest, numpy and mitsuba although PyPI answers" >&2
+    echo "pip could not install maturin, pytest, numpy, mypy and mitsuba although PyPI answers" >&2
     exit 1
 fi
 
@@ -39,6 +40,13 @@ rm -rf target/wheels
 "$venv/bin/maturin" build --profile dev -m python/Cargo.toml -o target/wheels 2>&1 \
     | grep -vE '^\s+(Compiling|Downloaded|Downloading)'
 "$py" -m pip install -q --force-reinstall --no-deps target/wheels/nbrdf-*.whl
+
+# The stubs match the installed module (stubtest imports it, from /tmp where no source folder shadows
+# it; the allowlist says what is dynamic), and the package and a typed example pass mypy --strict.
+allowlist="$PWD/python/stubtest-allowlist.txt"
+(cd /tmp && "$py" -m mypy.stubtest nbrdf --allowlist "$allowlist")
+"$py" -m mypy --strict --cache-dir target/mypy-cache python/nbrdf/__init__.py python/nbrdf/_nbrdf.pyi python/examples/typed_usage.py
+"$py" python/examples/typed_usage.py >/dev/null
 
 # From the repository root, not python/, whose nbrdf/ sources (without the extension) would shadow
 # the installed package. The tests run the Rust API's reference values through cargo in the same

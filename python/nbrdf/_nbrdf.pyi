@@ -1,16 +1,42 @@
-"""Type stubs of nbrdf._nbrdf, the Rust extension module (python/src/). Arrays are float32 numpy
-arrays; (N, 3) directions are in the local shading frame (+z = normal), wi toward the light, wo toward
-the viewer."""
+"""Type stubs of nbrdf._nbrdf, the Rust extension module (python/src/). Array arguments are any
+array-like of real numbers (read in place where they are aligned float32 or float64 arrays, else
+converted to float32 once) whose leading dimensions broadcast by numpy's rules; results are float32
+arrays. Directions, (3,) or (N, 3), are in the local shading frame (+z = normal), wi toward the light,
+wo toward the viewer."""
 
 import os
-from typing import List, Optional, Sequence, Tuple, Union
+from typing import Any, Dict, List, Optional, Sequence, Tuple, Union, final, overload
 
 import numpy as np
 import numpy.typing as npt
 
+__all__ = [
+    "Model",
+    "brdf_rmse",
+    "builtin",
+    "compare",
+    "disney",
+    "fit",
+    "fmbrdf",
+    "kernel_level",
+    "lambert",
+    "merl",
+    "mesh",
+    "nbrdf_json",
+    "parametric_from_raw",
+    "phong",
+    "render",
+    "synth",
+    "torrance_sparrow",
+]
+
 _F32 = npt.NDArray[np.float32]
 _Path = Union[str, "os.PathLike[str]"]
+# One direction written out: a call with only these gives a scalar density.
+_Vec3 = Tuple[float, float, float]
 
+# A PyO3 class without `subclass`: Python cannot derive from it.
+@final
 class Model:
     """A BRDF: a fitted .nbrdf model, a MERL table, an NBRDF-json network, a parametric model or a
     built-in material. Values in 1/sr without the cosine, 0 below the horizon or for non-finite
@@ -23,18 +49,30 @@ class Model:
     @staticmethod
     def from_bytes(data: bytes, format: str = "nbrdf") -> "Model":
         """A BRDF from a file's bytes: format "nbrdf", "json" or "binary"."""
-    def eval(self, wi: _F32, wo: _F32, points: Optional[_F32] = None) -> _F32:
-        """f(wi, wo) per pair, (N, 3). `points`: for a model with position_len k > 0, one point
-        (shape (k,)) for every pair or one per pair ((N, k)); None otherwise."""
-    def sample(self, wo: _F32, u: _F32, points: Optional[_F32] = None) -> Tuple[_F32, _F32, _F32]:
+    def eval(self, wi: npt.ArrayLike, wo: npt.ArrayLike, points: Optional[npt.ArrayLike] = None) -> _F32:
+        """f(wi, wo) per pair: (N, 3) for (N, 3) directions, (3,) for single ones (the broadcast
+        leading shape, then 3). `points`: for a model with position_len k > 0, one point (shape (k,))
+        for every pair or one per pair ((N, k)); None otherwise."""
+    # The overloads give a scalar density where the static types show a single direction; a (3,)
+    # array also gives one at run time, which its static type cannot show.
+    @overload
+    def sample(  # type: ignore[overload-overlap]
+        self, wo: _Vec3, u: _Vec3, points: Optional[npt.ArrayLike] = None
+    ) -> Tuple[_F32, _F32, np.float32]: ...
+    @overload
+    def sample(self, wo: npt.ArrayLike, u: npt.ArrayLike, points: Optional[npt.ArrayLike] = None) -> Tuple[_F32, _F32, _F32]:
         """Samples wi for each view wo from uniform numbers u (N, 3) in [0, 1) (u[:, :2] the direction,
-        u[:, 2] the lobe): (wi (N, 3), weight = f cos / pdf (N, 3), pdf (N,)); rows without a sample
-        are zeros."""
-    def pdf(self, wi: _F32, wo: _F32, points: Optional[_F32] = None) -> _F32:
-        """Density of `sample` at wi for the view wo per unit solid angle, (N,)."""
-    def position_features(self, triangles: npt.NDArray[np.uint32], bary: _F32) -> _F32:
-        """An intrinsic model's point inputs at triangles (N, 3) of the fitted mesh with barycentric
-        weights bary (N, 3): (N, position_len)."""
+        u[:, 2] the lobe): (wi (N, 3), weight = f cos / pdf (N, 3), pdf (N,)), or (3,), (3,) and a
+        scalar for a single wo and u; rows without a sample are zeros."""
+    @overload
+    def pdf(self, wi: _Vec3, wo: _Vec3, points: Optional[npt.ArrayLike] = None) -> np.float32: ...  # type: ignore[overload-overlap]
+    @overload
+    def pdf(self, wi: npt.ArrayLike, wo: npt.ArrayLike, points: Optional[npt.ArrayLike] = None) -> _F32:
+        """Density of `sample` at wi for the view wo per unit solid angle: (N,), or a scalar for single
+        directions."""
+    def position_features(self, triangles: npt.ArrayLike, bary: npt.ArrayLike) -> _F32:
+        """An intrinsic model's point inputs at triangles (N, 3) of the fitted mesh (integers) with
+        barycentric weights bary (N, 3), the two broadcast: (N, position_len)."""
     @property
     def is_reciprocal(self) -> bool:
         """f(wi, wo) == f(wo, wi) by construction."""
@@ -91,15 +129,15 @@ def mesh(mesh: str) -> Tuple[_F32, _F32, npt.NDArray[np.uint32]]:
 def render(
     brdf: Model,
     mesh: str,
-    eye: List[float],
-    target: List[float],
-    up: List[float],
+    eye: npt.ArrayLike,
+    target: npt.ArrayLike,
+    up: npt.ArrayLike,
     fov: float,
     width: int,
     height: int,
-    lights: List[Tuple[List[float], List[float]]],
-    env_color: Optional[List[float]],
-    env: Optional[str],
+    lights: npt.ArrayLike,
+    env_color: Optional[npt.ArrayLike],
+    env: Optional[_Path],
     spp: int,
     max_depth: int,
     seed: int,
@@ -111,8 +149,12 @@ def synth(argv: List[str]) -> str:
 def fit(argv: List[str], progress: bool) -> Tuple[str, str]:
     """`trainer fit` with these flags; returns the model file and the log as JSON text."""
 def compare(
-    reference: _F32, test: _F32, mask: Optional[npt.NDArray[np.bool_]], lpips_weights: Optional[str]
-) -> dict:
+    reference: npt.ArrayLike,
+    test: npt.ArrayLike,
+    mask: Optional[npt.ArrayLike] = None,
+    lpips_weights: Optional[_Path] = None,
+) -> Dict[str, Any]:
     """The study's image metrics (see nbrdf.compare)."""
-def brdf_rmse(predicted: _F32, reference: _F32, keep: Optional[Sequence[bool]] = None) -> Tuple[float, int]:
-    """RMSE of the cube roots of (N, 3) BRDF values over the rows keep marks: (rmse, rows used)."""
+def brdf_rmse(predicted: npt.ArrayLike, reference: npt.ArrayLike, keep: Optional[npt.ArrayLike] = None) -> Tuple[float, int]:
+    """RMSE of the cube roots of (N, 3) BRDF values over the rows keep ((N,) booleans) marks, the three
+    broadcast: (rmse, rows used)."""

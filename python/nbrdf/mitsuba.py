@@ -72,7 +72,7 @@ def _has(props: "mi.Properties", key: str) -> bool:
 
 def _make_class() -> type:
     """The BSDF class of the variant that is set: Mitsuba's base class and types differ per variant."""
-    scalar = mi.variant().startswith("scalar")
+    scalar = (mi.variant() or "").startswith("scalar")
 
     def color(rows: np.ndarray) -> Any:
         return mi.Color3f(*(float(x) for x in rows[0])) if scalar else mi.Color3f(np.ascontiguousarray(rows.T))
@@ -99,7 +99,7 @@ def _make_class() -> type:
             self.position: Any = props["position"] if _has(props, "position") else "p"
             # As a 4×4 numpy matrix: the property is a scalar (double) transform in every variant.
             self.to_model: Optional[np.ndarray] = (
-                np.asarray(props["position_transform"].matrix, dtype=np.float64).reshape(4, 4)
+                np.asarray(getattr(props["position_transform"], "matrix"), dtype=np.float64).reshape(4, 4)
                 if _has(props, "position_transform")
                 else None
             )
@@ -252,5 +252,5 @@ def register(evaluated: bool = True) -> None:
     mi.register_bsdf(PLUGIN, lambda props: cls(props))
 
 
-if mi.variant() is not None and mi.variant().endswith("_rgb"):
+if (mi.variant() or "").endswith("_rgb"):
     register()
