@@ -135,7 +135,7 @@ fn synth_and_inspect_name_the_file_the_field_and_the_value() {
         // No exposure reaches a median for a black material.
         Case {
             args: synth(&["--out", &g, "--material", "lambert:0,0,0", "--target-median", "0.2"]),
-            names: vec!["--target-median".into(), "median luminance is 0".into()],
+            names: vec!["--target-median".into(), "no object pixel receives light".into()],
             keep: good.clone(),
         },
         Case { args: synth(&["--out", &s(&foreign)]), names: vec![s(&foreign), "not a data set".into()], keep: foreign.clone() },
