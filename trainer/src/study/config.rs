@@ -348,6 +348,22 @@ mod tests {
         }
     }
 
+    /// The paper-protocol config (Sec. 5.3 as far as the text goes): 20 views, 10 of them for training
+    /// with 30 lights each, 10 test views with 12 lights, σ = 1e-3, batch 2^15, the nine Tab. 1 variants,
+    /// on three MERL materials (grease-covered steel among them, the paper's Fig. 3) × three meshes.
+    #[test]
+    fn paper_protocol_config_follows_sec_5_3() {
+        let path = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/study-paper-protocol.json"));
+        let c = StudyConfig::read(path).unwrap();
+        assert_eq!(c.models, paper_variants(None)[..9]);
+        assert_eq!((c.views, c.train_views, c.train_lights, c.test_lights), (20, 10, 30, 12));
+        assert_eq!((c.sigma, c.batch), (1e-3, 1 << 15));
+        let meshes: std::collections::BTreeSet<&str> = c.scenes.iter().map(|s| s.mesh.as_str()).collect();
+        let materials: std::collections::BTreeSet<&str> = c.scenes.iter().map(|s| s.material.as_str()).collect();
+        assert!(meshes.len() >= 3 && materials.len() >= 3 && c.scenes.len() == meshes.len() * materials.len());
+        assert!(materials.iter().any(|m| m.contains("grease-covered-steel")));
+    }
+
     /// The longer-budget config of docs/study.md fits the default's data sets (same scenes and synthesis
     /// settings, so its rows pair with the default report's) for three times the steps.
     #[test]
