@@ -10,7 +10,7 @@
 //! [`Model`] over borrowed f16 bytes (`no_std`) widens each row as it reads it; both give the
 //! same bits.
 //!
-//! Conventions (see `DESIGN.md`): directions are unit vectors in the local shading frame (normal = +z)
+//! Conventions (docs/architecture.md): directions are unit vectors in the local shading frame (normal = +z)
 //! pointing away from the surface, `wi` toward the light and `wo` toward the viewer. A BRDF value is in
 //! 1/sr, linear RGB. Below the horizon, degenerate or non-finite input evaluates to 0, never NaN.
 //!

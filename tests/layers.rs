@@ -1,4 +1,4 @@
-//! The core's layering rule (DESIGN.md, "Layout"): dependencies point down. `kernels` (the dense-layer
+//! The core's layering rule (docs/architecture.md): dependencies point down. `kernels` (the dense-layer
 //! kernels) imports no other module of the crate, and the top-level modules import each other without
 //! a cycle (`file` and `model` included).
 //!

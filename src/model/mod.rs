@@ -1,6 +1,6 @@
 //! A loaded model, ready to evaluate: the header of a `.nbrdf` file with typed views of its weights.
 //!
-//! Evaluation is split the way a renderer uses a BRDF (DESIGN.md, "Core API shape"):
+//! Evaluation is split the way a renderer uses a BRDF (docs/architecture.md):
 //! [`Model::prepare`] does everything that depends on the surface point only (the parameter network of a
 //! parametric model, the diffuse network, the trunk, and the position part of the first and skip layers of
 //! the direction network), and [`Model::eval`] adds the direction pair. Both run on stack arrays with no
