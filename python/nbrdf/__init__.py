@@ -232,6 +232,21 @@ class FitResult(NamedTuple):
     model: Path
     log: Dict[str, Any]
 
+    def load(self) -> Model:
+        """The fitted model, loaded (``Model.load(self.model)``)."""
+        return Model.load(self.model)
+
+    @property
+    def curve(self) -> Dict[str, npt.NDArray[np.float64]]:
+        """The learning curve as arrays of equal length: ``step``, ``wall_s`` (training time, probes
+        excluded), ``train_loss`` and ``test_psnr`` (NaN where a point has none)."""
+        points = self.log.get("curve", [])
+
+        def column(key: str) -> npt.NDArray[np.float64]:
+            return np.array([np.nan if p.get(key) is None else p[key] for p in points], dtype=np.float64)
+
+        return {key: column(key) for key in ("step", "wall_s", "train_loss", "test_psnr")}
+
 
 def fit(
     model: str,
@@ -251,8 +266,8 @@ def fit(
     position: str = "intrinsic:32",
     angle_frequencies: Optional[int] = None,
     direction_layers: Optional[int] = None,
-    lambda_diffuse: float = 1e-2,
-    lambda_specular: float = 1e-3,
+    lambda_diffuse: Optional[float] = None,
+    lambda_specular: Optional[float] = None,
     checkpoint_every: int = 1000,
     resume: bool = False,
     pixel_stride: int = 1,

@@ -37,6 +37,7 @@ pub(crate) fn trainer(e: trainer::Error) -> PyErr {
             io(if missing { ErrorKind::NotFound } else { ErrorKind::Other }, e.to_string())
         }
         trainer::Error::Invalid(m) => PyValueError::new_err(m),
+        trainer::Error::Interrupted => pyo3::exceptions::PyKeyboardInterrupt::new_err(e.to_string()),
         trainer::Error::Candle(_) | trainer::Error::NonFinite { .. } => PyRuntimeError::new_err(e.to_string()),
     }
 }

@@ -37,22 +37,43 @@ fn parse<T: Parser>(argv: Vec<String>) -> PyResult<T> {
     T::try_parse_from(argv).map_err(|e| PyValueError::new_err(e.render().to_string().trim_end().to_string()))
 }
 
-/// `trainer synth` with the flags `argv`; returns the data set's folder.
+/// Runs `work` on a thread of its own while this one, the caller's, waits without the GIL and looks
+/// for Python's signals every 50 ms: Ctrl-C or a notebook's interrupt asks the work to stop
+/// ([`trainer::cancel`]), waits for it to drop what it staged, and raises `KeyboardInterrupt`.
+fn interruptible<T: Send>(py: Python<'_>, work: impl FnOnce() -> T + Send) -> PyResult<T> {
+    std::thread::scope(|s| {
+        let worker = s.spawn(work);
+        while !worker.is_finished() {
+            py.detach(|| std::thread::sleep(std::time::Duration::from_millis(50)));
+            if let Err(interrupt) = py.check_signals() {
+                trainer::cancel::request();
+                let _ = py.detach(|| worker.join());
+                trainer::cancel::clear();
+                return Err(interrupt);
+            }
+        }
+        // A panic in the work is re-raised here, inside `guard`, which reports it.
+        Ok(worker.join().unwrap_or_else(|p| std::panic::resume_unwind(p)))
+    })
+}
+
+/// `trainer synth` with the flags `argv`; returns the data set's folder. Interruptible.
 #[pyfunction]
 pub(crate) fn synth(py: Python<'_>, argv: Vec<String>) -> PyResult<PathBuf> {
     guard(|| {
         let cli: SynthCli = parse(argv)?;
-        py.detach(|| trainer::dataset::synth::synthesize(&cli.args)).map_err(error::core)?;
+        interruptible(py, || trainer::dataset::synth::synthesize(&cli.args))?.map_err(error::core)?;
         Ok(cli.args.out)
     })
 }
 
 /// `trainer fit` with the flags `argv`; returns the model file and the training log as JSON text.
+/// Interruptible.
 #[pyfunction]
 pub(crate) fn fit(py: Python<'_>, argv: Vec<String>, progress: bool) -> PyResult<(PathBuf, String)> {
     guard(|| {
         let cli: FitCli = parse(argv)?;
-        let (outputs, log) = py.detach(|| trainer::commands::fit::run_args(&cli.args, progress)).map_err(error::trainer)?;
+        let (outputs, log) = interruptible(py, || trainer::commands::fit::run_args(&cli.args, progress))?.map_err(error::trainer)?;
         let log = serde_json::to_string(&log).map_err(|e| PyValueError::new_err(e.to_string()))?;
         Ok((outputs.model, log))
     })

@@ -3,6 +3,7 @@ exceptions (never a crash), and the trainer's synth, fit and metrics."""
 
 from __future__ import annotations
 
+import _thread
 import threading
 import time
 
@@ -212,6 +213,11 @@ def test_synth_fit_and_compare(tmp_path):
     assert result.model.is_file() and result.model.suffix == ".nbrdf"
     assert result.log["steps_done"] == 30 and len(result.log["loss"]) > 0
     assert nbrdf.Model.load(result.model).position_len == 0
+    # The result as Python objects: the loaded model and the learning curve as arrays.
+    assert result.load().position_len == 0
+    curve = result.curve
+    assert curve["step"][-1] == 30 and len({len(v) for v in curve.values()}) == 1
+    assert np.isfinite(curve["train_loss"][1:]).all() and np.isnan(curve["test_psnr"]).all()
     with pytest.raises(ValueError, match="unknown model"):
         nbrdf.fit("plastic", toy=10, out=tmp_path / "x", progress=False)
     with pytest.raises(ValueError, match="--data DIR, --diligent PATH or --toy N"):
@@ -275,3 +281,26 @@ def test_render_integers_are_checked_before_any_work_naming_the_argument(kwargs,
         nbrdf.render(nbrdf.lambert([0.5] * 3), **args)
     # The limits themselves are accepted, and numpy integers are integers.
     nbrdf.render(nbrdf.lambert([0.5] * 3), width=np.int64(4), height=4, env_color=[1, 1, 1], spp=1, max_depth=1024, seed=2**64 - 1)
+
+
+def _snapshot(folder):
+    return {p.relative_to(folder): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def test_an_interrupt_stops_fit_within_a_second_and_leaves_the_earlier_fit_as_it_was(tmp_path):
+    data = nbrdf.synth(tmp_path / "data", material="lambert:0.6,0.5,0.4", size=32, views=4, train_views=2,
+                       train_lights=3, test_lights=2, progress=False)
+    out = tmp_path / "fit"
+    nbrdf.fit("single-mlp", data=data, position="uniform", steps=5, batch=256, out=out, progress=False)
+    before = _snapshot(out)
+    # Ctrl-C (or a notebook's interrupt) one second into a fit that would run for minutes.
+    timer = threading.Timer(1.0, _thread.interrupt_main)
+    timer.start()
+    start = time.monotonic()
+    with pytest.raises(KeyboardInterrupt):
+        nbrdf.fit("single-mlp", data=data, position="uniform", steps=10**6, batch=256, out=out, progress=False)
+    timer.join()
+    assert time.monotonic() - start < 2.0, "control returns within a second of the interrupt"
+    assert _snapshot(out) == before, "the interrupted fit left the earlier one as it was"
+    # The next call runs normally: the stop request was withdrawn.
+    nbrdf.fit("single-mlp", data=data, position="uniform", steps=5, batch=256, out=tmp_path / "again", progress=False)

@@ -23,6 +23,8 @@ pub enum Error {
     },
     /// Training data or options that cannot be used.
     Invalid(String),
+    /// The embedding process asked the work to stop ([`crate::cancel`]); nothing was written.
+    Interrupted,
 }
 
 impl fmt::Display for Error {
@@ -39,6 +41,7 @@ impl fmt::Display for Error {
                 }
             }
             Error::Invalid(m) => f.write_str(m),
+            Error::Interrupted => f.write_str("interrupted; the output folder is left as it was"),
         }
     }
 }

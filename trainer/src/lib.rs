@@ -15,6 +15,7 @@
 //! - [`study`]: the comparison of Sec. 6 (fit and evaluate every variant, write the report).
 
 mod bits;
+pub mod cancel;
 pub mod commands;
 pub mod dataset;
 pub mod engine;

@@ -398,6 +398,7 @@ pub fn fit_probed(model: &Model, obs: &Observations, opts: &TrainOptions, setup:
         Ok(())
     };
     while step < opts.steps {
+        crate::cancel::check()?;
         let batch = draw_batch(&model.config, obs, &targets, opts, step, &device)?;
         let loss_t = batch_loss(model, &batch, opts.regularisers())?;
         let loss = loss_t.to_scalar::<f32>()?;

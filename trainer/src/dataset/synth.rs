@@ -367,6 +367,7 @@ pub fn synthesize(args: &SynthArgs) -> Result<(DatasetFile, Vec<RenderReport>), 
         }
         let mut images = Vec::with_capacity(count);
         for (li, (light, img)) in lights.iter().zip(&rendered.images).enumerate() {
+            crate::cancel::check_core()?;
             let radiance = dir_rel.join(format!("{li:03}.exr"));
             let brdf = dir_rel.join(format!("{li:03}_brdf.exr"));
             let lit = dir_rel.join(format!("{li:03}_lit.png"));

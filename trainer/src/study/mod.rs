@@ -206,6 +206,7 @@ pub fn run(config: &StudyConfig, out: &Path, shard: Option<Shard>, progress: boo
         let mut test_views: Option<evaluate::TestViews> = None;
         let mut ceiling: Option<Option<crate::metrics::ImageMetrics>> = None;
         for m in here {
+            crate::cancel::check()?;
             let (spec, model_config) = (&config.models[m], configs[m]);
             let name = model_config.name();
             let jdir = job_dir(out, scene, &name);
