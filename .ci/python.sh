@@ -10,12 +10,12 @@ venv="${NBRDF_VENV:-.venv}"
 [ -x "$venv/bin/python" ] || python3 -m venv "$venv"
 py="$(cd "$venv" && pwd)/bin/python"
 # Already-installed packages need no network, so a rerun works offline.
-if ! "$py" -m pip install -q maturin pytest numpy mypy mitsuba; then
+if ! "$py" -m pip install -q maturin pytest numpy mypy mitsuba nbconvert ipykernel; then
     if ! "$py" -m pip download -q --no-deps -d "$(mktemp -d)" pip >/dev/null 2>&1; then
         echo "SKIPPED: PyPI cannot be reached: the Python package was not built or tested"
         exit 0
     fi
-    echo "pip could not install maturin, pytest, numpy, mypy and mitsuba although PyPI answers" >&2
+    echo "pip could not install maturin, pytest, numpy, mypy, mitsuba, nbconvert and ipykernel although PyPI answers" >&2
     exit 1
 fi
 
@@ -52,3 +52,10 @@ allowlist="$PWD/python/stubtest-allowlist.txt"
 # the installed package. The tests run the Rust API's reference values through cargo in the same
 # profile.
 NBRDF_REFERENCE_PROFILE=dev "$py" -m pytest -q -p no:cacheprovider python/tests
+
+# The quickstart notebook, executed headless in a Jupyter kernel of this environment (outside the
+# source folder, as above); a failing cell fails CI.
+"$py" -m ipykernel install --user --name nbrdf-ci >/dev/null
+(cd /tmp && "$py" -m jupyter nbconvert --to notebook --execute --ExecutePreprocessor.kernel_name=nbrdf-ci \
+    --ExecutePreprocessor.timeout=300 --output-dir "$(mktemp -d)" "$OLDPWD/python/examples/quickstart.ipynb")
+echo "quickstart notebook ran: python/examples/quickstart.ipynb"

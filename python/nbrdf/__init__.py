@@ -29,7 +29,7 @@ from __future__ import annotations
 import os
 import sys
 from pathlib import Path
-from typing import Any, Dict, List, NamedTuple, Optional, Tuple, Union
+from typing import Any, Callable, Dict, List, NamedTuple, Optional, Tuple, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -74,6 +74,60 @@ __all__ = [
 ]
 
 PathLike = Union[str, "os.PathLike[str]"]
+
+
+ProgressCallback = Callable[[int, int], None]
+Progress = Union[None, bool, ProgressCallback]
+
+
+def _in_notebook() -> bool:
+    """Whether this runs in a Jupyter kernel, whose output shows a display but no terminal bar."""
+    shell = sys.modules.get("IPython")
+    get = getattr(shell, "get_ipython", None) if shell is not None else None
+    ip = get() if get is not None else None
+    return ip is not None and "IPKernelApp" in getattr(ip, "config", {})
+
+
+class _NotebookBar:
+    """A progress display in a notebook cell: tqdm's notebook bar where tqdm is installed, else one
+    line of text updated in place."""
+
+    def __init__(self, what: str) -> None:
+        self._what = what
+        self._bar: Any = None
+        self._handle: Any = None
+        # Imported by name: both are optional and untyped, and only a notebook has them.
+        import importlib
+
+        try:
+            self._bar = importlib.import_module("tqdm.auto").tqdm(desc=what, total=0)
+        except ImportError:
+            display = importlib.import_module("IPython.display").display
+            self._handle = display(f"{what}: starting", display_id=True)
+
+    def __call__(self, done: int, total: int) -> None:
+        if self._bar is not None:
+            self._bar.total = total
+            self._bar.n = done
+            self._bar.refresh()
+        elif self._handle is not None:
+            self._handle.update(f"{self._what}: {done}/{total}")
+
+    def close(self) -> None:
+        if self._bar is not None:
+            self._bar.close()
+
+
+def _progress(progress: Progress, what: str) -> Tuple[bool, Optional[ProgressCallback], Callable[[], None]]:
+    """What ``progress`` asks for: (the trainer's terminal bar, a callable fed ``(done, total)``, what
+    closes the display). ``None``: a bar where stderr is a terminal, a display in a notebook, else
+    nothing; ``True``/``False``: the terminal bar or nothing; a callable: called, no bar."""
+    if callable(progress):
+        return False, progress, lambda: None
+    if progress is None and _in_notebook():
+        bar = _NotebookBar(what)
+        return False, bar, bar.close
+    return (_interactive() if progress is None else bool(progress)), None, lambda: None
 
 
 def _interactive() -> bool:
@@ -210,20 +264,27 @@ def synth(
     fov: float = 40.0,
     light_intensity: float = 1.0,
     force_shadows: bool = False,
-    progress: Optional[bool] = None,
+    progress: Progress = None,
 ) -> Path:
     """Renders a semi-synthetic data set (Sec. 5.3; ``trainer synth``): ``mesh`` ("sphere", "torus",
     "grooved" or an OBJ/PLY file) with the ground-truth ``material`` (a built-in id, a MERL ``.binary``,
     an NBRDF-json ``.json`` or ``lambert:R,G,B``), seen from ``views`` cameras, each lit by directional
     lights, with Gaussian noise ``sigma``. Writes ``out/dataset.json`` with its images and returns
-    ``out``. ``progress``: draw a bar on stderr (default: only where stderr is a terminal)."""
+    ``out``. ``progress``: by default a bar where stderr is a terminal, a display in a Jupyter
+    notebook, nothing elsewhere; ``True``/``False`` force the terminal bar on or off; a callable is
+    called with ``(images written, images)``. Ctrl-C (a notebook's interrupt) stops it within a
+    second, leaving ``out`` as it was."""
     options = dict(
         out=out, mesh=mesh, material=material, size=size, views=views, train_views=train_views,
         train_lights=train_lights, test_lights=test_lights, sigma=sigma, seed=seed, fov=fov,
         light_intensity=light_intensity, force_shadows=force_shadows,
-        quiet=not (_interactive() if progress is None else progress),
     )
-    return Path(_nbrdf.synth(_argv(options)))
+    bar, callback, close = _progress(progress, "synth")
+    options["quiet"] = not bar
+    try:
+        return Path(_nbrdf.synth(_argv(options), callback))
+    finally:
+        close()
 
 
 class FitResult(NamedTuple):
@@ -272,15 +333,16 @@ def fit(
     resume: bool = False,
     pixel_stride: int = 1,
     cache: PathLike = "out/cache",
-    progress: Optional[bool] = None,
+    progress: Progress = None,
 ) -> FitResult:
     """Fits one model variant (Sec. 4.1; ``trainer fit``) and writes ``<variant>.nbrdf``, a checkpoint
     and a JSON log into ``out``. ``model`` is rp, ts, fmbrdf, disney, lambert, single-mlp,
     additive-separate or additive-shared; the data is a ``synth`` folder (``data``), a DiLiGenT-MV copy
     (``diligent`` and ``object``) or the analytic toy set of ``toy`` pixels. ``position`` is uniform,
     intrinsic:K or extrinsic:F. Unset options take the trainer's defaults (``batch``: the paper's 2^15
-    colour values). ``progress``: draw a bar on stderr (default: only where stderr is a terminal).
-    Returns the model file and the log."""
+    colour values). ``progress``: as ``synth``'s, the callable called with ``(steps done, steps)``.
+    Ctrl-C (a notebook's interrupt) stops it within a second, leaving ``out`` as it was. Returns the
+    model file and the log (``FitResult``: ``load()`` the model, ``curve`` as arrays)."""
     import json
 
     options = dict(
@@ -290,8 +352,11 @@ def fit(
         lambda_diffuse=lambda_diffuse, lambda_specular=lambda_specular,
         checkpoint_every=checkpoint_every, resume=resume, pixel_stride=pixel_stride, cache=cache,
     )
-    show = _interactive() if progress is None else bool(progress)
-    path, log = _nbrdf.fit(_argv(options), show)
+    bar, callback, close = _progress(progress, model)
+    try:
+        path, log = _nbrdf.fit(_argv(options), bar, callback)
+    finally:
+        close()
     return FitResult(Path(path), json.loads(log))
 
 

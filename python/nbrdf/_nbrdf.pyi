@@ -5,7 +5,7 @@ arrays. Directions, (3,) or (N, 3), are in the local shading frame (+z = normal)
 wo toward the viewer."""
 
 import os
-from typing import Any, Dict, List, Optional, Sequence, Tuple, Union, final, overload
+from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple, Union, final, overload
 
 import numpy as np
 import numpy.typing as npt
@@ -144,9 +144,9 @@ def render(
     sampling: str,
 ) -> Tuple[_F32, _F32]:
     """The path tracer (see nbrdf.render): (mean, variance of the mean), both (H, W, 3)."""
-def synth(argv: List[str]) -> str:
-    """`trainer synth` with these flags; returns the output folder."""
-def fit(argv: List[str], progress: bool) -> Tuple[str, str]:
+def synth(argv: List[str], progress: Optional[Callable[[int, int], None]] = None) -> str:
+    """`trainer synth` with these flags; returns the output folder. `progress` gets (done, total)."""
+def fit(argv: List[str], bar: bool, progress: Optional[Callable[[int, int], None]] = None) -> Tuple[str, str]:
     """`trainer fit` with these flags; returns the model file and the log as JSON text."""
 def compare(
     reference: npt.ArrayLike,

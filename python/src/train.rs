@@ -37,43 +37,62 @@ fn parse<T: Parser>(argv: Vec<String>) -> PyResult<T> {
     T::try_parse_from(argv).map_err(|e| PyValueError::new_err(e.render().to_string().trim_end().to_string()))
 }
 
-/// Runs `work` on a thread of its own while this one, the caller's, waits without the GIL and looks
-/// for Python's signals every 50 ms: Ctrl-C or a notebook's interrupt asks the work to stop
-/// ([`trainer::cancel`]), waits for it to drop what it staged, and raises `KeyboardInterrupt`.
-fn interruptible<T: Send>(py: Python<'_>, work: impl FnOnce() -> T + Send) -> PyResult<T> {
+/// Runs `work` on a thread of its own while this one, the caller's, waits without the GIL and, every
+/// 50 ms, looks for Python's signals and hands `progress` (a callable, if any) the run's `(done,
+/// total)` when it moved ([`trainer::progress`]): Ctrl-C or a notebook's interrupt — or an exception
+/// from `progress` — asks the work to stop ([`trainer::cancel`]), waits for it to drop what it staged,
+/// and raises.
+fn interruptible<T: Send>(py: Python<'_>, progress: Option<&Bound<'_, PyAny>>, work: impl FnOnce() -> T + Send) -> PyResult<T> {
     std::thread::scope(|s| {
         let worker = s.spawn(work);
+        let mut shown = None;
+        let report = |shown: &mut Option<(u64, u64)>| -> PyResult<()> {
+            let now = trainer::progress::get();
+            match progress {
+                Some(callback) if *shown != Some(now) && now.1 > 0 => {
+                    *shown = Some(now);
+                    callback.call1(now).map(drop)
+                }
+                _ => Ok(()),
+            }
+        };
         while !worker.is_finished() {
             py.detach(|| std::thread::sleep(std::time::Duration::from_millis(50)));
-            if let Err(interrupt) = py.check_signals() {
+            if let Err(stop) = py.check_signals().and_then(|()| report(&mut shown)) {
                 trainer::cancel::request();
                 let _ = py.detach(|| worker.join());
                 trainer::cancel::clear();
-                return Err(interrupt);
+                return Err(stop);
             }
         }
         // A panic in the work is re-raised here, inside `guard`, which reports it.
-        Ok(worker.join().unwrap_or_else(|p| std::panic::resume_unwind(p)))
+        let result = worker.join().unwrap_or_else(|p| std::panic::resume_unwind(p));
+        report(&mut shown)?;
+        Ok(result)
     })
 }
 
-/// `trainer synth` with the flags `argv`; returns the data set's folder. Interruptible.
+/// `trainer synth` with the flags `argv`; returns the data set's folder. Interruptible; `progress`
+/// receives `(images written, images)`.
 #[pyfunction]
-pub(crate) fn synth(py: Python<'_>, argv: Vec<String>) -> PyResult<PathBuf> {
+#[pyo3(signature = (argv, progress = None))]
+pub(crate) fn synth(py: Python<'_>, argv: Vec<String>, progress: Option<Bound<'_, PyAny>>) -> PyResult<PathBuf> {
     guard(|| {
         let cli: SynthCli = parse(argv)?;
-        interruptible(py, || trainer::dataset::synth::synthesize(&cli.args))?.map_err(error::core)?;
+        interruptible(py, progress.as_ref(), || trainer::dataset::synth::synthesize(&cli.args))?.map_err(error::core)?;
         Ok(cli.args.out)
     })
 }
 
 /// `trainer fit` with the flags `argv`; returns the model file and the training log as JSON text.
-/// Interruptible.
+/// Interruptible; `bar` draws the trainer's terminal bar, `progress` receives `(steps done, steps)`.
 #[pyfunction]
-pub(crate) fn fit(py: Python<'_>, argv: Vec<String>, progress: bool) -> PyResult<(PathBuf, String)> {
+#[pyo3(signature = (argv, bar, progress = None))]
+pub(crate) fn fit(py: Python<'_>, argv: Vec<String>, bar: bool, progress: Option<Bound<'_, PyAny>>) -> PyResult<(PathBuf, String)> {
     guard(|| {
         let cli: FitCli = parse(argv)?;
-        let (outputs, log) = interruptible(py, || trainer::commands::fit::run_args(&cli.args, progress))?.map_err(error::trainer)?;
+        let (outputs, log) =
+            interruptible(py, progress.as_ref(), || trainer::commands::fit::run_args(&cli.args, bar))?.map_err(error::trainer)?;
         let log = serde_json::to_string(&log).map_err(|e| PyValueError::new_err(e.to_string()))?;
         Ok((outputs.model, log))
     })

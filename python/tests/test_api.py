@@ -304,3 +304,21 @@ def test_an_interrupt_stops_fit_within_a_second_and_leaves_the_earlier_fit_as_it
     assert _snapshot(out) == before, "the interrupted fit left the earlier one as it was"
     # The next call runs normally: the stop request was withdrawn.
     nbrdf.fit("single-mlp", data=data, position="uniform", steps=5, batch=256, out=tmp_path / "again", progress=False)
+
+
+def test_progress_can_be_any_callable_fed_done_and_total(tmp_path):
+    images, steps = [], []
+    data = nbrdf.synth(tmp_path / "data", material="lambert:0.6,0.5,0.4", size=32, views=4, train_views=2,
+                       train_lights=3, test_lights=2, progress=lambda done, total: images.append((done, total)))
+    nbrdf.fit("lambert", data=data, position="uniform", steps=40, batch=256, out=tmp_path / "fit",
+              progress=lambda done, total: steps.append((done, total)))
+    # The last report is the whole run; reports never go back.
+    assert images[-1] == (2 * 3 + 2 * 2, 2 * 3 + 2 * 2) and steps[-1] == (40, 40)
+    assert all(a[0] <= b[0] for a, b in zip(steps, steps[1:]))
+    # An exception raised by the callable stops the work like an interrupt and reaches the caller.
+    def refuse(done: int, total: int) -> None:
+        raise RuntimeError("stop here")
+    with pytest.raises(RuntimeError, match="stop here"):
+        nbrdf.fit("lambert", data=data, position="uniform", steps=10**6, batch=256, out=tmp_path / "never",
+                  progress=refuse)
+    assert not (tmp_path / "never").exists()

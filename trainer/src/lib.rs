@@ -25,6 +25,7 @@ pub mod json;
 pub mod metrics;
 pub mod models;
 pub mod observations;
+pub mod progress;
 pub mod staging;
 pub mod study;
 pub mod toy;

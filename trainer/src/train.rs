@@ -363,6 +363,7 @@ pub fn fit_probed(model: &Model, obs: &Observations, opts: &TrainOptions, setup:
     );
     bar.set_prefix(model.config.name());
     bar.set_position(step as u64);
+    crate::progress::start(step as u64, opts.steps as u64);
     let start = Instant::now();
     let wall_before = log.wall_s;
     let mut probing = std::time::Duration::ZERO;
@@ -427,6 +428,7 @@ pub fn fit_probed(model: &Model, obs: &Observations, opts: &TrainOptions, setup:
             (acc, acc_n) = (0.0, 0);
         }
         bar.set_position(step as u64);
+        crate::progress::set(step as u64);
         log.steps_done = step;
         log.wall_s = wall_before + secs;
         log.samples_per_s = pixels as f64 / secs.max(1e-9);

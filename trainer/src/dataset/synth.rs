@@ -319,6 +319,7 @@ pub fn synthesize(args: &SynthArgs) -> Result<(DatasetFile, Vec<RenderReport>), 
             .progress_chars("=> "),
     );
     bar.set_message("synth");
+    crate::progress::start(0, total as u64);
 
     // Meshes in OBJ files are mostly y-up: keep world +y up in the image where possible.
     let camera_of = |d: Vec3, size: u32| {
@@ -385,6 +386,7 @@ pub fn synthesize(args: &SynthArgs) -> Result<(DatasetFile, Vec<RenderReport>), 
                 lit,
             });
             bar.inc(1);
+            crate::progress::advance();
         }
         if args.verbose {
             bar.suspend(|| eprintln!("view {i:02} ({split:?}):\n{}", rendered.report.summary()));
