@@ -95,6 +95,17 @@ pub const MAX_STEPS: usize = 10_000_000;
 /// `trainer fit`: loads the data the arguments name (or the toy set), fits, writes the files; returns
 /// where they went and the log. `progress` draws a bar on stderr.
 pub fn run_args(args: &FitArgs, progress: bool) -> Result<(Outputs, train::TrainLog)> {
+    let created = !args.out.exists();
+    let result = run_checked(args, progress);
+    // A failed or interrupted fit leaves no folder it made; `remove_dir` removes only an empty one.
+    if result.is_err() && created {
+        std::fs::remove_dir(&args.out).ok();
+    }
+    result
+}
+
+/// [`run_args`] but for the cleanup of a folder it created.
+fn run_checked(args: &FitArgs, progress: bool) -> Result<(Outputs, train::TrainLog)> {
     let m = &args.model;
     let config = super::parse_config(&m.model, &m.reciprocity, m.enhanced, &m.position, m.angle_frequencies, m.direction_layers)?;
     // Numbers checked before any work, naming the flag and what is allowed.
