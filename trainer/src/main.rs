@@ -34,6 +34,7 @@ enum Command {
     /// LPIPS, HDR-FLIP), optionally over an object mask
     Compare(commands::compare::CompareArgs),
     /// Write a fitted model (or an NBRDF-json network) as a self-contained GPU shader (docs/shader.md)
+    #[cfg(feature = "shader")]
     ExportShader {
         /// The .nbrdf model or NBRDF-json network
         model: PathBuf,
@@ -163,6 +164,7 @@ fn run(cli: Cli) -> trainer::Result<()> {
             );
         }
         Command::Compare(args) => commands::compare::run(&args)?,
+        #[cfg(feature = "shader")]
         Command::ExportShader { model, lang, out, weights } => commands::export_shader::run(&model, &lang, &out, weights.as_deref())?,
         Command::Models { position } => {
             print!("{}", commands::models::table(commands::parse_position(&position)?));

@@ -4,6 +4,7 @@ pub mod bench_host;
 pub mod bench_step;
 pub mod compare;
 pub mod data;
+#[cfg(feature = "shader")]
 pub mod export_shader;
 pub mod fit;
 pub mod models;
