@@ -69,6 +69,7 @@ __all__ = [
     "parametric_from_raw",
     "phong",
     "render",
+    "study",
     "synth",
     "torrance_sparrow",
 ]
@@ -358,6 +359,29 @@ def fit(
     finally:
         close()
     return FitResult(Path(path), json.loads(log))
+
+
+def study(
+    config: Optional[PathLike] = None,
+    *,
+    out: PathLike = "out/study",
+    progress: Progress = None,
+) -> List[Dict[str, Any]]:
+    """Runs the comparison study (Sec. 6; ``trainer study``): the JSON ``config`` file (see
+    docs/study.md; ``None``: the embedded default, two built-in objects and the Tabs. 1-3 variants),
+    writing ``out/REPORT.md`` with its figures and ``results.json``. Returns every job's result as a
+    dict (``scene``, ``model``, ``eval`` with the image metrics against the clean reference,
+    ``curve``, ...). ``progress``: as ``fit``'s, for each fit in turn. Ctrl-C (a notebook's
+    interrupt) stops it within a second; finished jobs are kept and the next run reuses them."""
+    import json
+
+    bar, callback, close = _progress(progress, "study")
+    try:
+        text = _nbrdf.study(None if config is None else os.fspath(config), os.fspath(out), bar, callback)
+    finally:
+        close()
+    results: List[Dict[str, Any]] = json.loads(text)
+    return results
 
 
 def compare(

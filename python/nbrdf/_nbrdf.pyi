@@ -26,6 +26,7 @@ __all__ = [
     "parametric_from_raw",
     "phong",
     "render",
+    "study",
     "synth",
     "torrance_sparrow",
 ]
@@ -148,6 +149,8 @@ def synth(argv: List[str], progress: Optional[Callable[[int, int], None]] = None
     """`trainer synth` with these flags; returns the output folder. `progress` gets (done, total)."""
 def fit(argv: List[str], bar: bool, progress: Optional[Callable[[int, int], None]] = None) -> Tuple[str, str]:
     """`trainer fit` with these flags; returns the model file and the log as JSON text."""
+def study(config: Optional[str], out: str, bar: bool, progress: Optional[Callable[[int, int], None]] = None) -> str:
+    """`trainer study` with this config file (None: the default) into `out`; the results as JSON text."""
 def compare(
     reference: npt.ArrayLike,
     test: npt.ArrayLike,

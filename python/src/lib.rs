@@ -33,6 +33,7 @@ fn _nbrdf(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(render::mesh, m)?)?;
     m.add_function(wrap_pyfunction!(train::synth, m)?)?;
     m.add_function(wrap_pyfunction!(train::fit, m)?)?;
+    m.add_function(wrap_pyfunction!(train::study, m)?)?;
     m.add_function(wrap_pyfunction!(train::compare, m)?)?;
     m.add_function(wrap_pyfunction!(train::brdf_rmse, m)?)?;
     Ok(())

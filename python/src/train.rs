@@ -43,6 +43,8 @@ fn parse<T: Parser>(argv: Vec<String>) -> PyResult<T> {
 /// from `progress` — asks the work to stop ([`trainer::cancel`]), waits for it to drop what it staged,
 /// and raises.
 fn interruptible<T: Send>(py: Python<'_>, progress: Option<&Bound<'_, PyAny>>, work: impl FnOnce() -> T + Send) -> PyResult<T> {
+    // Nothing to report until the work starts its run (the last run's totals are not this one's).
+    trainer::progress::start(0, 0);
     std::thread::scope(|s| {
         let worker = s.spawn(work);
         let mut shown = None;
@@ -95,6 +97,23 @@ pub(crate) fn fit(py: Python<'_>, argv: Vec<String>, bar: bool, progress: Option
             interruptible(py, progress.as_ref(), || trainer::commands::fit::run_args(&cli.args, bar))?.map_err(error::trainer)?;
         let log = serde_json::to_string(&log).map_err(|e| PyValueError::new_err(e.to_string()))?;
         Ok((outputs.model, log))
+    })
+}
+
+/// `trainer study`: the config file `config` (`None`: the embedded default) into `out`, with the
+/// report; returns the jobs' results as JSON text. Interruptible between and within jobs (finished
+/// jobs are kept and reused by the next run); `progress` receives each fit's `(steps done, steps)`.
+#[pyfunction]
+#[pyo3(signature = (config, out, bar, progress = None))]
+pub(crate) fn study(py: Python<'_>, config: Option<PathBuf>, out: PathBuf, bar: bool, progress: Option<Bound<'_, PyAny>>) -> PyResult<String> {
+    guard(|| {
+        let config = match &config {
+            Some(path) => trainer::study::StudyConfig::read(path).map_err(error::trainer)?,
+            None => trainer::study::StudyConfig::default_small(),
+        };
+        let results =
+            interruptible(py, progress.as_ref(), || trainer::study::run_and_report(&config, &out, None, bar))?.map_err(error::trainer)?;
+        serde_json::to_string(&results).map_err(|e| PyValueError::new_err(e.to_string()))
     })
 }
 

@@ -322,3 +322,23 @@ def test_progress_can_be_any_callable_fed_done_and_total(tmp_path):
         nbrdf.fit("lambert", data=data, position="uniform", steps=10**6, batch=256, out=tmp_path / "never",
                   progress=refuse)
     assert not (tmp_path / "never").exists()
+
+
+def test_study_runs_a_config_and_returns_every_job_as_a_dict(tmp_path):
+    import json
+
+    config = {
+        "scenes": [{"mesh": "sphere", "material": "lambert:0.6,0.5,0.4"}],
+        "models": [{"model": "rp"}, {"model": "single-mlp"}],
+        "position": "uniform", "reciprocity": "exact", "size": 40, "views": 3, "train_views": 2,
+        "train_lights": 3, "test_lights": 2, "sigma": 0.001, "target_median": 0.2, "seed": 0, "steps": 10,
+        "batch": 512, "lr": 0.001, "lr_final": 0.0001, "pixel_stride": 2, "reciprocity_pairs": 100,
+        "energy_pairs": 4, "energy_samples": 100,
+    }
+    path = tmp_path / "study.json"
+    path.write_text(json.dumps(config))
+    reports = []
+    jobs = nbrdf.study(path, out=tmp_path / "out", progress=lambda done, total: reports.append((done, total)))
+    assert [j["model"] for j in jobs] == ["rp", "single-mlp+exact"]
+    assert all(j["eval"]["reference"] == "clean" and j["ceiling"]["psnr"] > 20 for j in jobs)
+    assert (tmp_path / "out" / "REPORT.md").is_file() and reports[-1] == (10, 10)
