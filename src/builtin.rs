@@ -14,8 +14,13 @@
 //! | `clear-coat` | red diffuse base under a glossy dielectric coat (η = 1.5) with coloured absorption | Disney's coat is GTR1 with fixed masking over an un-attenuated base; FMBRDF has no absorption tint |
 //! | `velvet` | dark blue fabric: diffuse + Charlie sheen (grazing) + retro-reflective lobe | no model has a back-scatter lobe around `wi`, nor the sin^(1/α) sheen distribution |
 
+use crate::brdf::{Brdf, BsdfSample};
 use crate::math::{sanitize, INV_PI};
 use crate::parametric::microfacet::{self, HalfGeometry};
+use crate::sampling::{
+    choose, cosine_hemisphere_pdf, finish, ggx_vndf_pdf, half_of, lum, normalise, phong_lobe_pdf, reflect_about,
+    sample_ggx_vndf, sample_phong_lobe, square_to_cosine_hemisphere, valid_wo,
+};
 use crate::{Rgb, Vec3, BLACK};
 
 /// A built-in procedural material.
@@ -154,4 +159,81 @@ fn velvet(g: &HalfGeometry) -> Rgb {
         0.0
     };
     [0, 1, 2].map(|c| VELVET_DIFFUSE[c] * INV_PI + VELVET_SHEEN[c] * sheen + VELVET_RETRO[c] * retro)
+}
+
+// Sampling: a mixture of the lobes in `crate::sampling`'s table, each drawn by its warp there.
+impl Builtin {
+    /// Lobe probabilities of the built-in material at `wo` (up to two lobes; see the module table).
+    #[inline]
+    fn lobe_probabilities(self, wo: Vec3) -> [f32; 2] {
+        match self {
+            Builtin::TwoLobeMetal => normalise(METAL_LOBES.map(|(tint, _)| lum(tint))),
+            Builtin::ClearCoat => {
+                let f = microfacet::fresnel_dielectric(wo.z, COAT_ETA);
+                normalise([lum(COAT_BASE) * (1.0 - f), f])
+            }
+            // The sheen is broad and grazing: the cosine lobe carries it along with the diffuse part.
+            Builtin::Velvet => normalise([
+                lum(VELVET_DIFFUSE) + 0.5 * lum(VELVET_SHEEN),
+                lum(VELVET_RETRO),
+            ]),
+        }
+    }
+}
+
+impl Brdf for Builtin {
+    #[inline]
+    fn eval(&self, wi: Vec3, wo: Vec3) -> Rgb {
+        Builtin::eval(*self, wi, wo)
+    }
+
+    /// Samples `wi` for the given `wo` (lobes in the module table); `u` is three uniform numbers in
+    /// [0, 1).
+    #[inline]
+    fn sample(&self, wo: Vec3, u: [f32; 3]) -> Option<BsdfSample> {
+        let wo = valid_wo(wo)?;
+        let p = self.lobe_probabilities(wo);
+        let k = choose(&p, u[2]);
+        let uv = [u[0], u[1]];
+        let wi = match self {
+            Builtin::TwoLobeMetal => reflect_about(wo, sample_ggx_vndf(wo, METAL_LOBES[k].1, uv)),
+            Builtin::ClearCoat if k == 0 => square_to_cosine_hemisphere(uv),
+            Builtin::ClearCoat => reflect_about(wo, sample_ggx_vndf(wo, COAT_ALPHA, uv)),
+            Builtin::Velvet if k == 0 => square_to_cosine_hemisphere(uv),
+            Builtin::Velvet => sample_phong_lobe(wo, VELVET_RETRO_N, uv),
+        };
+        finish(wi, self.pdf(wi, wo), self.eval(wi, wo))
+    }
+
+    /// Density of `sample` at `wi` per unit solid angle.
+    #[inline]
+    fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
+        let Some((wi, wo)) = crate::angles::upper_hemisphere_pair(wi, wo) else {
+            return 0.0;
+        };
+        let Some((h, oh)) = half_of(wo, wi) else {
+            return 0.0;
+        };
+        let p = self.lobe_probabilities(wo);
+        let vndf = |alpha: f32| ggx_vndf_pdf(wo, h, alpha) / (4.0 * oh);
+        let pdf = match self {
+            Builtin::TwoLobeMetal => {
+                p[0] * vndf(METAL_LOBES[0].1) + p[1] * vndf(METAL_LOBES[1].1)
+            }
+            Builtin::ClearCoat => p[0] * cosine_hemisphere_pdf(wi) + p[1] * vndf(COAT_ALPHA),
+            Builtin::Velvet => {
+                p[0] * cosine_hemisphere_pdf(wi) + p[1] * phong_lobe_pdf(wi.dot(wo), VELVET_RETRO_N)
+            }
+        };
+        if pdf.is_finite() && pdf > 0.0 {
+            pdf
+        } else {
+            0.0
+        }
+    }
+
+    #[inline]
+    fn is_reciprocal(&self) -> bool {
+        true
+    }
 }

@@ -24,6 +24,9 @@
 //! | built-in `clear-coat` | cosine (base) + GGX visible normals (coat) |
 //! | built-in `velvet` | cosine (diffuse and sheen) + Phong lobe `cos^n` about `wo` (retro-reflection) |
 //!
+//! The built-ins' `sample` and `pdf` live beside their formulas in `builtin.rs`; the parametric models'
+//! are here until `parametric::microfacet` moves below both modules (docs/architecture.md).
+//!
 //! The FMBRDF's generalised Gaussian has no closed-form inverse CDF; the Beckmann proposal matches it
 //! exactly for β = 2 in the small-angle limit and stays a valid (unbiased, higher-variance) proposal
 //! otherwise, because the pdf reported is always the proposal's own.
@@ -39,7 +42,6 @@ pub mod proxy;
 pub use fit::fit_proxy;
 pub use proxy::{GgxLobe, Proxy};
 
-use crate::builtin::{self, Builtin};
 use crate::math::{safe_sqrt, PI};
 use crate::parametric::microfacet::{self, clamp_alpha, ALPHA_MIN};
 use crate::parametric::{Disney, FresnelMicrofacet, Lambert, Parametric, Phong, TorranceSparrow};
@@ -221,7 +223,7 @@ pub(crate) fn lum(c: Rgb) -> f32 {
 
 /// Normalised lobe-selection probabilities; all-zero weights select the first lobe.
 #[inline]
-fn normalise<const N: usize>(w: [f32; N]) -> [f32; N] {
+pub(crate) fn normalise<const N: usize>(w: [f32; N]) -> [f32; N] {
     let w = w.map(|x| if x.is_finite() && x > 0.0 { x } else { 0.0 });
     let s: f32 = w.iter().sum();
     if s > 0.0 {
@@ -235,7 +237,7 @@ fn normalise<const N: usize>(w: [f32; N]) -> [f32; N] {
 
 /// Index of the lobe chosen by `u` under probabilities `p`.
 #[inline]
-fn choose<const N: usize>(p: &[f32; N], u: f32) -> usize {
+pub(crate) fn choose<const N: usize>(p: &[f32; N], u: f32) -> usize {
     let mut acc = 0.0;
     for (k, &pk) in p.iter().enumerate() {
         acc += pk;
@@ -536,82 +538,6 @@ impl Brdf for Parametric {
         };
         if p.is_finite() && p > 0.0 {
             p
-        } else {
-            0.0
-        }
-    }
-
-    #[inline]
-    fn is_reciprocal(&self) -> bool {
-        true
-    }
-}
-
-impl Builtin {
-    /// Lobe probabilities of the built-in material at `wo` (up to two lobes; see the module table).
-    #[inline]
-    fn lobe_probabilities(self, wo: Vec3) -> [f32; 2] {
-        match self {
-            Builtin::TwoLobeMetal => normalise(builtin::METAL_LOBES.map(|(tint, _)| lum(tint))),
-            Builtin::ClearCoat => {
-                let f = microfacet::fresnel_dielectric(wo.z, builtin::COAT_ETA);
-                normalise([lum(builtin::COAT_BASE) * (1.0 - f), f])
-            }
-            // The sheen is broad and grazing: the cosine lobe carries it along with the diffuse part.
-            Builtin::Velvet => normalise([
-                lum(builtin::VELVET_DIFFUSE) + 0.5 * lum(builtin::VELVET_SHEEN),
-                lum(builtin::VELVET_RETRO),
-            ]),
-        }
-    }
-}
-
-impl Brdf for Builtin {
-    #[inline]
-    fn eval(&self, wi: Vec3, wo: Vec3) -> Rgb {
-        Builtin::eval(*self, wi, wo)
-    }
-
-    /// Samples `wi` for the given `wo` (lobes in the module table); `u` is three uniform numbers in
-    /// [0, 1).
-    #[inline]
-    fn sample(&self, wo: Vec3, u: [f32; 3]) -> Option<BsdfSample> {
-        let wo = valid_wo(wo)?;
-        let p = self.lobe_probabilities(wo);
-        let k = choose(&p, u[2]);
-        let uv = [u[0], u[1]];
-        let wi = match self {
-            Builtin::TwoLobeMetal => reflect_about(wo, sample_ggx_vndf(wo, builtin::METAL_LOBES[k].1, uv)),
-            Builtin::ClearCoat if k == 0 => square_to_cosine_hemisphere(uv),
-            Builtin::ClearCoat => reflect_about(wo, sample_ggx_vndf(wo, builtin::COAT_ALPHA, uv)),
-            Builtin::Velvet if k == 0 => square_to_cosine_hemisphere(uv),
-            Builtin::Velvet => sample_phong_lobe(wo, builtin::VELVET_RETRO_N, uv),
-        };
-        finish(wi, self.pdf(wi, wo), self.eval(wi, wo))
-    }
-
-    /// Density of `sample` at `wi` per unit solid angle.
-    #[inline]
-    fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
-        let Some((wi, wo)) = crate::angles::upper_hemisphere_pair(wi, wo) else {
-            return 0.0;
-        };
-        let Some((h, oh)) = half_of(wo, wi) else {
-            return 0.0;
-        };
-        let p = self.lobe_probabilities(wo);
-        let vndf = |alpha: f32| ggx_vndf_pdf(wo, h, alpha) / (4.0 * oh);
-        let pdf = match self {
-            Builtin::TwoLobeMetal => {
-                p[0] * vndf(builtin::METAL_LOBES[0].1) + p[1] * vndf(builtin::METAL_LOBES[1].1)
-            }
-            Builtin::ClearCoat => p[0] * cosine_hemisphere_pdf(wi) + p[1] * vndf(builtin::COAT_ALPHA),
-            Builtin::Velvet => {
-                p[0] * cosine_hemisphere_pdf(wi) + p[1] * phong_lobe_pdf(wi.dot(wo), builtin::VELVET_RETRO_N)
-            }
-        };
-        if pdf.is_finite() && pdf > 0.0 {
-            pdf
         } else {
             0.0
         }
