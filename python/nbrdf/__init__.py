@@ -372,7 +372,8 @@ def study(
     writing ``out/REPORT.md`` with its figures and ``results.json``. Returns every job's result as a
     dict (``scene``, ``model``, ``eval`` with the image metrics against the clean reference,
     ``curve``, ...). ``progress``: as ``fit``'s, for each fit in turn. Ctrl-C (a notebook's
-    interrupt) stops it within a second; finished jobs are kept and the next run reuses them."""
+    interrupt) stops it at its next training step or job (an evaluation under way finishes first);
+    finished jobs are kept and the next run reuses them."""
     import json
 
     bar, callback, close = _progress(progress, "study")
