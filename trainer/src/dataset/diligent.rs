@@ -163,5 +163,5 @@ pub fn open(root: &Path, object: &str) -> Result<Dataset, Error> {
         let split = if vi % 2 == 0 { Split::Train } else { Split::Test };
         views.push(View { camera, split, mask, images });
     }
-    Ok(Dataset { geometry, views, description: None, dir: None })
+    Ok(Dataset { geometry, views, description: None, dir: None, truth: Default::default() })
 }

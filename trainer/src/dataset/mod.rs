@@ -110,6 +110,8 @@ pub struct Dataset {
     pub description: Option<spec::DatasetFile>,
     /// The folder the description's relative paths start from.
     pub dir: Option<PathBuf>,
+    /// The ground-truth material once loaded: every evaluation of a scene reads it.
+    truth: std::sync::OnceLock<Option<material::Material>>,
 }
 
 /// Resolves `--mesh`: a built-in id, or an OBJ/PLY path.
@@ -171,14 +173,25 @@ impl Dataset {
                 .collect::<Result<_, Error>>()?;
             views.push(View { camera, split: v.split, mask, images });
         }
-        Ok(Dataset { geometry, views, description: Some(file), dir: Some(dir.to_path_buf()) })
+        Ok(Dataset { geometry, views, description: Some(file), dir: Some(dir.to_path_buf()), truth: Default::default() })
     }
 
     /// The ground-truth material of a semi-synthetic data set, which renders its noise-free (clean)
     /// reference images; `None` for captured data, which has only its images.
-    pub fn ground_truth(&self) -> Result<Option<material::Material>, Error> {
-        let (Some(d), Some(dir)) = (&self.description, &self.dir) else { return Ok(None) };
-        d.material.load(dir).map(Some).map_err(|e| e.context(format!("{}: the ground-truth material", dir.join("dataset.json").display())))
+    /// Loaded once; a failed load is reported and tried again on the next call.
+    pub fn ground_truth(&self) -> Result<Option<&material::Material>, Error> {
+        if let Some(truth) = self.truth.get() {
+            return Ok(truth.as_ref());
+        }
+        let loaded = match (&self.description, &self.dir) {
+            (Some(d), Some(dir)) => Some(
+                d.material
+                    .load(dir)
+                    .map_err(|e| e.context(format!("{}: the ground-truth material", dir.join("dataset.json").display())))?,
+            ),
+            _ => None,
+        };
+        Ok(self.truth.get_or_init(|| loaded).as_ref())
     }
 }
 

@@ -122,14 +122,13 @@ fn lights_of(view: &View) -> Vec<DirectionalLight> {
     view.images.iter().map(|im| im.light).collect()
 }
 
-/// The clean reference of every image of `view`: the noise-free Eq. 9 render of the ground truth
-/// (same camera, lights and shadows as the capture), or `None` without a ground truth.
-fn clean_images(truth: Option<&Material>, ds: &Dataset, view: &View) -> Result<Option<Vec<RgbImage>>> {
-    let Some(truth) = truth else { return Ok(None) };
-    let rendered = render_view(&ds.geometry, &view.camera, &lights_of(view), |_, wi, wo| truth.eval(wi, wo), &RenderOptions::default());
+/// The clean references of `view` under `lights`: the noise-free Eq. 9 render of the ground truth,
+/// with the capture's camera and shadows.
+fn render_truth(truth: &Material, ds: &Dataset, view: &View, lights: &[DirectionalLight]) -> Result<Vec<RgbImage>> {
+    let rendered = render_view(&ds.geometry, &view.camera, lights, |_, wi, wo| truth.eval(wi, wo), &RenderOptions::default());
     let cam = &view.camera;
     let images = rendered.images.into_iter().map(|im| RgbImage::from_data(cam.width, cam.height, im.radiance));
-    images.collect::<std::result::Result<Vec<_>, _>>().map(Some).map_err(Error::Core)
+    images.collect::<std::result::Result<Vec<_>, _>>().map_err(Error::Core)
 }
 
 /// PSNR (sRGB, masked to the object) of `test` against `reference`, both linear: the study's PSNR.
@@ -143,7 +142,7 @@ pub fn ceiling(ds: &Dataset, lpips: &std::result::Result<Lpips, String>) -> Resu
     let Some(truth) = ds.ground_truth().map_err(Error::Core)? else { return Ok(None) };
     let mut scores = Vec::new();
     for view in ds.views.iter().filter(|v| v.split == Split::Test) {
-        let clean = clean_images(Some(&truth), ds, view)?.expect("a ground truth");
+        let clean = render_truth(truth, ds, view, &lights_of(view))?;
         for (im, clean) in view.images.iter().zip(&clean) {
             let captured = im.load().map_err(Error::Core)?;
             scores.push(PreparedReference::new(&captured, Some(&view.mask), lpips).evaluate(clean));
@@ -169,7 +168,7 @@ pub fn evaluate(
     for view in ds.views.iter().filter(|v| v.split == Split::Test) {
         let cam = &view.camera;
         let rendered = render_with(&model, ds, view, &lights_of(view));
-        let clean = clean_images(ground_truth.as_ref(), ds, view)?;
+        let clean = ground_truth.map(|t| render_truth(t, ds, view, &lights_of(view))).transpose()?;
         for (j, (im, out)) in view.images.iter().zip(&rendered.images).enumerate() {
             let reference = im.load().map_err(Error::Core)?;
             let test = RgbImage::from_data(cam.width, cam.height, out.radiance.clone()).map_err(Error::Core)?;
@@ -341,8 +340,8 @@ impl<'a> TestViews<'a> {
         let truth = ds.ground_truth().map_err(Error::Core)?;
         let mut views: Vec<(usize, Vec<RgbImage>)> = Vec::new();
         for (i, view) in ds.views.iter().enumerate().filter(|(_, v)| v.split == Split::Test) {
-            let refs = match clean_images(truth.as_ref(), ds, view)? {
-                Some(clean) => clean,
+            let refs = match truth {
+                Some(t) => render_truth(t, ds, view, &lights_of(view))?,
                 None => view.images.iter().map(|im| im.load()).collect::<std::result::Result<Vec<_>, _>>().map_err(Error::Core)?,
             };
             views.push((i, refs.iter().map(crate::metrics::to_srgb).collect()));
@@ -390,10 +389,7 @@ pub fn first_test_image(ds: &Dataset, model_path: &std::path::Path) -> Result<(R
     let im = &view.images[0];
     let rendered = render_with(&model, ds, view, &[im.light]);
     let reference = match ds.ground_truth().map_err(Error::Core)? {
-        Some(truth) => {
-            let clean = render_view(&ds.geometry, &view.camera, &[im.light], |_, wi, wo| truth.eval(wi, wo), &RenderOptions::default());
-            RgbImage::from_data(view.camera.width, view.camera.height, clean.images[0].radiance.clone()).map_err(Error::Core)?
-        }
+        Some(truth) => render_truth(truth, ds, view, &[im.light])?.swap_remove(0),
         None => im.load().map_err(Error::Core)?,
     };
     let test = RgbImage::from_data(view.camera.width, view.camera.height, rendered.images[0].radiance.clone())
