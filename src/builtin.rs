@@ -16,10 +16,11 @@
 
 use crate::brdf::{Brdf, BsdfSample};
 use crate::math::{sanitize, INV_PI};
-use crate::parametric::microfacet::{self, HalfGeometry};
-use crate::sampling::{
-    choose, cosine_hemisphere_pdf, finish, ggx_vndf_pdf, half_of, lum, normalise, phong_lobe_pdf, reflect_about,
-    sample_ggx_vndf, sample_phong_lobe, square_to_cosine_hemisphere, valid_wo,
+use crate::microfacet::{self, HalfGeometry};
+use crate::sampling::{choose, finish, lum, normalise, valid_wo};
+use crate::warp::{
+    cosine_hemisphere_pdf, ggx_vndf_pdf, half_of, phong_lobe_pdf, reflect_about, sample_ggx_vndf, sample_phong_lobe,
+    square_to_cosine_hemisphere,
 };
 use crate::{Rgb, Vec3, BLACK};
 
@@ -161,7 +162,7 @@ fn velvet(g: &HalfGeometry) -> Rgb {
     [0, 1, 2].map(|c| VELVET_DIFFUSE[c] * INV_PI + VELVET_SHEEN[c] * sheen + VELVET_RETRO[c] * retro)
 }
 
-// Sampling: a mixture of the lobes in `crate::sampling`'s table, each drawn by its warp there.
+// Sampling: a mixture of the lobes in `crate::sampling`'s table, each drawn by its `crate::warp`.
 impl Builtin {
     /// Lobe probabilities of the built-in material at `wo` (up to two lobes; see the module table).
     #[inline]

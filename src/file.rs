@@ -177,8 +177,8 @@ pub struct ModelHeader {
     /// [`crate::sampling::fit_proxy`]); `None` samples the cosine lobe. Parametric models sample their
     /// own lobes and ignore it.
     pub proxy: Option<crate::sampling::Proxy>,
-    /// [`Mesh::content_hash`](crate::scene::Mesh::content_hash) of the mesh the per-vertex table was
-    /// fitted on; `None` for a model without a table, or one exported before the field existed (its
+    /// `nbrdf_scene::scene::Mesh::content_hash` (crate `nbrdf-scene`) of the mesh the per-vertex table
+    /// was fitted on; `None` for a model without a table, or one exported before the field existed (its
     /// header ends before it; only the vertex count is then checked). A renderer refuses the table on
     /// a mesh of another hash.
     pub mesh_hash: Option<u64>,

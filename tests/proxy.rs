@@ -7,7 +7,7 @@ use nbrdf::builtin::Builtin;
 use nbrdf::file::{encode, ModelHeader, ModelKind, PositionEncoding, Reciprocity};
 use nbrdf::ModelBuf;
 use nbrdf::measured::NbrdfNetwork;
-use nbrdf::parametric::microfacet::{ggx_d, smith_ggx_g1_over_2cos};
+use nbrdf::microfacet::{ggx_d, smith_ggx_g1_over_2cos};
 use nbrdf::Brdf;
 use nbrdf::sampling::proxy::DEFENSIVE;
 use nbrdf::sampling::{fit_proxy, GgxLobe, Proxy};

@@ -10,13 +10,15 @@
 #[cfg(target_arch = "x86_64")]
 use super::Level;
 
-/// `dst[i] = src[i] as f32` for `i < min(src.len(), dst.len())`.
+/// `dst[i] = src[i] as f32` for `i < min(src.len(), dst.len())`; outside the crate, `Weight::widen`
+/// of `half::f16`.
 ///
 /// ```
 /// use half::f16;
+/// use nbrdf::kernels::Weight;
 /// let src: Vec<f16> = [0.5f32, -2.0, 65504.0, 6e-8].iter().map(|&v| f16::from_f32(v)).collect();
 /// let mut dst = [0.0f32; 4];
-/// nbrdf::kernels::widen_f16(&src, &mut dst);
+/// f16::widen(&src, &mut dst);
 /// assert_eq!(dst, [0.5, -2.0, 65504.0, f16::from_f32(6e-8).to_f32()]);
 /// ```
 #[inline]

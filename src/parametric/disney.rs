@@ -33,11 +33,21 @@
 //! | 9 | `sheen_tint` | [0, 1] | `sigmoid(raw)` |
 //! | 10 | `clearcoat` | [0, 1] | `sigmoid(raw)` |
 //! | 11 | `clearcoat_gloss` | [0, 1] | `sigmoid(raw)` |
+//!
+//! Sampling (`sample` / `pdf` below): a mixture of the cosine lobe (diffuse, subsurface, sheen), GGX
+//! visible normals (Heitz 2018) for the specular lobe and GTR1 half vectors for the clearcoat, chosen by
+//! the lobes' weights in `eval` at `wo`.
 
-use super::microfacet::{self, HalfGeometry, ALPHA_MIN};
 use super::raw_at;
-use super::real::{lerp, Real};
+use crate::brdf::{Brdf, BsdfSample};
 use crate::math::{self, logit, INV_PI};
+use crate::microfacet::{self, HalfGeometry, ALPHA_MIN};
+use crate::real::{lerp, Real};
+use crate::sampling::{choose, finish, lum, normalise, valid_wo};
+use crate::warp::{
+    cosine_hemisphere_pdf, ggx_vndf_pdf, half_of, half_vector_pdf, reflect_about, sample_ggx_vndf, sample_gtr1,
+    square_to_cosine_hemisphere,
+};
 use crate::{Rgb, Vec3};
 
 /// Isotropic Disney BRDF parameters (all in [0, 1]).
@@ -226,5 +236,87 @@ impl From<Params<f32>> for Disney {
             clearcoat: p.clearcoat,
             clearcoat_gloss: p.clearcoat_gloss,
         }
+    }
+}
+
+// Importance sampling (see the module docs).
+
+impl Disney {
+    /// GGX α of the primary specular lobe (as in [`Disney::eval`]).
+    #[inline]
+    fn alpha(&self) -> f32 {
+        (self.roughness * self.roughness).max(ALPHA_MIN)
+    }
+
+    /// GTR1 α of the clearcoat lobe (as in [`Disney::eval`]).
+    #[inline]
+    fn coat_alpha(&self) -> f32 {
+        crate::math::lerp(0.1, 0.001, self.clearcoat_gloss)
+    }
+
+    /// Lobe probabilities `[diffuse, specular, clearcoat]` from the lobes' weights in [`Disney::eval`]:
+    /// `(1 - metallic) (lum(C) + sheen)`, `lum(lerp(Cspec0, 1, F(θo)))`, `clearcoat / 4 · lerp(0.04, 1,
+    /// F(θo))`.
+    #[inline]
+    fn lobe_probabilities(&self, wo: Vec3) -> [f32; 3] {
+        let c = self.base_color;
+        let l = 0.3 * c[0] + 0.6 * c[1] + 0.1 * c[2];
+        let tint = if l > 0.0 { c.map(|x| x / l) } else { [1.0; 3] };
+        let fw = microfacet::schlick_weight(wo.z);
+        let spec = [0, 1, 2].map(|k| {
+            let s0 = crate::math::lerp(
+                self.specular * 0.08 * crate::math::lerp(1.0, tint[k], self.specular_tint),
+                c[k],
+                self.metallic,
+            );
+            crate::math::lerp(s0, 1.0, fw)
+        });
+        normalise([
+            (1.0 - self.metallic) * (lum(c) + self.sheen),
+            lum(spec),
+            0.25 * self.clearcoat * crate::math::lerp(0.04, 1.0, fw),
+        ])
+    }
+}
+
+impl Brdf for Disney {
+    #[inline]
+    fn eval(&self, wi: Vec3, wo: Vec3) -> Rgb {
+        Disney::eval(self, wi, wo)
+    }
+
+    /// Mixture of the cosine lobe, GGX visible normals and GTR1 half vectors, chosen by their weights.
+    #[inline]
+    fn sample(&self, wo: Vec3, u: [f32; 3]) -> Option<BsdfSample> {
+        let wo = valid_wo(wo)?;
+        let p = self.lobe_probabilities(wo);
+        let wi = match choose(&p, u[2]) {
+            0 => square_to_cosine_hemisphere([u[0], u[1]]),
+            1 => reflect_about(wo, sample_ggx_vndf(wo, self.alpha(), [u[0], u[1]])),
+            _ => reflect_about(wo, sample_gtr1(self.coat_alpha(), [u[0], u[1]])),
+        };
+        finish(wi, self.pdf(wi, wo), self.eval(wi, wo))
+    }
+
+    /// Density of `sample` at `wi`.
+    #[inline]
+    fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
+        let Some((wi, wo)) = crate::angles::upper_hemisphere_pair(wi, wo) else {
+            return 0.0;
+        };
+        let p = self.lobe_probabilities(wo);
+        let Some((h, oh)) = half_of(wo, wi) else {
+            return p[0] * cosine_hemisphere_pdf(wi);
+        };
+        let alpha = self.alpha();
+        let coat_alpha = self.coat_alpha();
+        let spec = ggx_vndf_pdf(wo, h, alpha) / (4.0 * oh);
+        let coat = half_vector_pdf(wo, wi, |c, s2| microfacet::gtr1_d(c, s2, coat_alpha));
+        p[0] * cosine_hemisphere_pdf(wi) + p[1] * spec + p[2] * coat
+    }
+
+    #[inline]
+    fn is_reciprocal(&self) -> bool {
+        true
     }
 }

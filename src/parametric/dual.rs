@@ -8,7 +8,7 @@
 //!
 //! ```
 //! use nbrdf::parametric::dual::Dual;
-//! use nbrdf::parametric::real::Real;
+//! use nbrdf::real::Real;
 //! // f(x, y) = x y + e^x at (2, 3): ∂f/∂x = y + e^x, ∂f/∂y = x.
 //! let (x, y) = (Dual::<2>::variable(2.0, 0), Dual::<2>::variable(3.0, 1));
 //! let f = x * y + x.exp();
@@ -18,7 +18,7 @@
 
 use core::ops::{Add, Div, Mul, Neg, Sub};
 
-use super::real::Real;
+use crate::real::Real;
 use crate::math;
 
 /// A value `v` and its partial derivatives `d[i] = ∂v/∂x_i` in `N` inputs.

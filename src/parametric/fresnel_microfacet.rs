@@ -33,11 +33,19 @@
 //! The normalisation is a per-object parameter (one per model, not per point: `n_object = 1`), learned
 //! in log space because it spans 1/π (α = 1, β = 2) to ~3e5 (α = 1e-3). It is exact for a uniform material
 //! when set from [`ndf_normalization`] ([`FresnelMicrofacet::new`], [`log_norm_raw`]).
+//!
+//! Sampling (`sample` / `pdf` below): a mixture of the cosine lobe and Beckmann half vectors of slope α,
+//! Torrance-Sparrow's proposal. The generalised Gaussian has no closed-form inverse CDF; the Beckmann
+//! proposal matches it exactly for β = 2 in the small-angle limit and stays a valid (unbiased,
+//! higher-variance) proposal otherwise, because the pdf reported is always the proposal's own.
 
-use super::microfacet::{self, clamp_alpha, clamp_alpha_generic, HalfGeometry};
 use super::raw_at;
-use super::real::Real;
+use super::torrance_sparrow::{pdf_cosine_beckmann, sample_cosine_beckmann};
+use crate::brdf::{Brdf, BsdfSample};
 use crate::math::{logit, INV_PI};
+use crate::microfacet::{self, clamp_alpha, clamp_alpha_generic, HalfGeometry};
+use crate::real::Real;
+use crate::sampling::{finish, lum, normalise, valid_wo};
 use crate::{Rgb, Vec3};
 
 /// Smallest and largest shape exponent β.
@@ -223,6 +231,48 @@ impl From<Params<f32>> for FresnelMicrofacet {
     #[inline]
     fn from(p: Params<f32>) -> Self {
         Self { rho: p.rho, ks: p.ks, alpha: p.alpha, beta: p.beta, eta: p.eta, norm: p.norm }
+    }
+}
+
+// Importance sampling (see the module docs).
+
+impl FresnelMicrofacet {
+    /// Lobe probabilities `[body, surface]`: body albedo times the transmission at `wo` against `ks`
+    /// times the Fresnel reflectance at `wo`.
+    #[inline]
+    fn lobe_probabilities(&self, wo: Vec3) -> [f32; 2] {
+        let f = microfacet::fresnel_dielectric(wo.z, self.eta);
+        normalise([lum(self.rho) * (1.0 - f), self.ks * f])
+    }
+}
+
+impl Brdf for FresnelMicrofacet {
+    #[inline]
+    fn eval(&self, wi: Vec3, wo: Vec3) -> Rgb {
+        FresnelMicrofacet::eval(self, wi, wo)
+    }
+
+    /// Mixture of the cosine lobe and Beckmann half vectors of slope α (a proposal for the generalised
+    /// Gaussian; see the module docs).
+    #[inline]
+    fn sample(&self, wo: Vec3, u: [f32; 3]) -> Option<BsdfSample> {
+        let wo = valid_wo(wo)?;
+        let wi = sample_cosine_beckmann(self.lobe_probabilities(wo), self.alpha, u, wo);
+        finish(wi, self.pdf(wi, wo), self.eval(wi, wo))
+    }
+
+    /// Density of `sample` at `wi`.
+    #[inline]
+    fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
+        let Some((wi, wo)) = crate::angles::upper_hemisphere_pair(wi, wo) else {
+            return 0.0;
+        };
+        pdf_cosine_beckmann(self.lobe_probabilities(wo), self.alpha, wo, wi)
+    }
+
+    #[inline]
+    fn is_reciprocal(&self) -> bool {
+        true
     }
 }
 

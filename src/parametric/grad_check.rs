@@ -10,7 +10,7 @@ use std::format;
 use std::string::String;
 use std::vec::Vec;
 
-use super::real::Real;
+use crate::real::Real;
 use super::{disney, fresnel_microfacet, lambert, phong, torrance_sparrow};
 use super::{Parametric, ParametricKind, MAX_OBJECT, MAX_RAW};
 use crate::Vec3;

@@ -3,11 +3,16 @@
 //! | raw index | parameter | range | activation |
 //! |---|---|---|---|
 //! | 0, 1, 2 | `kd` (R, G, B albedo) | [0, 1] | `sigmoid(raw)` |
+//!
+//! Sampling (`sample` / `pdf` below): the cosine lobe, so the estimator weight is `kd` exactly.
 
 use super::raw_at;
-use super::real::Real;
 use crate::angles::upper_hemisphere_pair;
+use crate::brdf::{Brdf, BsdfSample};
 use crate::math::{logit, INV_PI};
+use crate::real::Real;
+use crate::sampling::{finish, valid_wo};
+use crate::warp::{cosine_hemisphere_pdf, square_to_cosine_hemisphere};
 use crate::{Rgb, Vec3};
 
 /// A Lambertian BRDF with albedo `kd`: the albedo is exactly `kd` at every incidence.
@@ -83,5 +88,50 @@ impl From<Params<f32>> for Lambert {
     #[inline]
     fn from(p: Params<f32>) -> Self {
         Self { kd: p.kd }
+    }
+}
+
+// Importance sampling (see the module docs).
+
+impl Brdf for Lambert {
+    #[inline]
+    fn eval(&self, wi: Vec3, wo: Vec3) -> Rgb {
+        Lambert::eval(self, wi, wo)
+    }
+
+    /// Cosine-weighted `wi`; the weight is `kd` exactly.
+    #[inline]
+    fn sample(&self, wo: Vec3, u: [f32; 3]) -> Option<BsdfSample> {
+        let wo = valid_wo(wo)?;
+        let wi = square_to_cosine_hemisphere([u[0], u[1]]);
+        finish(wi, cosine_hemisphere_pdf(wi), self.eval(wi, wo))
+    }
+
+    /// Density of `sample` at `wi`.
+    #[inline]
+    fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
+        match crate::angles::upper_hemisphere_pair(wi, wo) {
+            Some((wi, _)) => cosine_hemisphere_pdf(wi),
+            None => 0.0,
+        }
+    }
+
+    #[inline]
+    fn is_reciprocal(&self) -> bool {
+        true
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lambert_weight_is_the_albedo() {
+        let m = Lambert { kd: [0.2, 0.5, 0.9] };
+        let s = m.sample(Vec3::new(0.1, 0.2, 0.9), [0.3, 0.6, 0.1]).unwrap();
+        for c in 0..3 {
+            assert!((s.weight[c] - m.kd[c]).abs() < 1e-5);
+        }
     }
 }

@@ -18,12 +18,17 @@
 //! Raw values that are missing (a slice shorter than `n_raw`) or not finite count as 0, so `from_raw`
 //! never panics; every `eval` returns finite, non-negative values and 0 below the horizon.
 //!
+//! Each model's file also holds its importance sampling, `sample` and `pdf` in its `impl Brdf` (a lobe
+//! mixture over [`crate::warp`]'s warps, as `crate::sampling` describes); [`Parametric`] dispatches to
+//! them here.
+//!
 //! # Gradients
-//! Each model's activations and formula are written once, generic over the scalar [`real::Real`], and
-//! instantiated twice: at `f32` for [`Parametric::from_raw`] and [`Parametric::eval`], and at the dual
-//! number [`dual::Dual`] for [`Parametric::eval_grad`], which returns the same value and its exact
-//! derivatives in the raw outputs and object parameters (forward-mode automatic differentiation). A
-//! trainer's backward pass calls it; there is no second, hand-differentiated copy of any formula.
+//! Each model's activations and formula are written once, generic over the scalar
+//! [`Real`](crate::real::Real), and instantiated twice: at `f32` for [`Parametric::from_raw`] and
+//! [`Parametric::eval`], and at the dual number [`dual::Dual`] for [`Parametric::eval_grad`], which
+//! returns the same value and its exact derivatives in the raw outputs and object parameters
+//! (forward-mode automatic differentiation). A trainer's backward pass calls it; there is no second,
+//! hand-differentiated copy of any formula.
 //!
 //! ```
 //! use nbrdf::parametric::{Parametric, ParametricKind};
@@ -40,9 +45,7 @@ pub mod disney;
 pub mod dual;
 pub mod fresnel_microfacet;
 pub mod lambert;
-pub mod microfacet;
 pub mod phong;
-pub mod real;
 pub mod torrance_sparrow;
 
 #[cfg(test)]
@@ -54,6 +57,7 @@ pub use lambert::Lambert;
 pub use phong::Phong;
 pub use torrance_sparrow::TorranceSparrow;
 
+use crate::brdf::{Brdf, BsdfSample};
 use crate::{Rgb, Vec3};
 use dual::Dual;
 
@@ -143,6 +147,30 @@ impl ParametricKind {
     /// ```
     pub fn from_id(id: &str) -> Option<Self> {
         Self::ALL.into_iter().find(|k| k.id() == id)
+    }
+
+    /// Other names the command lines, configs and bindings accept: the paper's abbreviations.
+    pub const fn aliases(self) -> &'static [&'static str] {
+        match self {
+            ParametricKind::Lambert => &[],
+            ParametricKind::Phong => &["rp"],
+            ParametricKind::TorranceSparrow => &["ts"],
+            ParametricKind::FresnelMicrofacet => &["fresnel-microfacet"],
+            ParametricKind::Disney => &[],
+        }
+    }
+
+    /// The kind named `name`: its [`id`](Self::id) or one of its [`aliases`](Self::aliases). The one
+    /// name table of the crate, the trainer and the bindings.
+    ///
+    /// ```
+    /// use nbrdf::parametric::ParametricKind;
+    /// assert_eq!(ParametricKind::from_name("rp"), Some(ParametricKind::Phong));
+    /// assert_eq!(ParametricKind::from_name("torrance-sparrow"), Some(ParametricKind::TorranceSparrow));
+    /// assert_eq!(ParametricKind::from_name("ts"), ParametricKind::from_id("torrance-sparrow"));
+    /// ```
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|k| k.id() == name || k.aliases().contains(&name))
     }
 }
 
@@ -303,6 +331,47 @@ impl Parametric {
                 EvalGrad::new::<D, 0, D>(disney::Params::from_raw(&x.0).eval(wi, wo))
             }
         }
+    }
+}
+
+impl Brdf for Parametric {
+    #[inline]
+    fn eval(&self, wi: Vec3, wo: Vec3) -> Rgb {
+        Parametric::eval(self, wi, wo)
+    }
+
+    /// Samples `wi` for the given `wo` (see the model's `sample`); `u` is three uniform numbers in [0, 1).
+    #[inline]
+    fn sample(&self, wo: Vec3, u: [f32; 3]) -> Option<BsdfSample> {
+        match self {
+            Parametric::Lambert(m) => m.sample(wo, u),
+            Parametric::Phong(m) => m.sample(wo, u),
+            Parametric::TorranceSparrow(m) => m.sample(wo, u),
+            Parametric::FresnelMicrofacet(m) => m.sample(wo, u),
+            Parametric::Disney(m) => m.sample(wo, u),
+        }
+    }
+
+    /// Density of `sample` at `wi` per unit solid angle.
+    #[inline]
+    fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
+        let p = match self {
+            Parametric::Lambert(m) => m.pdf(wi, wo),
+            Parametric::Phong(m) => m.pdf(wi, wo),
+            Parametric::TorranceSparrow(m) => m.pdf(wi, wo),
+            Parametric::FresnelMicrofacet(m) => m.pdf(wi, wo),
+            Parametric::Disney(m) => m.pdf(wi, wo),
+        };
+        if p.is_finite() && p > 0.0 {
+            p
+        } else {
+            0.0
+        }
+    }
+
+    #[inline]
+    fn is_reciprocal(&self) -> bool {
+        true
     }
 }
 

@@ -15,11 +15,17 @@
 //! | 0, 1, 2 | `kd` (R, G, B) | [0, 1] | `kd_c = sigmoid(raw[c])` |
 //! | 3, 4, 5 | `ks` (R, G, B) | [0, 1 - kd_c] | `ks_c = (1 - kd_c) · sigmoid(raw[3 + c])` |
 //! | 6 | `n` (exponent) | [0, ∞) | `softplus(raw[6])` |
+//!
+//! Sampling (`sample` / `pdf` below): a mixture of the cosine lobe and the lobe `cos^n α` about the
+//! mirror of `wo`, chosen by `lum(kd)` against `lum(ks)`.
 
 use super::raw_at;
-use super::real::Real;
 use crate::angles::upper_hemisphere_pair;
+use crate::brdf::{Brdf, BsdfSample};
 use crate::math::{logit, softplus_inv, INV_PI};
+use crate::real::Real;
+use crate::sampling::{choose, finish, lum, normalise, valid_wo};
+use crate::warp::{cosine_hemisphere_pdf, phong_lobe_pdf, sample_phong_lobe, square_to_cosine_hemisphere};
 use crate::{Error, Rgb, Vec3};
 
 /// Energy-preserving modified Phong ("RP").
@@ -152,5 +158,49 @@ impl From<Params<f32>> for Phong {
     #[inline]
     fn from(p: Params<f32>) -> Self {
         Self { kd: p.kd, ks: p.ks, n: p.n }
+    }
+}
+
+// Importance sampling (see the module docs).
+
+impl Phong {
+    /// Lobe probabilities `[diffuse, specular]`, proportional to `lum(kd)` and `lum(ks)`.
+    #[inline]
+    fn lobe_probabilities(&self) -> [f32; 2] {
+        normalise([lum(self.kd), lum(self.ks)])
+    }
+}
+
+impl Brdf for Phong {
+    #[inline]
+    fn eval(&self, wi: Vec3, wo: Vec3) -> Rgb {
+        Phong::eval(self, wi, wo)
+    }
+
+    /// Mixture of the cosine lobe and the Phong lobe about the mirror direction of `wo`.
+    #[inline]
+    fn sample(&self, wo: Vec3, u: [f32; 3]) -> Option<BsdfSample> {
+        let wo = valid_wo(wo)?;
+        let p = self.lobe_probabilities();
+        let wi = match choose(&p, u[2]) {
+            0 => square_to_cosine_hemisphere([u[0], u[1]]),
+            _ => sample_phong_lobe(crate::angles::reflect(wo, Vec3::Z), self.n, [u[0], u[1]]),
+        };
+        finish(wi, self.pdf(wi, wo), self.eval(wi, wo))
+    }
+
+    /// Density of `sample` at `wi`.
+    #[inline]
+    fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
+        let Some((wi, wo)) = crate::angles::upper_hemisphere_pair(wi, wo) else {
+            return 0.0;
+        };
+        let p = self.lobe_probabilities();
+        p[0] * cosine_hemisphere_pdf(wi) + p[1] * phong_lobe_pdf(Phong::cos_alpha(wi, wo), self.n)
+    }
+
+    #[inline]
+    fn is_reciprocal(&self) -> bool {
+        true
     }
 }

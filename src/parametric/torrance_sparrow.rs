@@ -18,11 +18,17 @@
 //! | 6 | `alpha` (Beckmann RMS slope) | [1e-3, 1] | `max(sigmoid(0.5 · raw[6]), 1e-3)` |
 //!
 //! The ×0.5 on the roughness pre-activation is Sec. 4.1.1's stabilisation of training.
+//!
+//! Sampling (`sample` / `pdf` below): a mixture of the cosine lobe and Beckmann `D cos θh` half vectors,
+//! chosen by `lum(kd)` against the Schlick reflectance at `wo`; the FMBRDF reuses this proposal.
 
-use super::microfacet::{self, clamp_alpha_generic, HalfGeometry};
 use super::raw_at;
-use super::real::Real;
+use crate::brdf::{Brdf, BsdfSample};
 use crate::math::{logit, INV_PI};
+use crate::microfacet::{self, clamp_alpha, clamp_alpha_generic, HalfGeometry};
+use crate::real::Real;
+use crate::sampling::{choose, finish, lum, normalise, valid_wo};
+use crate::warp::{cosine_hemisphere_pdf, half_vector_pdf, reflect_about, sample_beckmann, square_to_cosine_hemisphere};
 use crate::{Rgb, Vec3};
 
 /// Torrance-Sparrow (Beckmann, V-cavity, Schlick) with a Lambertian base.
@@ -119,4 +125,61 @@ impl From<Params<f32>> for TorranceSparrow {
     fn from(p: Params<f32>) -> Self {
         Self { kd: p.kd, ks: p.ks, alpha: p.alpha }
     }
+}
+
+// Importance sampling (see the module docs).
+
+impl TorranceSparrow {
+    /// Lobe probabilities `[diffuse, specular]`: `lum(kd)` against the Schlick reflectance at `wo`.
+    #[inline]
+    fn lobe_probabilities(&self, wo: Vec3) -> [f32; 2] {
+        let spec = self.ks.map(|f0| microfacet::fresnel_schlick(f0, wo.z));
+        normalise([lum(self.kd), lum(spec)])
+    }
+}
+
+impl Brdf for TorranceSparrow {
+    #[inline]
+    fn eval(&self, wi: Vec3, wo: Vec3) -> Rgb {
+        TorranceSparrow::eval(self, wi, wo)
+    }
+
+    /// Mixture of the cosine lobe and Beckmann half vectors reflected about `wo`.
+    #[inline]
+    fn sample(&self, wo: Vec3, u: [f32; 3]) -> Option<BsdfSample> {
+        let wo = valid_wo(wo)?;
+        let wi = sample_cosine_beckmann(self.lobe_probabilities(wo), self.alpha, u, wo);
+        finish(wi, self.pdf(wi, wo), self.eval(wi, wo))
+    }
+
+    /// Density of `sample` at `wi`.
+    #[inline]
+    fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
+        let Some((wi, wo)) = crate::angles::upper_hemisphere_pair(wi, wo) else {
+            return 0.0;
+        };
+        pdf_cosine_beckmann(self.lobe_probabilities(wo), self.alpha, wo, wi)
+    }
+
+    #[inline]
+    fn is_reciprocal(&self) -> bool {
+        true
+    }
+}
+
+/// A direction from the mixture `p[0]` cosine lobe + `p[1]` Beckmann half vectors of slope `alpha`
+/// reflected about `wo`: the proposal of Torrance-Sparrow and of the FMBRDF.
+#[inline]
+pub(super) fn sample_cosine_beckmann(p: [f32; 2], alpha: f32, u: [f32; 3], wo: Vec3) -> Vec3 {
+    match choose(&p, u[2]) {
+        0 => square_to_cosine_hemisphere([u[0], u[1]]),
+        _ => reflect_about(wo, sample_beckmann(clamp_alpha(alpha), [u[0], u[1]])),
+    }
+}
+
+/// Density of [`sample_cosine_beckmann`] at `wi` (both directions valid and unit).
+#[inline]
+pub(super) fn pdf_cosine_beckmann(p: [f32; 2], alpha: f32, wo: Vec3, wi: Vec3) -> f32 {
+    let alpha = clamp_alpha(alpha);
+    p[0] * cosine_hemisphere_pdf(wi) + p[1] * half_vector_pdf(wo, wi, |c, s2| microfacet::beckmann_d(c, s2, alpha))
 }

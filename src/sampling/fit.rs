@@ -18,7 +18,7 @@ use super::proxy::{GgxLobe, Proxy, DEFENSIVE};
 use super::lum;
 use crate::angles::{from_rusinkiewicz, Rusinkiewicz};
 use crate::math::{INV_PI, PI};
-use crate::parametric::microfacet::{ggx_d, smith_ggx_g1_over_2cos};
+use crate::microfacet::{ggx_d, smith_ggx_g1_over_2cos};
 use crate::{Rgb, Vec3};
 
 /// θh samples, spaced `θh = ((i + ½)/N)² π/2`.

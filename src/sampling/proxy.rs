@@ -24,11 +24,11 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::{
-    cosine_hemisphere_pdf, finish, ggx_vndf_pdf, half_of, reflect_about, sample_ggx_vndf,
-    square_to_cosine_hemisphere, valid_wo, BsdfSample,
+use super::{finish, valid_wo, BsdfSample};
+use crate::microfacet::ALPHA_MIN;
+use crate::warp::{
+    cosine_hemisphere_pdf, ggx_vndf_pdf, half_of, reflect_about, sample_ggx_vndf, square_to_cosine_hemisphere,
 };
-use crate::parametric::microfacet::ALPHA_MIN;
 use crate::{Error, Rgb, Vec3};
 
 /// Number of GGX lobes a proxy holds.

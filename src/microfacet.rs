@@ -1,7 +1,8 @@
 //! Shared microfacet pieces: the half-vector geometry of a direction pair, normal distributions (Beckmann,
 //! GGX/GTR2, GTR1), shadowing terms (V-cavity, separable Smith GGX) and Fresnel factors (Schlick,
 //! unpolarised dielectric, unpolarised conductor). Every parametric model and built-in material takes its
-//! D, G and F from here, so a formula is written (and cited) once.
+//! D, G and F from here, so a formula is written (and cited) once. The module sits below both
+//! `parametric` and `sampling` (the warps' densities take their D and G from here too).
 //!
 //! # Reciprocity
 //! [`HalfGeometry`] derives every cosine from quantities that are exactly symmetric under the swap of
@@ -18,10 +19,10 @@
 //! # Differentiable parameters
 //! The terms that take a material parameter (roughness, F0, η) are written once, generic over
 //! [`Real`] in that parameter (`*_generic`), so the parametric models' gradients
-//! ([`super::Parametric::eval_grad`]) differentiate the very formula they evaluate; the `f32` functions
-//! are that formula at `f32`, the same bits.
+//! ([`Parametric::eval_grad`](crate::parametric::Parametric::eval_grad)) differentiate the very
+//! formula they evaluate; the `f32` functions are that formula at `f32`, the same bits.
 
-use super::real::{self, Real};
+use crate::real::{self, Real};
 use crate::angles::upper_hemisphere_pair;
 use crate::math::{safe_sqrt, INV_PI};
 use crate::Vec3;
@@ -52,7 +53,7 @@ impl HalfGeometry {
     /// (the gate of [`upper_hemisphere_pair`]). Unnormalised input is normalised.
     ///
     /// ```
-    /// use nbrdf::{parametric::microfacet::HalfGeometry, Vec3};
+    /// use nbrdf::{microfacet::HalfGeometry, Vec3};
     /// let g = HalfGeometry::new(Vec3::new(0.6, 0.0, 0.8), Vec3::new(-0.6, 0.0, 0.8)).unwrap();
     /// assert!((g.cos_h - 1.0).abs() < 1e-6 && (g.cos_d - 0.8).abs() < 1e-6);
     /// assert!(HalfGeometry::new(Vec3::new(0.0, 0.0, -1.0), Vec3::Z).is_none());
@@ -209,7 +210,7 @@ pub(crate) fn fresnel_schlick_generic<T: Real>(f0: T, cos_d: f32) -> T {
 /// `sin θt = sin θ / η`, `F = (r∥² + r⊥²) / 2`.
 ///
 /// ```
-/// use nbrdf::parametric::microfacet::fresnel_dielectric;
+/// use nbrdf::microfacet::fresnel_dielectric;
 /// // Normal incidence: ((η - 1)/(η + 1))², 0.04 for glass.
 /// assert!((fresnel_dielectric(1.0, 1.5) - 0.04).abs() < 1e-6);
 /// assert!((fresnel_dielectric(0.0, 1.5) - 1.0).abs() < 1e-6);
@@ -247,7 +248,7 @@ pub(crate) fn fresnel_dielectric_generic<T: Real>(cos_i: f32, eta: T) -> T {
 /// `F = (Rs + Rp) / 2`.
 ///
 /// ```
-/// use nbrdf::parametric::microfacet::fresnel_conductor;
+/// use nbrdf::microfacet::fresnel_conductor;
 /// // Normal incidence: ((η - 1)² + k²)/((η + 1)² + k²).
 /// let (eta, k) = (0.2, 3.0);
 /// let f0 = ((eta - 1.0f32).powi(2) + k * k) / ((eta + 1.0f32).powi(2) + k * k);

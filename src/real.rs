@@ -1,9 +1,9 @@
 //! The scalar the parametric formulas are written in, so that each formula exists once and serves both
-//! evaluation (`f32`) and exact differentiation ([`Dual`](super::dual::Dual), forward-mode automatic
-//! differentiation).
+//! evaluation (`f32`) and exact differentiation ([`Dual`](crate::parametric::dual::Dual), forward-mode
+//! automatic differentiation). It sits below `microfacet`, whose terms are generic over it.
 //!
 //! Only quantities that depend on a model's *parameters* are [`Real`]; the direction-only geometry
-//! ([`HalfGeometry`](super::microfacet::HalfGeometry), cosines, Schlick weights of the angles) stays plain
+//! ([`HalfGeometry`](crate::microfacet::HalfGeometry), cosines, Schlick weights of the angles) stays plain
 //! `f32` and enters through the mixed operators (`Real ∘ f32`). The `f32` implementation is the identity
 //! on every operation (each method is the exact `f32`/`libm` call the models used before they were
 //! generic), so the `f32` instantiation of a formula computes the same bits with the same instructions.
@@ -14,7 +14,7 @@
 //! commute exactly).
 //!
 //! ```
-//! use nbrdf::parametric::real::Real;
+//! use nbrdf::real::Real;
 //! use nbrdf::parametric::dual::Dual;
 //! // One formula, two instantiations: the value, and the value with its derivative.
 //! fn lobe<T: Real>(n: T, cos: f32) -> T {
@@ -30,7 +30,7 @@
 use core::ops::{Add, Div, Mul, Neg, Sub};
 
 /// A scalar the parametric formulas can be evaluated in: `f32`, or a number that also carries
-/// derivatives ([`Dual`](super::dual::Dual)).
+/// derivatives ([`Dual`](crate::parametric::dual::Dual)).
 ///
 /// Every method of the `f32` implementation is exactly the `f32` operation the name says (`libm` for the
 /// transcendental ones, `core`'s `max`/`min`/`clamp`, [`crate::math`]'s activations), so generic code
