@@ -11,7 +11,7 @@ use nbrdf::builtin::Builtin;
 use nbrdf::math::PI;
 use nbrdf::measured::NbrdfNetwork;
 use nbrdf::parametric::{Disney, FresnelMicrofacet, Lambert, Parametric, Phong, TorranceSparrow};
-use nbrdf::sampling::square_to_cosine_hemisphere;
+use nbrdf::warp::square_to_cosine_hemisphere;
 use nbrdf::{Rgb, Vec3};
 
 fn dir(theta_deg: f32, phi_deg: f32) -> Vec3 {

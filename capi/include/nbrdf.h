@@ -120,8 +120,8 @@ typedef int32_t NbrdfParametricKind;
 #endif // __cplusplus
 
 // A loaded BRDF: a `.nbrdf` model, a MERL table, an NBRDF-json network, a parametric model or a
-// built-in material. Opaque; immutable once made, so one handle may be used by many threads at once.
-// Free it with [`nbrdf_free`].
+// built-in material (the core's [`AnyBrdf`]). Opaque; immutable once made, so one handle may be used
+// by many threads at once. Free it with [`nbrdf_free`].
 typedef struct NbrdfBrdf NbrdfBrdf;
 
 // What [`nbrdf_info`] reports.

@@ -3,68 +3,18 @@
 
 use std::ffi::{c_char, CStr};
 
-use nbrdf_core::builtin::Builtin;
-use nbrdf_core::file::{ModelKind, MAX_FILE_BYTES};
-use nbrdf_core::measured::merl::FILE_BYTES as MERL_BYTES;
-use nbrdf_core::measured::nbrdf_json::MAX_JSON_BYTES;
-use nbrdf_core::measured::{MerlTable, NbrdfNetwork};
-use nbrdf_core::parametric::{
-    Disney, FresnelMicrofacet, Lambert, Parametric, ParametricKind, Phong, TorranceSparrow, MAX_OBJECT, MAX_RAW,
-};
-use nbrdf_core::{Brdf, Model, ModelBuf, Prepared};
+use nbrdf_core::any::{self, AnyBrdf, Format, Kind};
+use nbrdf_core::parametric::{MAX_OBJECT, MAX_RAW};
 
 use crate::args::{bytes_of, exactly, floats_of, out_floats, parametric_kind, path_of, span};
 use crate::error::{fail, guard, NbrdfStatus, Result};
 
 /// A loaded BRDF: a `.nbrdf` model, a MERL table, an NBRDF-json network, a parametric model or a
-/// built-in material. Opaque; immutable once made, so one handle may be used by many threads at once.
-/// Free it with [`nbrdf_free`].
+/// built-in material (the core's [`AnyBrdf`]). Opaque; immutable once made, so one handle may be used
+/// by many threads at once. Free it with [`nbrdf_free`].
 pub struct NbrdfBrdf {
-    pub(crate) brdf: Source,
-    /// The prepared state of a model without point input, made once at load.
-    pub(crate) uniform: Option<Prepared>,
-}
-
-pub(crate) enum Source {
-    Model(ModelBuf),
-    /// A model over the caller's bytes, which the caller keeps alive until `nbrdf_free`.
-    Borrowed(Model<'static>),
-    Parametric(Parametric),
-    Builtin(Builtin),
-    Merl(MerlTable),
-    NbrdfJson(NbrdfNetwork),
-}
-
-impl NbrdfBrdf {
-    /// The model of a model handle.
-    pub(crate) fn model(&self) -> Option<Model<'_>> {
-        match &self.brdf {
-            Source::Model(buf) => Some(buf.model()),
-            Source::Borrowed(m) => Some(*m),
-            _ => None,
-        }
-    }
-
-    /// The BRDF of a handle that is the same at every point.
-    pub(crate) fn fixed(&self) -> Option<&(dyn Brdf + Sync)> {
-        Some(match &self.brdf {
-            Source::Parametric(p) => p,
-            Source::Builtin(b) => b,
-            Source::Merl(t) => t,
-            Source::NbrdfJson(n) => n,
-            Source::Model(_) | Source::Borrowed(_) => return None,
-        })
-    }
-
-    fn new(brdf: Source) -> Result<Self> {
-        let mut h = NbrdfBrdf { brdf, uniform: None };
-        if let Some(m) = h.model() {
-            if m.position_len() == 0 {
-                h.uniform = Some(m.prepare(&[])?);
-            }
-        }
-        Ok(h)
-    }
+    /// Borrowed model bytes live as long as the handle by `nbrdf_model_borrow`'s contract.
+    pub(crate) brdf: AnyBrdf<'static>,
 }
 
 /// What kind of BRDF a handle holds.
@@ -126,11 +76,11 @@ pub struct NbrdfInfo {
 ///
 /// # Safety
 /// `out` is null or writable.
-unsafe fn put(out: *mut *mut NbrdfBrdf, make: impl FnOnce() -> Result<Source>) -> Result<()> {
+unsafe fn put(out: *mut *mut NbrdfBrdf, make: impl FnOnce() -> Result<AnyBrdf<'static>>) -> Result<()> {
     if out.is_null() {
         return fail(NbrdfStatus::NullPointer, "out is null");
     }
-    let h = NbrdfBrdf::new(make()?)?;
+    let h = NbrdfBrdf { brdf: make()? };
     // SAFETY: non-null and writable by the caller's contract.
     unsafe { out.write(Box::into_raw(Box::new(h))) };
     Ok(())
@@ -146,19 +96,8 @@ unsafe fn put(out: *mut *mut NbrdfBrdf, make: impl FnOnce() -> Result<Source>) -
 pub unsafe extern "C" fn nbrdf_load(path: *const c_char, out: *mut *mut NbrdfBrdf) -> NbrdfStatus {
     guard(|| {
         let path = path_of(path)?;
-        let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
         // SAFETY: the caller's contract.
-        unsafe {
-            put(out, || match ext.as_str() {
-                "nbrdf" => Ok(Source::Model(ModelBuf::load(&path)?)),
-                "json" => Ok(Source::NbrdfJson(NbrdfNetwork::load(&path)?)),
-                "binary" => Ok(Source::Merl(MerlTable::read(&path)?)),
-                _ => fail(
-                    NbrdfStatus::InvalidValue,
-                    format!("{}: unknown BRDF file type (expected .nbrdf, .json or .binary)", path.display()),
-                ),
-            })
-        }
+        unsafe { put(out, || Ok(AnyBrdf::load(&path)?)) }
     })
 }
 
@@ -170,7 +109,7 @@ pub unsafe extern "C" fn nbrdf_load(path: *const c_char, out: *mut *mut NbrdfBrd
 #[no_mangle]
 pub unsafe extern "C" fn nbrdf_model_from_bytes(bytes: *const u8, len: usize, out: *mut *mut NbrdfBrdf) -> NbrdfStatus {
     // SAFETY: the caller's contract.
-    guard(|| unsafe { put(out, || Ok(Source::Model(ModelBuf::from_bytes(bytes_of(bytes, len, MAX_FILE_BYTES, "model file")?)?))) })
+    guard(|| unsafe { put(out, || Ok(AnyBrdf::from_bytes(bytes_of(bytes, len, Format::Model.max_bytes(), "model file")?, Format::Model)?)) })
 }
 
 /// A `.nbrdf` model over `len` bytes of the caller, borrowed without a copy (embedded models,
@@ -184,12 +123,12 @@ pub unsafe extern "C" fn nbrdf_model_from_bytes(bytes: *const u8, len: usize, ou
 pub unsafe extern "C" fn nbrdf_model_borrow(bytes: *const u8, len: usize, out: *mut *mut NbrdfBrdf) -> NbrdfStatus {
     guard(|| {
         // SAFETY: the caller keeps the bytes alive until nbrdf_free, which drops the handle.
-        let bytes: &'static [u8] = unsafe { bytes_of(bytes, len, MAX_FILE_BYTES, "model file")? };
+        let bytes: &'static [u8] = unsafe { bytes_of(bytes, len, Format::Model.max_bytes(), "model file")? };
         if !(bytes.as_ptr() as usize).is_multiple_of(4) {
             return fail(NbrdfStatus::Misaligned, "bytes must be 4-byte aligned to be borrowed (nbrdf_model_from_bytes copies instead)");
         }
         // SAFETY: the caller's contract.
-        unsafe { put(out, || Ok(Source::Borrowed(Model::from_bytes(bytes)?))) }
+        unsafe { put(out, || Ok(AnyBrdf::borrow_model(bytes)?)) }
     })
 }
 
@@ -200,7 +139,7 @@ pub unsafe extern "C" fn nbrdf_model_borrow(bytes: *const u8, len: usize, out: *
 #[no_mangle]
 pub unsafe extern "C" fn nbrdf_merl_from_bytes(bytes: *const u8, len: usize, out: *mut *mut NbrdfBrdf) -> NbrdfStatus {
     // SAFETY: the caller's contract.
-    guard(|| unsafe { put(out, || Ok(Source::Merl(MerlTable::from_bytes(bytes_of(bytes, len, MERL_BYTES as u64, "MERL file")?)?))) })
+    guard(|| unsafe { put(out, || Ok(AnyBrdf::from_bytes(bytes_of(bytes, len, Format::Merl.max_bytes(), "MERL file")?, Format::Merl)?)) })
 }
 
 /// An NBRDF-json network from `len` bytes of JSON text (UTF-8, no NUL needed). Thread safe.
@@ -210,7 +149,7 @@ pub unsafe extern "C" fn nbrdf_merl_from_bytes(bytes: *const u8, len: usize, out
 #[no_mangle]
 pub unsafe extern "C" fn nbrdf_nbrdf_json_from_bytes(json: *const u8, len: usize, out: *mut *mut NbrdfBrdf) -> NbrdfStatus {
     // SAFETY: the caller's contract.
-    guard(|| unsafe { put(out, || Ok(Source::NbrdfJson(NbrdfNetwork::from_json_bytes(bytes_of(json, len, MAX_JSON_BYTES as u64, "NBRDF-json file")?)?))) })
+    guard(|| unsafe { put(out, || Ok(AnyBrdf::from_bytes(bytes_of(json, len, Format::NbrdfJson.max_bytes(), "NBRDF-json file")?, Format::NbrdfJson)?)) })
 }
 
 /// A parametric model from its parameters in natural units, `n` floats in the order
@@ -229,75 +168,13 @@ pub unsafe extern "C" fn nbrdf_parametric(
 ) -> NbrdfStatus {
     guard(|| {
         let kind = parametric_kind(kind)?;
-        let want = match kind {
-            ParametricKind::Lambert => 3,
-            ParametricKind::Phong | ParametricKind::TorranceSparrow => 7,
-            ParametricKind::FresnelMicrofacet => 8,
-            ParametricKind::Disney => 12,
-        };
+        // The count is checked before the floats are read; the values by the core's one set of checks.
+        let want = any::params_of(kind).len();
         exactly(n, want, || format!("{} takes {want} parameters, got {n}", kind.id()))?;
         // SAFETY: the caller's contract; n is the model's small count.
         let v = unsafe { floats_of(params, n, "params")? };
-        if let Some(i) = v.iter().position(|x| !x.is_finite()) {
-            return fail(NbrdfStatus::InvalidValue, format!("{} parameter {i} is not finite", kind.id()));
-        }
-        let unit = |range: std::ops::Range<usize>, what: &str| -> Result<()> {
-            match v[range.clone()].iter().position(|x| !(0.0..=1.0).contains(x)) {
-                Some(i) => fail(NbrdfStatus::InvalidValue, format!("{} {what} (parameter {}) must lie in [0, 1]", kind.id(), range.start + i)),
-                None => Ok(()),
-            }
-        };
-        let positive = |i: usize, what: &str| -> Result<()> {
-            if v[i] > 0.0 {
-                Ok(())
-            } else {
-                fail(NbrdfStatus::InvalidValue, format!("{} {what} (parameter {i}) must be > 0", kind.id()))
-            }
-        };
-        let rgb = |i: usize| [v[i], v[i + 1], v[i + 2]];
-        let p = match kind {
-            ParametricKind::Lambert => {
-                unit(0..3, "kd")?;
-                Parametric::Lambert(Lambert { kd: rgb(0) })
-            }
-            ParametricKind::Phong => Parametric::Phong(Phong::new(rgb(0), rgb(3), v[6])?),
-            ParametricKind::TorranceSparrow => {
-                unit(0..6, "kd and ks")?;
-                positive(6, "alpha")?;
-                Parametric::TorranceSparrow(TorranceSparrow { kd: rgb(0), ks: rgb(3), alpha: v[6] })
-            }
-            ParametricKind::FresnelMicrofacet => {
-                unit(0..4, "rho and ks")?;
-                for (i, what) in [(4, "alpha"), (5, "beta"), (6, "eta"), (7, "norm")] {
-                    positive(i, what)?;
-                }
-                Parametric::FresnelMicrofacet(FresnelMicrofacet {
-                    rho: rgb(0),
-                    ks: v[3],
-                    alpha: v[4],
-                    beta: v[5],
-                    eta: v[6],
-                    norm: v[7],
-                })
-            }
-            ParametricKind::Disney => {
-                unit(0..12, "parameters")?;
-                Parametric::Disney(Disney {
-                    base_color: rgb(0),
-                    subsurface: v[3],
-                    metallic: v[4],
-                    specular: v[5],
-                    specular_tint: v[6],
-                    roughness: v[7],
-                    sheen: v[8],
-                    sheen_tint: v[9],
-                    clearcoat: v[10],
-                    clearcoat_gloss: v[11],
-                })
-            }
-        };
         // SAFETY: the caller's contract.
-        unsafe { put(out, || Ok(Source::Parametric(p))) }
+        unsafe { put(out, || Ok(AnyBrdf::from_params(kind, v)?)) }
     })
 }
 
@@ -328,11 +205,8 @@ pub unsafe extern "C" fn nbrdf_parametric_from_raw(
         debug_assert!(n_raw <= MAX_RAW && n_object <= MAX_OBJECT);
         // SAFETY: the caller's contract; the counts are the model's small ones.
         let (raw, object) = unsafe { (floats_of(raw, n_raw, "raw")?, floats_of(object, n_object, "object")?) };
-        if let Some(i) = raw.iter().chain(object).position(|x| !x.is_finite()) {
-            return fail(NbrdfStatus::InvalidValue, format!("{} raw value {i} is not finite", k.id()));
-        }
         // SAFETY: the caller's contract.
-        unsafe { put(out, || Ok(Source::Parametric(Parametric::from_raw(k, raw, object)))) }
+        unsafe { put(out, || Ok(AnyBrdf::from_raw(k, raw, object)?)) }
     })
 }
 
@@ -348,12 +222,8 @@ pub unsafe extern "C" fn nbrdf_builtin(id: *const c_char, out: *mut *mut NbrdfBr
         }
         // SAFETY: non-null and NUL-terminated by the caller's contract.
         let id = unsafe { CStr::from_ptr(id) }.to_string_lossy();
-        let Some(b) = Builtin::from_id(&id) else {
-            let known: Vec<&str> = Builtin::ALL.iter().map(|b| b.id()).collect();
-            return fail(NbrdfStatus::InvalidValue, format!("unknown built-in material {id:?} (known: {})", known.join(", ")));
-        };
         // SAFETY: the caller's contract.
-        unsafe { put(out, || Ok(Source::Builtin(b))) }
+        unsafe { put(out, || Ok(AnyBrdf::builtin_id(&id)?)) }
     })
 }
 
@@ -394,34 +264,15 @@ pub unsafe extern "C" fn nbrdf_info(brdf: *const NbrdfBrdf, out: *mut NbrdfInfo)
         if out.is_null() {
             return fail(NbrdfStatus::NullPointer, "out is null");
         }
-        let info = match &h.brdf {
-            Source::Model(_) | Source::Borrowed(_) => {
-                let m = h.model().expect("a model handle");
-                let object = match m.header().kind {
-                    ModelKind::Parametric(k) => k.n_object(),
-                    _ => 0,
-                };
-                NbrdfInfo {
-                    kind: NbrdfKind::Model,
-                    reciprocal: m.is_reciprocal(),
-                    position_len: m.position_len() as u32,
-                    n_parameters: (m.header().n_weights() + object) as u64,
-                }
-            }
-            Source::Merl(t) => NbrdfInfo { kind: NbrdfKind::Merl, reciprocal: true, position_len: 0, n_parameters: t.raw().len() as u64 },
-            Source::NbrdfJson(n) => {
-                let w = n.widths();
-                let params = w.windows(2).map(|p| (p[0] + 1) * p[1]).sum::<usize>();
-                NbrdfInfo { kind: NbrdfKind::NbrdfJson, reciprocal: n.is_reciprocal(), position_len: 0, n_parameters: params as u64 }
-            }
-            Source::Parametric(p) => NbrdfInfo {
-                kind: NbrdfKind::Parametric,
-                reciprocal: p.is_reciprocal(),
-                position_len: 0,
-                n_parameters: (p.kind().n_raw() + p.kind().n_object()) as u64,
-            },
-            Source::Builtin(b) => NbrdfInfo { kind: NbrdfKind::Builtin, reciprocal: b.is_reciprocal(), position_len: 0, n_parameters: 0 },
+        let i = h.brdf.info();
+        let kind = match i.kind {
+            Kind::Model => NbrdfKind::Model,
+            Kind::Merl => NbrdfKind::Merl,
+            Kind::NbrdfJson => NbrdfKind::NbrdfJson,
+            Kind::Parametric => NbrdfKind::Parametric,
+            Kind::Builtin => NbrdfKind::Builtin,
         };
+        let info = NbrdfInfo { kind, reciprocal: i.reciprocal, position_len: i.position_len as u32, n_parameters: i.n_parameters as u64 };
         // SAFETY: non-null and writable by the caller's contract.
         unsafe { out.write(info) };
         Ok(())
@@ -446,7 +297,7 @@ pub unsafe extern "C" fn nbrdf_position_features(
     guard(|| {
         // SAFETY: the caller's contract.
         let h = unsafe { handle(brdf)? };
-        let Some(m) = h.model() else {
+        let Some(m) = h.brdf.as_model() else {
             return fail(NbrdfStatus::InvalidValue, "not a model: only intrinsically encoded models have position features");
         };
         // The output length is checked against the model's before anything is read or written.
@@ -462,12 +313,9 @@ pub unsafe extern "C" fn nbrdf_position_features(
         let tri = unsafe { [*tri, *tri.add(1), *tri.add(2)] };
         // SAFETY: the caller's contract.
         let bary = unsafe { floats_of(bary, 3, "bary")? };
-        if let Some(i) = bary.iter().position(|b| !b.is_finite()) {
-            return fail(NbrdfStatus::InvalidValue, format!("bary[{i}] is {}: barycentric weights must be finite", bary[i]));
-        }
         out_floats(out, out_len, "out")?;
         let mut feat = vec![0.0f32; out_len];
-        m.position_features(tri, [bary[0], bary[1], bary[2]], &mut feat)?;
+        h.brdf.position_features(tri, [bary[0], bary[1], bary[2]], &mut feat)?;
         // SAFETY: out addresses out_len writable floats (caller's contract), aligned, checked non-null.
         unsafe { std::ptr::copy_nonoverlapping(feat.as_ptr(), out, out_len) };
         Ok(())

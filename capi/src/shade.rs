@@ -4,7 +4,7 @@
 use std::ffi::c_void;
 use std::mem::{align_of, size_of};
 
-use nbrdf_core::model::ModelAt;
+use nbrdf_core::any::At;
 use nbrdf_core::{Brdf, BsdfSample, Prepared, Vec3};
 
 use crate::args::{exactly, floats_mut, floats_of, out_floats, overlaps, span};
@@ -67,7 +67,7 @@ pub unsafe extern "C" fn nbrdf_prepare(
         // SAFETY: the caller's contract.
         let h = unsafe { handle(brdf)? };
         // The length is checked against the model's before the floats are read.
-        let want = h.model().map_or(0, |m| m.position_len());
+        let want = h.brdf.position_len();
         exactly(position_len, want, || match want {
             0 => format!("position has {position_len} floats; this BRDF takes none"),
             _ => format!("position has {position_len} floats; this model takes {want}"),
@@ -84,31 +84,11 @@ pub unsafe extern "C" fn nbrdf_prepare(
             return fail(NbrdfStatus::Misaligned, format!("storage must be {}-byte aligned (nbrdf_point_align)", align_of::<Point>()));
         }
         span(storage.cast::<u8>().cast_const(), size_of::<Point>(), "storage")?;
-        let prepared = match h.model() {
-            Some(m) => m.prepare(p)?,
-            None => Prepared::default(),
-        };
+        let prepared = h.brdf.prepare(p)?;
         // SAFETY: non-null, large enough and aligned, checked above.
         unsafe { storage.cast::<Point>().write(Point { magic: MAGIC, owner: brdf, prepared }) };
         Ok(())
     })
-}
-
-/// The BRDF of `h` at `point` (null: the BRDF is the same everywhere).
-// On the stack for one call; boxing the prepared model would allocate per call.
-#[allow(clippy::large_enum_variant)]
-enum At<'a> {
-    Fixed(&'a (dyn Brdf + Sync)),
-    Model(ModelAt<'a>),
-}
-
-impl At<'_> {
-    fn brdf(&self) -> &dyn Brdf {
-        match self {
-            At::Fixed(b) => *b,
-            At::Model(m) => m,
-        }
-    }
 }
 
 /// Resolves `point` for `h`.
@@ -132,12 +112,8 @@ unsafe fn at<'a>(h: &'a NbrdfBrdf, point: *const c_void) -> Result<At<'a>> {
         // SAFETY: written by nbrdf_prepare as a Point (magic and owner match).
         Some(unsafe { (*p).prepared })
     };
-    if let Some(b) = h.fixed() {
-        return Ok(At::Fixed(b));
-    }
-    let model = h.model().expect("a handle is fixed or a model");
-    match prepared.or(h.uniform) {
-        Some(prepared) => Ok(At::Model(ModelAt { model, prepared })),
+    match h.brdf.at_prepared(prepared.as_ref()) {
+        Some(at) => Ok(at),
         None => fail(NbrdfStatus::InvalidPoint, "this model varies over the surface: pass a point from nbrdf_prepare"),
     }
 }
@@ -171,7 +147,7 @@ pub unsafe extern "C" fn nbrdf_eval(
         // SAFETY: the caller's contract, for every pointer.
         let (b, wi, wo) = unsafe { (at(handle(brdf)?, point)?, vec3(wi, "wi")?, vec3(wo, "wo")?) };
         out_floats(rgb, 3, "rgb")?;
-        let f = b.brdf().eval(wi, wo);
+        let f = b.eval(wi, wo);
         // SAFETY: checked non-null and aligned; 3 writable floats by the caller's contract.
         unsafe { std::ptr::copy_nonoverlapping(f.as_ptr(), rgb, 3) };
         Ok(())
@@ -302,7 +278,7 @@ pub unsafe extern "C" fn nbrdf_sample(
         if out.is_null() {
             return fail(NbrdfStatus::NullPointer, "out is null");
         }
-        let s = match b.brdf().sample(wo, u.to_array()) {
+        let s = match b.sample(wo, u.to_array()) {
             Some(BsdfSample { wi, weight, pdf }) => NbrdfSample { wi: wi.to_array(), weight, pdf },
             None => NbrdfSample::default(),
         };
@@ -330,7 +306,7 @@ pub unsafe extern "C" fn nbrdf_pdf(
         // SAFETY: the caller's contract.
         let (b, wi, wo) = unsafe { (at(handle(brdf)?, point)?, vec3(wi, "wi")?, vec3(wo, "wo")?) };
         out_floats(pdf, 1, "pdf")?;
-        let p: f32 = b.brdf().pdf(wi, wo);
+        let p: f32 = b.pdf(wi, wo);
         // SAFETY: checked non-null and aligned; writable by the caller's contract.
         unsafe { pdf.write(p) };
         Ok(())

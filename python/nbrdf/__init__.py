@@ -41,6 +41,7 @@ from ._nbrdf import (
     builtin,
     disney,
     fmbrdf,
+    from_spec,
     kernel_level,
     lambert,
     merl,
@@ -139,73 +140,6 @@ def _interactive() -> bool:
         return False
 
 
-def _argv(options: Dict[str, Any]) -> List[str]:
-    """Keyword arguments as the trainer's command-line flags: ``pixel_stride=2`` -> ``--pixel-stride 2``,
-    ``True`` -> a bare flag, ``False``/``None`` -> omitted."""
-    argv = []
-    for key, value in options.items():
-        if value is None or value is False:
-            continue
-        flag = "--" + key.replace("_", "-")
-        if value is True:
-            argv.append(flag)
-        else:
-            argv += [flag, os.fspath(value) if isinstance(value, os.PathLike) else str(value)]
-    return argv
-
-
-def _floats(spec: str, rest: str, n: int) -> List[float]:
-    try:
-        values = [float(x) for x in rest.split(",")]
-    except ValueError:
-        raise ValueError(f"BRDF {spec!r}: expected {n} comma-separated numbers") from None
-    if len(values) != n:
-        raise ValueError(f"BRDF {spec!r}: expected {n} comma-separated numbers, got {len(values)}")
-    return values
-
-
-def from_spec(spec: str) -> Model:
-    """A BRDF from the path tracer's ``--brdf`` syntax: ``lambert:R,G,B``,
-    ``phong:KD_R,KD_G,KD_B,KS_R,KS_G,KS_B,N``, ``torrance-sparrow:KD×3,KS×3,ALPHA``,
-    ``fmbrdf:RHO×3,KS,ALPHA,BETA,ETA,NORM``, ``disney:BASE×3,SUBSURFACE,METALLIC,SPECULAR,SPECULAR_TINT,
-    ROUGHNESS,SHEEN,SHEEN_TINT,CLEARCOAT,CLEARCOAT_GLOSS``, ``raw:KIND:V,...``, ``builtin:ID``,
-    ``merl:FILE.binary``, ``json:FILE.json``, ``model:FILE.nbrdf``, or a file whose extension says
-    which."""
-    kind, sep, rest = spec.partition(":")
-    if not sep or (len(kind) == 1 and kind.isalpha()):  # no kind, or a Windows drive letter
-        return Model.load(spec)
-    if kind == "lambert":
-        return lambert(_floats(spec, rest, 3))
-    if kind == "phong":
-        v = _floats(spec, rest, 7)
-        return phong(v[0:3], v[3:6], v[6])
-    if kind == "torrance-sparrow":
-        v = _floats(spec, rest, 7)
-        return torrance_sparrow(v[0:3], v[3:6], v[6])
-    if kind == "fmbrdf":
-        v = _floats(spec, rest, 8)
-        return fmbrdf(v[0:3], *v[3:8])
-    if kind == "disney":
-        v = _floats(spec, rest, 12)
-        return disney(v[0:3], *v[3:12])
-    if kind == "raw":
-        pkind, sep, values = rest.partition(":")
-        if not sep:
-            raise ValueError(f"BRDF {spec!r}: expected raw:KIND:V,...")
-        v = [float(x) for x in values.split(",")]
-        n_object = 1 if pkind == "fmbrdf" else 0
-        return parametric_from_raw(pkind, v[: len(v) - n_object], v[len(v) - n_object :])
-    if kind == "builtin":
-        return builtin(rest)
-    if kind == "merl":
-        return merl(rest)
-    if kind == "json":
-        return nbrdf_json(rest)
-    if kind == "model":
-        return Model.load(rest)
-    raise ValueError(f"BRDF {spec!r}: unknown kind {kind!r}")
-
-
 def render(
     brdf: Model,
     *,
@@ -225,8 +159,8 @@ def render(
     sampling: str = "native",
 ) -> Tuple[npt.NDArray[np.float32], npt.NDArray[np.float32]]:
     """Path-traces ``mesh`` ("sphere", "torus", "grooved" or an OBJ/PLY file, scaled into the unit
-    sphere) with ``brdf``, as ``cargo run --example path_tracer`` does: a pinhole camera at ``eye``
-    looking at ``target`` (vertical field of view ``fov`` degrees), directional ``lights`` given as
+    sphere) with ``brdf``, as ``cargo run -p nbrdf-scene --example path_tracer`` does: a pinhole camera
+    at ``eye`` looking at ``target`` (vertical field of view ``fov`` degrees), directional ``lights`` given as
     ``(direction toward the light, RGB intensity)`` pairs (a list of pairs or an (L, 2, 3) array), and a constant environment ``env_color`` or a
     lat-long OpenEXR map ``env`` (+y up). ``sampling`` is "native" (the BRDF's lobes or fitted proxy) or
     "cosine". Returns the mean radiance per pixel and the variance of that mean, both
@@ -263,27 +197,28 @@ def synth(
     sigma: float = 1e-3,
     seed: int = 0,
     fov: float = 40.0,
-    light_intensity: float = 1.0,
+    light_intensity: Optional[float] = None,
+    target_median: Optional[float] = None,
     force_shadows: bool = False,
     progress: Progress = None,
 ) -> Path:
     """Renders a semi-synthetic data set (Sec. 5.3; ``trainer synth``): ``mesh`` ("sphere", "torus",
     "grooved" or an OBJ/PLY file) with the ground-truth ``material`` (a built-in id, a MERL ``.binary``,
     an NBRDF-json ``.json`` or ``lambert:R,G,B``), seen from ``views`` cameras, each lit by directional
-    lights, with Gaussian noise ``sigma``. Writes ``out/dataset.json`` with its images and returns
+    lights, with Gaussian noise ``sigma``; the lights have ``light_intensity`` (default 1), or the one
+    that exposes the object's lit pixels at median luminance ``target_median`` (docs/study.md). Writes ``out/dataset.json`` with its images and returns
     ``out``. ``progress``: by default a bar where stderr is a terminal, a display in a Jupyter
     notebook, nothing elsewhere; ``True``/``False`` force the terminal bar on or off; a callable is
     called with ``(images written, images)``. Ctrl-C (a notebook's interrupt) stops it within a
     second, leaving ``out`` as it was."""
-    options = dict(
-        out=out, mesh=mesh, material=material, size=size, views=views, train_views=train_views,
-        train_lights=train_lights, test_lights=test_lights, sigma=sigma, seed=seed, fov=fov,
-        light_intensity=light_intensity, force_shadows=force_shadows,
-    )
     bar, callback, close = _progress(progress, "synth")
-    options["quiet"] = not bar
     try:
-        return Path(_nbrdf.synth(_argv(options), callback))
+        return Path(_nbrdf.synth(
+            out, mesh=mesh, material=material, size=size, views=views, train_views=train_views,
+            train_lights=train_lights, test_lights=test_lights, sigma=sigma, seed=seed, fov=fov,
+            light_intensity=light_intensity, target_median=target_median, force_shadows=force_shadows,
+            quiet=not bar, progress=callback,
+        ))
     finally:
         close()
 
@@ -316,46 +251,48 @@ def fit(
     data: Optional[PathLike] = None,
     toy: Optional[int] = None,
     diligent: Optional[PathLike] = None,
-    object: str = "bear",
-    out: PathLike = "out",
-    steps: int = 20_000,
+    object: Optional[str] = None,
+    out: Optional[PathLike] = None,
+    steps: Optional[int] = None,
     batch: Optional[int] = None,
-    lr: float = 1e-3,
-    lr_final: float = 1e-4,
-    seed: int = 0,
-    reciprocity: str = "exact",
+    lr: Optional[float] = None,
+    lr_final: Optional[float] = None,
+    seed: Optional[int] = None,
+    reciprocity: Optional[str] = None,
     enhanced: bool = False,
-    position: str = "intrinsic:32",
+    position: Optional[str] = None,
     angle_frequencies: Optional[int] = None,
     direction_layers: Optional[int] = None,
     lambda_diffuse: Optional[float] = None,
     lambda_specular: Optional[float] = None,
-    checkpoint_every: int = 1000,
+    checkpoint_every: Optional[int] = None,
     resume: bool = False,
-    pixel_stride: int = 1,
-    cache: PathLike = "out/cache",
+    pixel_stride: Optional[int] = None,
+    cache: Optional[PathLike] = None,
     progress: Progress = None,
 ) -> FitResult:
     """Fits one model variant (Sec. 4.1; ``trainer fit``) and writes ``<variant>.nbrdf``, a checkpoint
     and a JSON log into ``out``. ``model`` is rp, ts, fmbrdf, disney, lambert, single-mlp,
     additive-separate or additive-shared; the data is a ``synth`` folder (``data``), a DiLiGenT-MV copy
     (``diligent`` and ``object``) or the analytic toy set of ``toy`` pixels. ``position`` is uniform,
-    intrinsic:K or extrinsic:F. Unset options take the trainer's defaults (``batch``: the paper's 2^15
-    colour values). ``progress``: as ``synth``'s, the callable called with ``(steps done, steps)``.
+    intrinsic:K or extrinsic:F. Unset options take ``trainer fit``'s defaults: ``object`` bear, ``out``
+    "out", 20 000 ``steps``, ``batch`` the paper's 2^15 colour values, ``lr`` 1e-3 to ``lr_final`` 1e-4,
+    ``seed`` 0, ``reciprocity`` exact, ``position`` intrinsic:32, a checkpoint every 1000 steps, every
+    pixel (``pixel_stride`` 1), ``cache`` "out/cache". ``progress``: as ``synth``'s, the callable called with ``(steps done, steps)``.
     Ctrl-C (a notebook's interrupt) stops it within a second, leaving ``out`` as it was. Returns the
     model file and the log (``FitResult``: ``load()`` the model, ``curve`` as arrays)."""
     import json
 
-    options = dict(
-        data=data, toy=toy, diligent=diligent, object=object, out=out, steps=steps, batch=batch, lr=lr,
-        lr_final=lr_final, seed=seed, model=model, reciprocity=reciprocity, enhanced=enhanced,
-        position=position, angle_frequencies=angle_frequencies, direction_layers=direction_layers,
-        lambda_diffuse=lambda_diffuse, lambda_specular=lambda_specular,
-        checkpoint_every=checkpoint_every, resume=resume, pixel_stride=pixel_stride, cache=cache,
-    )
     bar, callback, close = _progress(progress, model)
     try:
-        path, log = _nbrdf.fit(_argv(options), bar, callback)
+        path, log = _nbrdf.fit(
+            model, data=data, toy=toy, diligent=diligent, object=object, out=out, steps=steps, batch=batch,
+            lr=lr, lr_final=lr_final, seed=seed, reciprocity=reciprocity, enhanced=enhanced,
+            position=position, angle_frequencies=angle_frequencies, direction_layers=direction_layers,
+            lambda_diffuse=lambda_diffuse, lambda_specular=lambda_specular,
+            checkpoint_every=checkpoint_every, resume=resume, pixel_stride=pixel_stride, cache=cache,
+            bar=bar, progress=callback,
+        )
     finally:
         close()
     return FitResult(Path(path), json.loads(log))

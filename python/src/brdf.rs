@@ -10,6 +10,7 @@
 
 use std::ops::Range;
 use std::path::PathBuf;
+use std::sync::Arc;
 
 use numpy::PyArrayDyn;
 use pyo3::exceptions::PyValueError;
@@ -17,12 +18,10 @@ use pyo3::prelude::*;
 use pyo3::types::PyBytes;
 use rayon::prelude::*;
 
-use nbrdf::builtin::Builtin;
-use nbrdf::file::ModelKind;
-use nbrdf::measured::{MerlTable, NbrdfNetwork};
+use nbrdf::any::{self, AnyBrdf, Format};
 use nbrdf::model::ModelAt;
-use nbrdf::parametric::{Disney, FresnelMicrofacet, Lambert, Parametric, ParametricKind, Phong, TorranceSparrow};
-use nbrdf::{Brdf, BsdfSample, ModelBuf, Prepared, Vec3};
+use nbrdf::parametric::ParametricKind;
+use nbrdf::{Brdf, BsdfSample, Prepared, Vec3};
 
 use crate::arrays::{self, Input, Kind};
 use crate::error::{self, guard};
@@ -31,23 +30,14 @@ use crate::error::{self, guard};
 /// scheduling, small enough that two cores share a batch of a few thousand.
 const CHUNK: usize = 1024;
 
-pub(crate) enum Source {
-    Model(ModelBuf),
-    Parametric(Parametric),
-    Builtin(Builtin),
-    Merl(MerlTable),
-    NbrdfJson(NbrdfNetwork),
-}
-
 /// A BRDF: a fitted `.nbrdf` model, a MERL table, an NBRDF-json network, a parametric model or a
 /// built-in material. Directions are arrays of shape (3,) or (N, 3) (any real dtype, any array-like) in
 /// the local shading frame (normal +z), `wi` toward the light, `wo` toward the viewer; values are in 1/sr without the cosine,
 /// 0 below the horizon or for non-finite directions. Immutable; safe to share between threads.
 #[pyclass(frozen, module = "nbrdf")]
 pub struct Model {
-    pub(crate) source: Source,
-    /// The state of a model without point input, prepared once.
-    uniform: Option<Prepared>,
+    /// The core's BRDF, shared with the renderer without a copy.
+    pub(crate) brdf: Arc<AnyBrdf<'static>>,
     /// What it was made from, for `repr`.
     what: String,
 }
@@ -104,36 +94,14 @@ fn par_fill<T: Clone + Default + Send>(
 }
 
 impl Model {
-    pub(crate) fn new(source: Source, what: String) -> Result<Self, nbrdf::Error> {
-        let uniform = match &source {
-            Source::Model(buf) if buf.model().position_len() == 0 => Some(buf.model().prepare(&[])?),
-            _ => None,
-        };
-        Ok(Model { source, uniform, what })
-    }
-
-    /// The BRDF that is the same at every point, for everything but `.nbrdf` models.
-    pub(crate) fn fixed(&self) -> Option<&(dyn Brdf + Sync)> {
-        Some(match &self.source {
-            Source::Parametric(p) => p,
-            Source::Builtin(b) => b,
-            Source::Merl(t) => t,
-            Source::NbrdfJson(n) => n,
-            Source::Model(_) => return None,
-        })
-    }
-
-    fn position_len_(&self) -> usize {
-        match &self.source {
-            Source::Model(buf) => buf.model().position_len(),
-            _ => 0,
-        }
+    pub(crate) fn new(brdf: AnyBrdf<'static>, what: String) -> Self {
+        Model { brdf: Arc::new(brdf), what }
     }
 
     /// The `points` argument checked against the BRDF: None where it takes none, else the input.
     fn points_arg<'py>(&self, points: Option<&Bound<'py, PyAny>>) -> PyResult<Option<Input<'py>>> {
-        let k = self.position_len_();
-        let Source::Model(buf) = &self.source else {
+        let k = self.brdf.position_len();
+        let Some(model) = self.brdf.as_model() else {
             return match points {
                 None => Ok(None),
                 Some(_) => Err(PyValueError::new_err(format!("points given, but this {} is the same at every point", self.kind()))),
@@ -143,7 +111,7 @@ impl Model {
             None if k == 0 => Ok(None),
             None => Err(PyValueError::new_err(format!(
                 "this model varies over the surface: pass points ({k} values per point: {})",
-                if buf.header().n_vertices > 0 { "the intrinsic features, see position_features" } else { "the point x, y, z" }
+                if model.header().n_vertices > 0 { "the intrinsic features, see position_features" } else { "the point x, y, z" }
             ))),
             Some(_) if k == 0 => Err(PyValueError::new_err("points given, but this model is the same at every point (position_len 0)")),
             Some(p) => Ok(Some(arrays::real(p, "points")?)),
@@ -153,11 +121,10 @@ impl Model {
     /// The BRDF at each pair of a call with the leading shape `lead`: one point (a `points` with a
     /// single row) is prepared once, more are read per pair.
     fn at(&self, points: Option<&Input<'_>>, lead: &[usize]) -> PyResult<At> {
-        let Source::Model(buf) = &self.source else { return Ok(At::Same(None)) };
         Ok(match points {
-            None => At::Same(self.uniform),
+            None => At::Same(None),
             Some(p) if p.lead().iter().product::<usize>() == 1 => {
-                At::Same(Some(buf.model().prepare(&p.floats(p.lead())).map_err(error::core)?))
+                At::Same(Some(self.brdf.prepare(&p.floats(p.lead())).map_err(error::core)?))
             }
             Some(p) => At::PerPair(p.floats(lead)),
         })
@@ -165,18 +132,13 @@ impl Model {
 
     /// Runs `each(brdf, i)` for every pair `i` of `range`, with the BRDF at that pair's point.
     fn for_each(&self, at: &At, range: Range<usize>, mut each: impl FnMut(&dyn Brdf, usize)) -> Result<(), nbrdf::Error> {
-        if let Some(b) = self.fixed() {
-            range.for_each(|i| each(b, i));
-            return Ok(());
-        }
-        let Source::Model(buf) = &self.source else { unreachable!("fixed() covers the rest") };
-        let model = buf.model();
         match at {
             At::Same(p) => {
-                let brdf = ModelAt { model, prepared: p.expect("a model's uniform or given point") };
+                let brdf = self.brdf.at_prepared(p.as_ref()).expect("points_arg asks a varying model for points");
                 range.for_each(|i| each(&brdf, i));
             }
             At::PerPair(points) => {
+                let model = self.brdf.as_model().expect("points only for models");
                 let k = model.position_len();
                 let mut prepared = vec![Prepared::default(); range.len()];
                 model.prepare_many(&points[range.start * k..range.end * k], &mut prepared)?;
@@ -189,12 +151,9 @@ impl Model {
     }
 
     fn eval_pairs(&self, at: &At, wi: &[Vec3], wo: &[Vec3]) -> Result<Vec<[f32; 3]>, nbrdf::Error> {
-        par_fill(wi.len(), |r, out| match (&self.source, at) {
-            // Many pairs at one point: the packet kernels, with the bits of `eval`.
-            (Source::Model(buf), At::Same(Some(p))) => {
-                buf.model().eval_many(p, &wi[r.clone()], &wo[r], out);
-                Ok(())
-            }
+        par_fill(wi.len(), |r, out| match at {
+            // Many pairs at one point of a model: the packet kernels, with the bits of `eval`.
+            At::Same(p) if self.brdf.as_model().is_some() => self.brdf.eval_many_prepared(p.as_ref(), &wi[r.clone()], &wo[r], out),
             _ => {
                 let start = r.start;
                 self.for_each(at, r, |b, i| out[i - start] = b.eval(wi[i], wo[i]))
@@ -215,7 +174,7 @@ impl Model {
         let want3 = arrays::WANT3;
         let mut leads = vec![(a_name, a.rows_of(3, want3)?), (b_name, b.rows_of(3, want3)?)];
         if let Some(p) = &points {
-            let k = self.position_len_();
+            let k = self.brdf.position_len();
             leads.push(("points", p.rows_of(k, &format!("({k},) for one point or (N, {k}) for one per direction pair"))?));
         }
         let lead = arrays::broadcast(&leads)?;
@@ -242,13 +201,7 @@ impl Model {
     }
 
     pub(crate) fn kind(&self) -> &'static str {
-        match &self.source {
-            Source::Model(_) => "model",
-            Source::Parametric(_) => "parametric",
-            Source::Builtin(_) => "builtin",
-            Source::Merl(_) => "merl",
-            Source::NbrdfJson(_) => "nbrdf-json",
-        }
+        self.brdf.info().kind.id()
     }
 }
 
@@ -259,21 +212,8 @@ impl Model {
     #[staticmethod]
     fn load(py: Python<'_>, path: PathBuf) -> PyResult<Model> {
         guard(|| {
-            let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
             let what = path.display().to_string();
-            py.detach(|| {
-                let source = match ext.as_str() {
-                    "nbrdf" => Source::Model(ModelBuf::load(&path).map_err(error::core)?),
-                    "json" => Source::NbrdfJson(NbrdfNetwork::load(&path).map_err(error::core)?),
-                    "binary" => Source::Merl(MerlTable::read(&path).map_err(error::core)?),
-                    _ => {
-                        return Err(PyValueError::new_err(format!(
-                            "{what}: unknown BRDF file type (expected .nbrdf, .json or .binary)"
-                        )))
-                    }
-                };
-                Model::new(source, what).map_err(error::core)
-            })
+            py.detach(|| Ok(Model::new(AnyBrdf::load(&path).map_err(error::core)?, what)))
         })
     }
 
@@ -283,17 +223,12 @@ impl Model {
     #[pyo3(signature = (data, format = "nbrdf"))]
     fn from_bytes(py: Python<'_>, data: &Bound<'_, PyBytes>, format: &str) -> PyResult<Model> {
         guard(|| {
+            let Some(f) = Format::from_extension(format) else {
+                return Err(PyValueError::new_err(format!("unknown format {format:?} (expected \"nbrdf\", \"json\" or \"binary\")")));
+            };
             let bytes = data.as_bytes().to_vec();
-            let format = format.to_string();
-            py.detach(|| {
-                let source = match format.as_str() {
-                    "nbrdf" => Source::Model(ModelBuf::from_bytes(&bytes).map_err(error::core)?),
-                    "json" => Source::NbrdfJson(NbrdfNetwork::from_json_bytes(&bytes).map_err(error::core)?),
-                    "binary" => Source::Merl(MerlTable::from_bytes(&bytes).map_err(error::core)?),
-                    f => return Err(PyValueError::new_err(format!("unknown format {f:?} (expected \"nbrdf\", \"json\" or \"binary\")"))),
-                };
-                Model::new(source, format!("{} bytes of {format}", bytes.len())).map_err(error::core)
-            })
+            let what = format!("{} bytes of {format}", bytes.len());
+            py.detach(|| Ok(Model::new(AnyBrdf::from_bytes(&bytes, f).map_err(error::core)?, what)))
         })
     }
 
@@ -367,7 +302,7 @@ impl Model {
         bary: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyArrayDyn<f32>>> {
         guard(|| {
-            let Source::Model(buf) = &self.source else {
+            let Some(model) = self.brdf.as_model() else {
                 return Err(PyValueError::new_err(format!("a {} has no position features", self.kind())));
             };
             let (t, b) = (arrays::input(triangles, "triangles", Kind::Index)?, arrays::real(bary, "bary")?);
@@ -377,7 +312,6 @@ impl Model {
             ])?;
             let (tri, bary) = (t.indices(&lead)?, b.rgbs(&lead));
             let n = bary.len();
-            let model = buf.model();
             let k = model.position_len();
             let mut out = vec![0.0f32; n * k];
             py.detach(|| {
@@ -395,10 +329,7 @@ impl Model {
     /// map, MERL tables).
     #[getter]
     fn is_reciprocal(&self) -> bool {
-        match &self.source {
-            Source::Model(buf) => buf.model().is_reciprocal(),
-            _ => self.fixed().is_some_and(|b| b.is_reciprocal()),
-        }
+        self.brdf.info().reciprocal
     }
 
     /// "model", "merl", "nbrdf-json", "parametric" or "builtin".
@@ -411,75 +342,45 @@ impl Model {
     /// parametric BRDF, else None.
     #[getter]
     fn parametric_kind(&self) -> Option<&'static str> {
-        match &self.source {
-            Source::Parametric(p) => Some(p.kind().id()),
-            _ => None,
-        }
+        self.brdf.as_parametric().map(|p| p.kind().id())
     }
 
     /// Values each point input has: 0 for a BRDF that is the same everywhere, `k` for an intrinsic
     /// encoding, 3 (the point x, y, z) for an extrinsic one.
     #[getter]
     fn position_len(&self) -> usize {
-        self.position_len_()
+        self.brdf.position_len()
     }
 
     /// Whether the model's file carries a per-vertex table of intrinsic features (`position_features`).
     #[getter]
     fn has_position_table(&self) -> bool {
-        matches!(&self.source, Source::Model(buf) if buf.header().n_vertices > 0)
+        self.brdf.info().has_position_table
     }
 
     /// Stored parameters: network weights (and per-object parameters), table entries, or the model's
     /// parameters.
     #[getter]
     fn n_parameters(&self) -> usize {
-        match &self.source {
-            Source::Model(buf) => {
-                let h = buf.header();
-                let object = match h.kind {
-                    ModelKind::Parametric(k) => k.n_object(),
-                    _ => 0,
-                };
-                h.n_weights() + object
-            }
-            Source::Merl(t) => t.raw().len(),
-            Source::NbrdfJson(n) => n.widths().windows(2).map(|p| (p[0] + 1) * p[1]).sum(),
-            Source::Parametric(p) => p.kind().n_raw() + p.kind().n_object(),
-            Source::Builtin(_) => 0,
-        }
+        self.brdf.info().n_parameters
     }
 
     fn __repr__(&self) -> String {
-        let detail = match &self.source {
-            Source::Model(buf) => format!("{:?}, position_len {}", buf.header().kind, buf.model().position_len()),
-            Source::Parametric(p) => format!("{p:?}"),
-            Source::Builtin(b) => b.id().to_string(),
-            Source::Merl(_) | Source::NbrdfJson(_) => String::new(),
+        let b = &self.brdf;
+        let detail = match (b.as_model(), b.as_parametric(), b.as_builtin()) {
+            (Some(m), _, _) => format!("{:?}, position_len {}", m.header().kind, m.position_len()),
+            (_, Some(p), _) => format!("{p:?}"),
+            (_, _, Some(b)) => b.id().to_string(),
+            _ => String::new(),
         };
         let sep = if detail.is_empty() || self.what.is_empty() { "" } else { ": " };
         format!("nbrdf.Model({}: {}{sep}{detail})", self.kind(), self.what)
     }
 }
 
-/// A fixed parametric or built-in BRDF.
-fn fixed(source: Source, what: String) -> PyResult<Model> {
-    Model::new(source, what).map_err(error::core)
-}
-
-/// Checks parametric parameters: finite, the albedos in [0, 1], the positive ones > 0.
-fn check(model: &str, unit: &[(&str, &[f32])], positive: &[(&str, f32)]) -> PyResult<()> {
-    for (name, v) in unit {
-        if let Some(x) = v.iter().find(|x| !(0.0..=1.0).contains(*x)) {
-            return Err(PyValueError::new_err(format!("{model}: {name} must lie in [0, 1], got {x}")));
-        }
-    }
-    for (name, x) in positive {
-        if !(x.is_finite() && *x > 0.0) {
-            return Err(PyValueError::new_err(format!("{model}: {name} must be finite and > 0, got {x}")));
-        }
-    }
-    Ok(())
+/// A parametric model from its natural parameters, checked by the core.
+fn params(kind: ParametricKind, v: &[f32]) -> PyResult<Model> {
+    Ok(Model::new(AnyBrdf::from_params(kind, v).map_err(error::core)?, String::new()))
 }
 
 /// Loads a MERL `.binary` table (nearest-bin lookup; sampled through a proxy fitted at load).
@@ -487,7 +388,7 @@ fn check(model: &str, unit: &[(&str, &[f32])], positive: &[(&str, f32)]) -> PyRe
 pub(crate) fn merl(py: Python<'_>, path: PathBuf) -> PyResult<Model> {
     guard(|| {
         let what = path.display().to_string();
-        py.detach(|| Model::new(Source::Merl(MerlTable::read(&path).map_err(error::core)?), what).map_err(error::core))
+        py.detach(|| Ok(Model::new(AnyBrdf::load_as(&path, Format::Merl).map_err(error::core)?, what)))
     })
 }
 
@@ -496,47 +397,51 @@ pub(crate) fn merl(py: Python<'_>, path: PathBuf) -> PyResult<Model> {
 pub(crate) fn nbrdf_json(py: Python<'_>, path: PathBuf) -> PyResult<Model> {
     guard(|| {
         let what = path.display().to_string();
-        py.detach(|| Model::new(Source::NbrdfJson(NbrdfNetwork::load(&path).map_err(error::core)?), what).map_err(error::core))
+        py.detach(|| Ok(Model::new(AnyBrdf::load_as(&path, Format::NbrdfJson).map_err(error::core)?, what)))
+    })
+}
+
+/// A BRDF from a spec, the path tracer's `--brdf` syntax: `lambert:R,G,B`, `phong:KD×3,KS×3,N`,
+/// `torrance-sparrow:KD×3,KS×3,ALPHA`, `fmbrdf:RHO×3,KS,ALPHA,BETA,ETA,NORM`, `disney:` its 12 values,
+/// `raw:KIND:V,...`, `builtin:ID`, `merl:FILE`, `json:FILE`, `model:FILE`, or a `.nbrdf`, `.binary`
+/// or `.json` file (the grammar is the core's `nbrdf::any`).
+#[pyfunction]
+pub(crate) fn from_spec(py: Python<'_>, spec: &str) -> PyResult<Model> {
+    guard(|| {
+        let spec = spec.to_string();
+        py.detach(|| Ok(Model::new(AnyBrdf::from_spec(&spec).map_err(error::core)?, spec.clone())))
     })
 }
 
 /// A built-in material: "two-lobe-metal", "clear-coat" or "velvet".
 #[pyfunction]
 pub(crate) fn builtin(id: &str) -> PyResult<Model> {
-    let Some(b) = Builtin::from_id(id) else {
-        let known: Vec<&str> = Builtin::ALL.iter().map(|b| b.id()).collect();
-        return Err(PyValueError::new_err(format!("unknown built-in material {id:?} (known: {})", known.join(", "))));
-    };
-    fixed(Source::Builtin(b), String::new())
+    Ok(Model::new(AnyBrdf::builtin_id(id).map_err(error::core)?, String::new()))
 }
 
 /// Lambert: `kd` (RGB albedo in [0, 1]).
 #[pyfunction]
 pub(crate) fn lambert(kd: [f32; 3]) -> PyResult<Model> {
-    check("lambert", &[("kd", &kd)], &[])?;
-    fixed(Source::Parametric(Parametric::Lambert(Lambert { kd })), String::new())
+    params(ParametricKind::Lambert, &kd)
 }
 
 /// The energy-preserving modified Phong "RP": `kd`, `ks` (RGB, `kd + ks <= 1`), exponent `n`.
 #[pyfunction]
 pub(crate) fn phong(kd: [f32; 3], ks: [f32; 3], n: f32) -> PyResult<Model> {
-    fixed(Source::Parametric(Parametric::Phong(Phong::new(kd, ks, n).map_err(error::core)?)), String::new())
+    params(ParametricKind::Phong, &[kd[0], kd[1], kd[2], ks[0], ks[1], ks[2], n])
 }
 
 /// Torrance-Sparrow: `kd`, `ks` (RGB in [0, 1]) and the Beckmann roughness `alpha > 0`.
 #[pyfunction]
 pub(crate) fn torrance_sparrow(kd: [f32; 3], ks: [f32; 3], alpha: f32) -> PyResult<Model> {
-    check("torrance_sparrow", &[("kd", &kd), ("ks", &ks)], &[("alpha", alpha)])?;
-    fixed(Source::Parametric(Parametric::TorranceSparrow(TorranceSparrow { kd, ks, alpha })), String::new())
+    params(ParametricKind::TorranceSparrow, &[kd[0], kd[1], kd[2], ks[0], ks[1], ks[2], alpha])
 }
 
 /// The Fresnel microfacet BRDF (FMBRDF): `rho` (RGB), `ks` in [0, 1], and `alpha`, `beta`, `eta`,
 /// `norm` > 0.
 #[pyfunction]
 pub(crate) fn fmbrdf(rho: [f32; 3], ks: f32, alpha: f32, beta: f32, eta: f32, norm: f32) -> PyResult<Model> {
-    check("fmbrdf", &[("rho", &rho), ("ks", &[ks])], &[("alpha", alpha), ("beta", beta), ("eta", eta), ("norm", norm)])?;
-    let p = FresnelMicrofacet { rho, ks, alpha, beta, eta, norm };
-    fixed(Source::Parametric(Parametric::FresnelMicrofacet(p)), String::new())
+    params(ParametricKind::FresnelMicrofacet, &[rho[0], rho[1], rho[2], ks, alpha, beta, eta, norm])
 }
 
 /// Isotropic Disney (Burley 2012); every parameter in [0, 1].
@@ -556,35 +461,21 @@ pub(crate) fn disney(
     clearcoat: f32,
     clearcoat_gloss: f32,
 ) -> PyResult<Model> {
-    let scalars = [subsurface, metallic, specular, specular_tint, roughness, sheen, sheen_tint, clearcoat, clearcoat_gloss];
-    check("disney", &[("base_color", &base_color), ("every parameter", &scalars)], &[])?;
-    let d = Disney { base_color, subsurface, metallic, specular, specular_tint, roughness, sheen, sheen_tint, clearcoat, clearcoat_gloss };
-    fixed(Source::Parametric(Parametric::Disney(d)), String::new())
+    let [r, g, b] = base_color;
+    params(
+        ParametricKind::Disney,
+        &[r, g, b, subsurface, metallic, specular, specular_tint, roughness, sheen, sheen_tint, clearcoat, clearcoat_gloss],
+    )
 }
 
 /// A parametric model from raw network outputs, as a parametric `.nbrdf` model's network predicts
 /// them (docs/models.md: each raw value is mapped into its parameter's range, so any finite value is
-/// valid): `kind` is "lambert", "phong", "torrance-sparrow", "fmbrdf" or "disney".
+/// valid): `kind` is "lambert", "phong", "torrance-sparrow", "fmbrdf" or "disney" (or "rp", "ts").
 #[pyfunction]
 #[pyo3(signature = (kind, raw, object = Vec::new()))]
 pub(crate) fn parametric_from_raw(kind: &str, raw: Vec<f32>, object: Vec<f32>) -> PyResult<Model> {
-    let k = ParametricKind::from_id(kind).ok_or_else(|| {
-        let known: Vec<&str> = ParametricKind::ALL.iter().map(|k| k.id()).collect();
-        PyValueError::new_err(format!("unknown parametric kind {kind:?} (known: {})", known.join(", ")))
-    })?;
-    if raw.len() != k.n_raw() || object.len() != k.n_object() {
-        return Err(PyValueError::new_err(format!(
-            "{kind} takes {} raw values and {} object parameters, got {} and {}",
-            k.n_raw(),
-            k.n_object(),
-            raw.len(),
-            object.len()
-        )));
-    }
-    if raw.iter().chain(&object).any(|x| !x.is_finite()) {
-        return Err(PyValueError::new_err(format!("{kind}: raw values must be finite")));
-    }
-    fixed(Source::Parametric(Parametric::from_raw(k, &raw, &object)), String::new())
+    let k = any::parametric_kind(kind).map_err(error::core)?;
+    Ok(Model::new(AnyBrdf::from_raw(k, &raw, &object).map_err(error::core)?, String::new()))
 }
 
 /// The dense-layer kernel level in use ("avx512", "avx2", "neon" or "portable"); `NBRDF_KERNEL` set to

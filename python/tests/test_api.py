@@ -224,7 +224,7 @@ def test_synth_fit_and_compare(tmp_path):
         nbrdf.fit("lambert", out=tmp_path / "x", progress=False)
     with pytest.raises(FileNotFoundError):
         nbrdf.fit("lambert", data=tmp_path / "nowhere", position="uniform", out=tmp_path / "x", progress=False)
-    with pytest.raises(ValueError, match="--size"):
+    with pytest.raises(ValueError, match="^size 0: allowed"):  # named as the keyword argument
         nbrdf.synth(tmp_path / "bad", size=0, progress=False)
 
     # The study's metrics: identical renderings score perfectly, a brighter one worse on each.
