@@ -1,5 +1,7 @@
 //! File-system helpers shared by every writer and reader (feature `std`): atomic writes and reads whose
-//! errors name the path.
+//! errors name the path, and the names of their temporary files (`.nbrdf-tmp-<pid>-…`) with the removal
+//! of those a crashed process left behind. std only: `nbrdf-scene`'s image writers and the trainer's
+//! staging build on these.
 
 use std::path::Path;
 use std::vec::Vec;
@@ -79,21 +81,63 @@ where
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
     };
-    let mut builder = tempfile::Builder::new();
-    // The pid in the name lets a later run tell a crashed writer's leftover from a live one's.
-    let prefix = temp_prefix();
-    builder.prefix(&prefix);
-    // tempfile's default mode is 0600; a data file gets the usual 0666 minus the umask instead.
-    #[cfg(unix)]
-    builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
-    let mut tmp = builder.tempfile_in(dir).map_err(|e| Error::io(dir, &e))?;
+    let (tmp_path, mut file) = create_temp(dir)?;
+    // Removes the temporary file on every early return below; disarmed once it has been renamed.
+    let tmp = RemoveOnDrop(Some(tmp_path));
     {
-        let mut w = std::io::BufWriter::new(tmp.as_file_mut());
+        let mut w = std::io::BufWriter::new(&mut file);
         fill(&mut w).and_then(|_| std::io::Write::flush(&mut w)).map_err(|e| Error::io(path, &e))?;
     }
-    tmp.as_file().sync_all().map_err(|e| Error::io(path, &e))?;
-    tmp.persist(path).map_err(|e| Error::io(path, &e.error))?;
-    Ok(())
+    file.sync_all().map_err(|e| Error::io(path, &e))?;
+    // Closed before the rename, which some platforms refuse on an open file.
+    drop(file);
+    tmp.persist(path)
+}
+
+/// A new, empty file of a unique name `<temp_prefix()><16 hex digits>` in `dir`, created exclusively
+/// (never an existing file or a link followed), mode 0666 minus the umask on Unix like any data file.
+/// The digits come from std's randomly keyed hasher, fresh for every try; a name that is taken is
+/// tried again with new digits.
+fn create_temp(dir: &Path) -> Result<(std::path::PathBuf, std::fs::File), Error> {
+    use std::hash::{BuildHasher, Hasher};
+    // The pid in the name lets a later run tell a crashed writer's leftover from a live one's.
+    let prefix = temp_prefix();
+    let mut tries = 0;
+    loop {
+        let digits = std::hash::RandomState::new().build_hasher().finish();
+        let p = dir.join(std::format!("{prefix}{digits:016x}"));
+        let mut options = std::fs::OpenOptions::new();
+        options.write(true).create_new(true);
+        #[cfg(unix)]
+        std::os::unix::fs::OpenOptionsExt::mode(&mut options, 0o666);
+        match options.open(&p) {
+            Ok(file) => return Ok((p, file)),
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists && tries < 64 => tries += 1,
+            Err(e) => return Err(Error::io(dir, &e)),
+        }
+    }
+}
+
+/// A temporary file that is removed when dropped, unless [`persist`](Self::persist) renamed it.
+struct RemoveOnDrop(Option<std::path::PathBuf>);
+
+impl RemoveOnDrop {
+    /// Renames the file over `path` (replacing a file there); on failure it is removed.
+    fn persist(mut self, path: &Path) -> Result<(), Error> {
+        if let Some(tmp) = &self.0 {
+            std::fs::rename(tmp, path).map_err(|e| Error::io(path, &e))?;
+        }
+        self.0 = None;
+        Ok(())
+    }
+}
+
+impl Drop for RemoveOnDrop {
+    fn drop(&mut self) {
+        if let Some(p) = self.0.take() {
+            let _ = std::fs::remove_file(p);
+        }
+    }
 }
 
 /// Prefix of every temporary file or folder this process creates beside an output:

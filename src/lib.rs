@@ -3,7 +3,8 @@
 //! Embeddable evaluation of the neural and parametric BRDFs compared in *On Neural BRDFs: A Thorough
 //! Comparison of State-of-the-Art Approaches* (the paper). The crate is `#![no_std]` and evaluates every
 //! model with fixed-size stack arrays and no allocation; the `alloc` feature adds readers that own their
-//! data (MERL tables, NBRDF-json networks), `std` adds files, scenes and images.
+//! data (MERL tables, NBRDF-json networks), `std` adds files (loading from a path, bounded reads, atomic
+//! writes). Meshes, cameras, the renderers and images are the `nbrdf-scene` crate, built on this one.
 //!
 //! Evaluation has one arithmetic, f32. f16 model files are a storage format (half the weight bytes):
 //! [`ModelBuf`] (`alloc`) widens their weights to f32 once at load and evaluates those, while a
@@ -30,6 +31,8 @@ extern crate alloc;
 #[cfg(feature = "std")]
 extern crate std;
 
+#[cfg(feature = "alloc")]
+pub mod any;
 pub mod angles;
 pub mod brdf;
 pub mod builtin;
@@ -37,23 +40,22 @@ pub mod encoding;
 pub mod error;
 pub mod file;
 #[cfg(feature = "std")]
-pub mod image;
-#[cfg(feature = "std")]
 pub mod io;
 pub mod math;
 #[cfg(feature = "alloc")]
 pub mod measured;
 pub mod kernels;
+pub mod microfacet;
 pub mod mlp;
 pub mod model;
 pub mod neural;
 pub mod parametric;
-#[cfg(feature = "std")]
-pub mod pathtrace;
+pub mod real;
 pub mod sampling;
-#[cfg(feature = "std")]
-pub mod scene;
+pub mod warp;
 
+#[cfg(feature = "alloc")]
+pub use any::AnyBrdf;
 pub use brdf::{Brdf, BsdfSample};
 pub use error::Error;
 pub use glam::Vec3;

@@ -8,6 +8,9 @@
 //! (`pub use model::{Model, …}` in lib.rs counts as `model`). Skipped: comment lines (trimmed start
 //! `//`, doc comments and their examples included) and `#[cfg(…test…)] mod tests { … }` blocks (their
 //! braces counted). Module roots reach their siblings through `crate::` only (never `super::`).
+//!
+//! And the core's edge: meshes, renderers and images are the `nbrdf-scene` crate's (scene/), neither
+//! modules of the core nor crates it depends on.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -111,5 +114,34 @@ fn the_top_level_modules_import_each_other_without_a_cycle() {
             let lines: Vec<String> = g.iter().map(|(m, to)| format!("  {m} -> {to:?}")).collect();
             panic!("import cycle: {}\nmodule graph:\n{}", c.join(" -> "), lines.join("\n"));
         }
+    }
+}
+
+/// The names of the core's `[dependencies]` (Cargo.toml), whatever feature turns them on.
+fn core_dependencies() -> BTreeSet<String> {
+    let manifest = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("Cargo.toml")).unwrap();
+    let section = manifest.split("\n[dependencies]\n").nth(1).expect("a [dependencies] table");
+    let body = section.split("\n[").next().unwrap();
+    body.lines()
+        .map(str::trim)
+        .filter(|l| !l.is_empty() && !l.starts_with('#'))
+        .filter_map(|l| l.split_once('=').map(|(name, _)| name.trim().to_string()))
+        .collect()
+}
+
+/// The core is what a renderer links: meshes, the BVH, images, threads, random numbers and temporary
+/// files are the `nbrdf-scene` crate's (scene/), never dependencies of the core under any feature, and
+/// its `scene`, `pathtrace` and `image` modules are that crate's too.
+#[test]
+fn the_core_holds_no_scene_and_depends_on_no_scene_crate() {
+    let deps = core_dependencies();
+    assert!(deps.contains("glam") && deps.contains("postcard"), "the scan finds the core's dependencies: {deps:?}");
+    let scene_crates = ["tobj", "ply-rs-bw", "obvhs", "obvhs-glam", "exr", "image", "rayon", "tempfile", "rand",
+                        "rand_chacha", "rand_distr", "bvh", "nalgebra"];
+    let found: Vec<&str> = scene_crates.into_iter().filter(|c| deps.contains(*c)).collect();
+    assert!(found.is_empty(), "the core depends on {found:?}, which belong to nbrdf-scene (scene/Cargo.toml)");
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    for m in ["scene", "pathtrace", "image"] {
+        assert!(!src.join(m).exists() && !src.join(format!("{m}.rs")).exists(), "src/{m} is nbrdf-scene's (scene/src/{m})");
     }
 }

@@ -4,7 +4,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use nbrdf::scene::Mesh;
+use nbrdf_scene::scene::Mesh;
 
 fn check(m: &Mesh) {
     assert!(!m.triangles.is_empty());

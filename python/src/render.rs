@@ -1,5 +1,5 @@
-//! The core's path tracer and meshes from Python: `render` draws one mesh with a BRDF the way
-//! `examples/path_tracer.rs` does (and returns each pixel's Monte Carlo variance, so that renderings
+//! The path tracer and meshes of `nbrdf-scene` from Python: `render` draws one mesh with a BRDF the way
+//! `scene/examples/path_tracer.rs` does (and returns each pixel's Monte Carlo variance, so that renderings
 //! of other renderers can be compared within their error), `mesh` hands the same triangles to
 //! another renderer.
 
@@ -10,12 +10,12 @@ use numpy::{IntoPyArray, PyArray2, PyArray3};
 use pyo3::exceptions::{PyOverflowError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 
-use nbrdf::pathtrace::{render as trace, Environment, Material, Options, Sampling, Scene, MAX_DEPTH, MAX_SPP};
-use nbrdf::scene::{builtin::BuiltinMesh, Camera, DirectionalLight, Geometry, Mesh};
-use nbrdf::{ModelBuf, Vec3};
+use nbrdf_scene::pathtrace::{render as trace, Environment, Material, Options, Sampling, Scene, MAX_DEPTH, MAX_SPP};
+use nbrdf_scene::scene::{builtin::BuiltinMesh, Camera, DirectionalLight, Geometry, Mesh};
+use nbrdf::Vec3;
 
 use crate::arrays;
-use crate::brdf::{Model, Source};
+use crate::brdf::Model;
 use crate::error::{self, guard};
 
 /// A built-in mesh id as it is, a file scaled into the unit sphere (as the path tracer example does).
@@ -26,15 +26,9 @@ fn load_mesh(spec: &str) -> Result<Mesh, nbrdf::Error> {
     }
 }
 
-/// A material of the renderer from a BRDF (models are copied: the renderer owns its material).
+/// A material of the renderer from a BRDF (shared, not copied).
 fn material(brdf: &Model) -> Result<Material, nbrdf::Error> {
-    Ok(match &brdf.source {
-        Source::Model(buf) => Material::model(ModelBuf::from_bytes(buf.as_bytes())?)?,
-        Source::Parametric(p) => Material::parametric(*p),
-        Source::Builtin(b) => Material::builtin(*b),
-        Source::Merl(t) => Material::merl(t.clone()),
-        Source::NbrdfJson(n) => Material::nbrdf_json(n.clone()),
-    })
+    Material::new(brdf.brdf.clone())
 }
 
 /// The vertices (V, 3) float32, unit vertex normals (V, 3) float32 and counter-clockwise triangles

@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-use nbrdf::image::{srgb_decode, write_exr, write_png_mask, RgbImage};
+use nbrdf_scene::image::{srgb_decode, write_exr, write_png_mask, RgbImage};
 
 const W: u32 = 48;
 const H: u32 = 40;

@@ -158,8 +158,8 @@ fn synth_and_inspect_name_the_file_the_field_and_the_value() {
     });
     let missing = variant("missing-exr", &|dir| std::fs::remove_file(dir.join("views/01/001.exr")).unwrap());
     let small = variant("small-exr", &|dir| {
-        let img = nbrdf::image::RgbImage::from_data(8, 8, vec![[0.1; 3]; 64]).unwrap();
-        nbrdf::image::write_exr(dir.join("views/01/000.exr"), &img).unwrap();
+        let img = nbrdf_scene::image::RgbImage::from_data(8, 8, vec![[0.1; 3]; 64]).unwrap();
+        nbrdf_scene::image::write_exr(dir.join("views/01/000.exr"), &img).unwrap();
     });
     for (dir, names) in [
         (&not_utf8, vec!["dataset.json", "UTF-8"]),
@@ -352,9 +352,9 @@ fn non_finite_pixels_are_counted() {
     tiny_data_set(&ds);
     // Every pixel of view 1's first image (view 1 trains) becomes NaN, and one of its second image inf.
     let first = ds.join("views/01/000.exr");
-    let mut img = nbrdf::image::read_exr(&first).unwrap();
+    let mut img = nbrdf_scene::image::read_exr(&first).unwrap();
     img.data.iter_mut().for_each(|p| *p = [f32::NAN; 3]);
-    nbrdf::image::write_exr(&first, &img).unwrap();
+    nbrdf_scene::image::write_exr(&first, &img).unwrap();
     let out = tmp.path().join("fit");
     let r = Command::new(env!("CARGO_BIN_EXE_trainer"))
         .args(["fit", "--model", "lambert", "--position", "uniform", "--steps", "2", "--batch", "32", "--data"])
@@ -390,10 +390,10 @@ fn a_model_records_its_mesh_and_refuses_another() {
         .unwrap();
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     let buf = nbrdf::ModelBuf::load(out.join("lambert.nbrdf")).unwrap();
-    let sphere = nbrdf::scene::builtin::BuiltinMesh::Sphere.mesh();
+    let sphere = nbrdf_scene::scene::builtin::BuiltinMesh::Sphere.mesh();
     assert_eq!(buf.header().n_vertices as usize, sphere.positions.len());
     assert_eq!(buf.header().mesh_hash, Some(sphere.content_hash()));
-    let material = nbrdf::pathtrace::Material::model(buf).unwrap();
+    let material = nbrdf_scene::pathtrace::Material::model(buf).unwrap();
     material.check_mesh(&sphere).unwrap();
     let mut moved = sphere.clone();
     moved.positions[0] *= 0.9;

@@ -778,7 +778,7 @@ fn fit_with_intrinsic_32_runs_on_a_scan_with_islands_and_non_manifold_edges() {
     let buf = nbrdf::ModelBuf::load(&model).unwrap();
     let header = *buf.model().header();
     // One row per vertex of the mesh as loaded (the loader may drop the trailing unreferenced one).
-    let loaded = nbrdf::scene::Mesh::load(&obj).unwrap();
+    let loaded = nbrdf_scene::scene::Mesh::load(&obj).unwrap();
     assert_eq!(header.n_vertices as usize, loaded.positions.len());
     assert!(loaded.positions.len() >= scan.positions.len() - 1);
     assert!(matches!(header.position, nbrdf::file::PositionEncoding::Intrinsic { k: 32 }), "{:?}", header.position);

@@ -61,12 +61,12 @@ fn tiny_study_writes_every_table_and_reuses_jobs() {
         // The curve's last PSNR is the evaluation's: the same renderings, scored the same way.
         let last = r.curve.last().unwrap().test_psnr.unwrap();
         assert!((last - e.image.psnr).abs() < 1e-6, "{}: curve {last} vs evaluation {}", r.model, e.image.psnr);
-        // The data set was exposed like a capture: the configured median luminance unless that would
-        // saturate more than 2 % of the object (both measured on one view's probe, so the whole data
-        // set lands near, not on, the bound).
+        // The data set was exposed like a capture: the lit pixels' median at the configured value
+        // unless that would clip more than 10 % of them (both measured on a probe of four views, so the
+        // whole data set lands near, not on, the bound).
         let x = r.exposure.expect("synth records the exposure");
         assert!(x.median_luminance > 0.01 && x.median_luminance < 0.3, "{}: {x:?}", r.model);
-        assert!(x.saturated_share < 0.06, "{x:?}");
+        assert!(x.saturated_share < 0.15, "{x:?}");
         assert!(e.eval_ns_per_query > 0.0 && r.size_bytes > 0 && r.train_wall_s > 0.0);
         assert!(e.eval_batch_ns_per_query.is_some_and(|ns| ns > 0.0), "{}: batched timing", r.model);
         // Neural models also get an f16 copy: smaller, and close to the f32 one in quality.

@@ -14,7 +14,7 @@
 
 use std::path::{Path, PathBuf};
 
-use nbrdf::image::{read_exr, read_mask, RgbImage};
+use nbrdf_scene::image::{read_exr, read_mask, RgbImage};
 use serde::Serialize;
 
 use crate::metrics::{ssim, ImageMetrics, Lpips, MaybeMetric, PreparedReference};

@@ -30,7 +30,7 @@ pub struct TrainingData {
 pub struct PositionTable {
     /// `n_vertices × k`, row-major.
     pub values: Vec<f32>,
-    /// [`nbrdf::scene::Mesh::content_hash`] of the mesh (as loaded for the fit), recorded in the file
+    /// [`nbrdf_scene::scene::Mesh::content_hash`] of the mesh (as loaded for the fit), recorded in the file
     /// so that a renderer refuses the table on another mesh.
     pub mesh_hash: u64,
 }

@@ -15,7 +15,7 @@
 use std::path::{Path, PathBuf};
 
 use glam::Mat3;
-use nbrdf::scene::{Camera, DirectionalLight, Geometry, Mesh};
+use nbrdf_scene::scene::{Camera, DirectionalLight, Geometry, Mesh};
 use nbrdf::{Error, Vec3};
 
 use super::{err, Dataset, ImageRef, ImageSource, Split, View};
@@ -131,7 +131,7 @@ pub fn open(root: &Path, object: &str) -> Result<Dataset, Error> {
     let geometry = Geometry::new(mesh)?;
     let mut views = Vec::with_capacity(view_dirs.len());
     for (vi, vd) in view_dirs.iter().enumerate() {
-        let (w, h, mask) = nbrdf::image::read_mask(vd.join("mask.png"))?;
+        let (w, h, mask) = nbrdf_scene::image::read_mask(vd.join("mask.png"))?;
         let camera = Camera::new(w, h, calib.k, calib.r[vi], calib.t[vi])?;
         let dirs = read_table(&vd.join("light_directions.txt"), 3)?;
         let ints = read_table(&vd.join("light_intensities.txt"), 3)?;

@@ -13,9 +13,9 @@ pub mod synth;
 
 use std::path::{Path, PathBuf};
 
-use nbrdf::image::RgbImage;
-use nbrdf::scene::builtin::BuiltinMesh;
-use nbrdf::scene::{Camera, DirectionalLight, Geometry, Mesh};
+use nbrdf_scene::image::RgbImage;
+use nbrdf_scene::scene::builtin::BuiltinMesh;
+use nbrdf_scene::scene::{Camera, DirectionalLight, Geometry, Mesh};
 use nbrdf::Error;
 use serde::{Deserialize, Serialize};
 
@@ -72,9 +72,9 @@ impl ImageRef {
     /// Reads the radiance (linear RGB).
     pub fn load(&self) -> Result<RgbImage, Error> {
         match &self.source {
-            ImageSource::Exr(p) => nbrdf::image::read_exr(p),
+            ImageSource::Exr(p) => nbrdf_scene::image::read_exr(p),
             ImageSource::DiligentPng { path, intensity } => {
-                let mut img = nbrdf::image::read_png(path)?;
+                let mut img = nbrdf_scene::image::read_png(path)?;
                 for px in &mut img.data {
                     for k in 0..3 {
                         px[k] /= intensity[k];
@@ -124,13 +124,13 @@ pub fn mesh_spec(arg: &str) -> spec::MeshSpec {
 
 /// Loads the mesh of a spec (relative paths against `base`) and normalises file meshes into the unit
 /// sphere.
-pub fn load_mesh(spec: &spec::MeshSpec, base: &Path) -> Result<(Mesh, nbrdf::scene::Normalization), Error> {
+pub fn load_mesh(spec: &spec::MeshSpec, base: &Path) -> Result<(Mesh, nbrdf_scene::scene::Normalization), Error> {
     match spec {
         spec::MeshSpec::Builtin { id } => {
             let m = BuiltinMesh::from_id(id).ok_or_else(|| {
                 err("mesh", format!("unknown built-in mesh '{id}' (known: sphere, torus, grooved)"))
             })?;
-            Ok((m.mesh(), nbrdf::scene::Normalization { center: nbrdf::Vec3::ZERO, scale: 1.0 }))
+            Ok((m.mesh(), nbrdf_scene::scene::Normalization { center: nbrdf::Vec3::ZERO, scale: 1.0 }))
         }
         spec::MeshSpec::File { path } => {
             let p = if path.is_absolute() { path.clone() } else { base.join(path) };
@@ -152,7 +152,7 @@ impl Dataset {
         for (i, v) in file.views.iter().enumerate() {
             let at = |field: &str| format!("{}: views[{i}].{field}", description.display());
             let camera = v.camera(file.width, file.height).map_err(|e| e.context(at("K/R/t (camera)")))?;
-            let (w, h, mask) = nbrdf::image::read_mask(dir.join(&v.mask))?;
+            let (w, h, mask) = nbrdf_scene::image::read_mask(dir.join(&v.mask))?;
             if (w, h) != (file.width, file.height) {
                 return Err(err(
                     "data set mask",

@@ -2,10 +2,10 @@
 //!
 //! Each pixel ray of a view is cast once; for every image the hit gets the light's visibility `I_s`
 //! (Eq. 9, the renderer's own [`visibility`]) and the pair `(l, v)` goes into the frame of
-//! [`Frame::from_normal`](nbrdf::scene::Frame::from_normal) of the interpolated normal, here and
+//! [`Frame::from_normal`](nbrdf_scene::scene::Frame::from_normal) of the interpolated normal, here and
 //! nowhere else (DESIGN.md, "How data flows", step 2).
 
-use nbrdf::scene::render::{visibility, GBuffer, Visibility};
+use nbrdf_scene::scene::render::{visibility, GBuffer, Visibility};
 use nbrdf::{Error, Rgb};
 use rayon::prelude::*;
 

@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use nbrdf::scene::{Camera, DirectionalLight};
+use nbrdf_scene::scene::{Camera, DirectionalLight};
 use nbrdf::{Error, Vec3};
 use serde::{Deserialize, Serialize};
 
@@ -19,7 +19,7 @@ pub const VERSION: u32 = 1;
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "kebab-case")]
 pub enum MeshSpec {
-    /// A procedural mesh of `nbrdf::scene::builtin`.
+    /// A procedural mesh of `nbrdf_scene::scene::builtin`.
     Builtin {
         /// Its id (`sphere`, `torus`, `grooved`).
         id: String,
@@ -136,9 +136,9 @@ pub const SATURATED: f32 = 1.0;
 pub struct ExposureSpec {
     /// Light intensity `L_i` every image was rendered with.
     pub light_intensity: f32,
-    /// Median Rec. 709 luminance of the object's pixels (noise included).
+    /// Median Rec. 709 luminance of the object's lit pixels (those a light reaches; noise included).
     pub median_luminance: f32,
-    /// Share (0-1) of object pixels with a channel at or above [`SATURATED`].
+    /// Share (0-1) of the object's lit pixels with a channel at or above [`SATURATED`].
     pub saturated_share: f64,
 }
 

@@ -8,7 +8,7 @@
 //! (a white Lambertian surface, a saturated RP) is not reported as a violation. The naive share
 //! (`estimate > 1`) is reported too, for comparison with the paper's numbers.
 
-use nbrdf::sampling::square_to_cosine_hemisphere;
+use nbrdf::warp::square_to_cosine_hemisphere;
 use nbrdf::{Rgb, Vec3};
 use rand::seq::index;
 use rand::{RngExt, SeedableRng};

@@ -12,7 +12,7 @@
 //! with positive luminance only; see [`exposure_range`].
 
 use flip_rs::{HdrOptions, Tonemapper, DEFAULT_PPD};
-use nbrdf::image::RgbImage;
+use nbrdf_scene::image::RgbImage;
 
 use super::{check_pair, equalize_background, Mask};
 

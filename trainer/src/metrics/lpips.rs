@@ -18,7 +18,7 @@
 use std::path::{Path, PathBuf};
 
 use candle_core::{DType, Device, Tensor};
-use nbrdf::image::RgbImage;
+use nbrdf_scene::image::RgbImage;
 
 use super::check_pair;
 

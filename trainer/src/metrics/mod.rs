@@ -26,7 +26,7 @@ pub mod ssim;
 
 use std::fmt;
 
-use nbrdf::image::{srgb_encode, RgbImage};
+use nbrdf_scene::image::{srgb_encode, RgbImage};
 use serde::{Deserialize, Serialize};
 
 pub use self::lpips::Lpips;
@@ -50,7 +50,7 @@ pub(crate) fn check_pair(a: &RgbImage, b: &RgbImage, mask: Mask<'_>) {
     }
 }
 
-/// Linear RGB to sRGB-encoded values in [0, 1] (IEC 61966-2-1 via `nbrdf::image::srgb_encode`, which
+/// Linear RGB to sRGB-encoded values in [0, 1] (IEC 61966-2-1 via `nbrdf_scene::image::srgb_encode`, which
 /// clamps), the space the paper evaluates PSNR, DSSIM and LPIPS in.
 pub fn to_srgb(linear: &RgbImage) -> RgbImage {
     RgbImage {

@@ -1,7 +1,7 @@
 //! Peak signal-to-noise ratio of a test image against a reference (paper Sec. 6, Tab. 1), computed on the
 //! sRGB-encoded renderings with peak value 1.
 
-use nbrdf::image::RgbImage;
+use nbrdf_scene::image::RgbImage;
 
 use super::{check_pair, Mask};
 
@@ -13,7 +13,7 @@ use super::{check_pair, Mask};
 /// improve with the amount of black background around the object.
 ///
 /// ```
-/// use nbrdf::image::RgbImage;
+/// use nbrdf_scene::image::RgbImage;
 /// use trainer::metrics::psnr::psnr;
 /// let a = RgbImage::from_data(2, 1, vec![[0.5; 3], [0.5; 3]]).unwrap();
 /// let b = RgbImage::from_data(2, 1, vec![[0.6; 3], [0.4; 3]]).unwrap();

@@ -8,7 +8,7 @@
 //! filtering, as the authors' MATLAB `ssim_index.m` and scikit-image's crop of the border), so no padding
 //! rule enters the value.
 
-use nbrdf::image::RgbImage;
+use nbrdf_scene::image::RgbImage;
 
 use super::{check_pair, Mask};
 
@@ -30,7 +30,7 @@ pub const K2: f64 = 0.03;
 /// image is smaller than the window or the mask keeps no window centre.
 ///
 /// ```
-/// use nbrdf::image::RgbImage;
+/// use nbrdf_scene::image::RgbImage;
 /// use trainer::metrics::ssim::{dssim, ssim};
 /// let img = RgbImage::from_data(16, 16, (0..256).map(|i| [(i % 7) as f32 / 7.0; 3]).collect()).unwrap();
 /// assert!((ssim(&img, &img, None) - 1.0).abs() < 1e-12);

@@ -76,7 +76,7 @@ impl ModelSpec {
 
 /// Whether `model` names a parametric model (no reciprocity strategy, no direction layers).
 pub fn is_parametric(model: &str) -> bool {
-    matches!(model, "rp" | "phong" | "ts" | "torrance-sparrow" | "fmbrdf" | "fresnel-microfacet" | "disney" | "lambert")
+    nbrdf::parametric::ParametricKind::from_name(model).is_some()
 }
 
 /// Every variant of the paper's Tabs. 1–3: the nine of Tab. 1 (the study's reciprocity strategy for the

@@ -19,10 +19,10 @@
 use std::time::Instant;
 
 use nbrdf::ModelBuf;
-use nbrdf::image::{read_exr, RgbImage};
+use nbrdf_scene::image::{read_exr, RgbImage};
 use nbrdf::model::{Model, Prepared};
-use nbrdf::scene::render::{render_view, RenderOptions, RenderedView, SurfaceSample};
-use nbrdf::scene::DirectionalLight;
+use nbrdf_scene::scene::render::{render_view, RenderOptions, RenderedView, SurfaceSample};
+use nbrdf_scene::scene::DirectionalLight;
 use nbrdf::{Rgb, Vec3};
 use serde::{Deserialize, Serialize};
 

@@ -2,12 +2,12 @@
 //! next to the model's rendering with the HDR-FLIP error map.
 //!
 //! Plots are drawn by `plotters` into an in-memory RGB buffer and written as PNG by the core's atomic
-//! writer (`nbrdf::image::write_png_rgb8`), like the study's other outputs.
+//! writer (`nbrdf_scene::image::write_png_rgb8`), like the study's other outputs.
 
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
-use nbrdf::image::{srgb8, write_png_rgb8, RgbImage};
+use nbrdf_scene::image::{srgb8, write_png_rgb8, RgbImage};
 use plotters::prelude::*;
 use serde::Serialize;
 

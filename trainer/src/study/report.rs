@@ -398,7 +398,7 @@ pub fn markdown(
         let _ = writeln!(
             md,
             "**Reduced scale, not the paper's numbers.** {} steps at batch {} on {}² images (paper: 20k steps at 2^15 values on 256² \
-             renders of 25 meshes × 9 MERL materials): no model is converged and {} objects are a small sample, so compare \
+             renders of 25 MERL materials on 9 meshes): no model is converged and {} objects are a small sample, so compare \
              rankings and differences, not values; the tables show that every measurement of Sec. 6 runs end to end and how the \
              variants compare at this budget.\n",
             config.steps,
@@ -499,7 +499,7 @@ pub fn markdown(
         .filter_map(|sc| {
             let e = results.iter().find(|r| r.scene == sc.id())?.exposure?;
             Some(format!(
-                "{}: light intensity {:.3}, median object luminance {:.3}, {:.1} % of object pixels saturated",
+                "{}: light intensity {:.3}, median luminance of the lit object pixels {:.3}, {:.1} % of them saturated",
                 sc.label(),
                 e.light_intensity,
                 e.median_luminance,

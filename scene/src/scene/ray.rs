@@ -1,6 +1,6 @@
 //! Rays and ray–triangle hits.
 
-use crate::Vec3;
+use nbrdf::Vec3;
 
 /// A ray `origin + t·dir` restricted to `t ∈ [tmin, tmax]`.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -25,7 +25,7 @@ impl Ray {
     /// The point at parameter `t`.
     ///
     /// ```
-    /// use nbrdf::scene::Ray;
+    /// use nbrdf_scene::scene::Ray;
     /// use nbrdf::Vec3;
     /// assert_eq!(Ray::new(Vec3::ZERO, Vec3::X).at(2.0), Vec3::new(2.0, 0.0, 0.0));
     /// ```
@@ -53,7 +53,7 @@ pub struct Hit {
 /// degenerate triangle. Both faces are hit (no back-face culling).
 ///
 /// ```
-/// use nbrdf::scene::ray::intersect_triangle;
+/// use nbrdf_scene::scene::ray::intersect_triangle;
 /// use nbrdf::Vec3;
 /// let (t, b1, b2) = intersect_triangle(Vec3::new(0.25, 0.25, 1.0), -Vec3::Z, 0.0, 10.0,
 ///     [Vec3::ZERO, Vec3::X, Vec3::Y]).unwrap();

@@ -22,7 +22,7 @@ use rayon::prelude::*;
 
 use super::geometry::Geometry;
 use super::{Camera, DirectionalLight, Frame, Hit, Ray};
-use crate::{Rgb, Vec3};
+use nbrdf::{Rgb, Vec3};
 
 /// Whether shadow rays are cast.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -292,7 +292,7 @@ where
                 if wo.z <= 0.0 {
                     continue;
                 }
-                let f = crate::math::sanitize(brdf(s, wi, wo));
+                let f = nbrdf::math::sanitize(brdf(s, wi, wo));
                 rep.brdf_evals += 1;
                 img.brdf[p] = f;
                 if let Visibility::Lit { .. } = vis {

@@ -17,11 +17,11 @@ use super::environment::Environment;
 use super::material::Material;
 use super::plan::Plan;
 use super::rng::SampleRng;
-use crate::brdf::Brdf;
+use nbrdf::brdf::Brdf;
 use crate::image::RgbImage;
 use crate::scene::render::{surface_sample, SurfaceSample};
 use crate::scene::{Camera, DirectionalLight, Frame, Geometry, Ray};
-use crate::{Rgb, Vec3};
+use nbrdf::{Rgb, Vec3};
 
 /// Everything that is rendered: one mesh with one material, lights, a camera.
 pub struct Scene<'a> {
@@ -296,5 +296,5 @@ fn trace(scene: &Scene, plan: &Plan, options: &Options, camera_ray: Ray, rng: &S
             break; // bounce limit
         }
     }
-    crate::math::sanitize(radiance)
+    nbrdf::math::sanitize(radiance)
 }

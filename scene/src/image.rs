@@ -6,7 +6,7 @@ use std::string::ToString;
 use std::vec::Vec;
 use std::{format, vec};
 
-use crate::{io::write_atomic_with as write_atomic, Error, Rgb};
+use nbrdf::{io::write_atomic_with as write_atomic, Error, Rgb};
 
 /// A row-major linear RGB image (`data[row * width + col]`).
 #[derive(Debug, Clone, PartialEq)]
@@ -54,7 +54,7 @@ impl RgbImage {
 /// The sRGB encoding (IEC 61966-2-1) of a linear value, clamped to `[0, 1]`.
 ///
 /// ```
-/// use nbrdf::image::{srgb_encode, srgb_decode};
+/// use nbrdf_scene::image::{srgb_encode, srgb_decode};
 /// assert_eq!(srgb_encode(0.0), 0.0);
 /// assert!((srgb_encode(1.0) - 1.0).abs() < 1e-6);
 /// assert!((srgb_encode(0.0031308) - 0.04045).abs() < 1e-5); // the two branches meet
@@ -81,12 +81,12 @@ pub fn srgb_decode(y: f32) -> f32 {
     }
 }
 
-fn exr_err(path: &Path, e: impl ToString) -> crate::Error {
+fn exr_err(path: &Path, e: impl ToString) -> nbrdf::Error {
     Error::Parse { what: format!("OpenEXR file {}", path.display()), message: e.to_string() }
 }
 
 /// Writes a linear RGB image as a 32-bit float OpenEXR file (lossless, atomic).
-pub fn write_exr(path: impl AsRef<Path>, img: &RgbImage) -> Result<(), crate::Error> {
+pub fn write_exr(path: impl AsRef<Path>, img: &RgbImage) -> Result<(), nbrdf::Error> {
     use exr::prelude::*;
     img.check()?;
     let path = path.as_ref();
@@ -106,11 +106,11 @@ pub fn write_exr(path: impl AsRef<Path>, img: &RgbImage) -> Result<(), crate::Er
 
 /// Reads the first RGB(A) layer of an OpenEXR file as linear f32 RGB (alpha dropped). A missing,
 /// truncated or malformed file is an error naming the path.
-pub fn read_exr(path: impl AsRef<Path>) -> Result<RgbImage, crate::Error> {
+pub fn read_exr(path: impl AsRef<Path>) -> Result<RgbImage, nbrdf::Error> {
     use exr::prelude::*;
     let path = path.as_ref();
     if !path.exists() {
-        return Err(crate::Error::io(path, &std::io::Error::from(std::io::ErrorKind::NotFound)));
+        return Err(nbrdf::Error::io(path, &std::io::Error::from(std::io::ErrorKind::NotFound)));
     }
     let image = read_first_rgba_layer_from_file(
         path,
@@ -127,7 +127,7 @@ pub fn read_exr(path: impl AsRef<Path>) -> Result<RgbImage, crate::Error> {
 /// The 8-bit sRGB code of a linear value (clamped to `[0, 1]`, NaN as 0).
 ///
 /// ```
-/// use nbrdf::image::srgb8;
+/// use nbrdf_scene::image::srgb8;
 /// assert_eq!((srgb8(0.0), srgb8(1.0), srgb8(2.0), srgb8(f32::NAN)), (0, 255, 255, 0));
 /// assert_eq!(srgb8(0.216), 128); // linear 0.216 is mid-grey in sRGB
 /// ```

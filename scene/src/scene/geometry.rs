@@ -1,7 +1,7 @@
 //! A mesh prepared for rendering: its BVH, its convexity and its ray offset, computed once.
 
 use super::{convex::is_convex, Accel, Mesh};
-use crate::Error;
+use nbrdf::Error;
 
 /// A mesh with everything the renderer needs to know about it ahead of the pixels.
 #[derive(Debug)]

@@ -6,7 +6,7 @@
 //! into the unit sphere for the semi-synthetic data set and returns the similarity it applied.
 //!
 //! ```
-//! use nbrdf::scene::{builtin::BuiltinMesh, Accel, Ray};
+//! use nbrdf_scene::scene::{builtin::BuiltinMesh, Accel, Ray};
 //! use nbrdf::Vec3;
 //! let mesh = BuiltinMesh::Sphere.mesh();
 //! let accel = Accel::new(&mesh).unwrap();

@@ -1,14 +1,14 @@
-//! The path tracer (`nbrdf::pathtrace`, the engine of `examples/path_tracer.rs`): white furnace tests,
+//! The path tracer (`nbrdf_scene::pathtrace`, the engine of `scene/examples/path_tracer.rs`): white furnace tests,
 //! environment sampling, the skipped effects leaving images unchanged, and proxy against cosine
 //! sampling of a specular neural BRDF. Tolerances come from the Monte Carlo standard error each render
 //! reports per pixel.
 
 use nbrdf::builtin::Builtin;
-use nbrdf::image::RgbImage;
+use nbrdf_scene::image::RgbImage;
 use nbrdf::measured::{MerlTable, NbrdfNetwork};
 use nbrdf::parametric::{Lambert, Parametric, Phong};
-use nbrdf::pathtrace::{render, Environment, Material, Options, Rendered, Sampling, Scene};
-use nbrdf::scene::{builtin::BuiltinMesh, Camera, DirectionalLight, Geometry, Mesh};
+use nbrdf_scene::pathtrace::{render, Environment, Material, Options, Rendered, Sampling, Scene};
+use nbrdf_scene::scene::{builtin::BuiltinMesh, Camera, DirectionalLight, Geometry, Mesh};
 use nbrdf::Vec3;
 
 fn camera(size: u32) -> Camera {
@@ -109,7 +109,7 @@ fn environment_sampling_matches_its_pdf() {
     let n = 100_000;
     let (mut s1, mut s2) = (0.0f64, 0.0f64);
     for k in 0..n {
-        let rng = nbrdf::pathtrace::rng::SampleRng::new(5, 0, k);
+        let rng = nbrdf_scene::pathtrace::rng::SampleRng::new(5, 0, k);
         // `None` only within ~1e-4 of a pole, where the direction's f32 rounding puts it on the pole.
         let Some(s) = env.sample([rng.get(0), rng.get(1)]) else { continue };
         assert!((s.pdf - env.pdf(s.dir)).abs() <= 1e-4 * s.pdf && s.radiance == env.eval(s.dir));
@@ -225,7 +225,7 @@ fn proxy_sampling_has_far_lower_variance_on_a_specular_material() {
 
 #[test]
 fn sizes_beyond_the_limits_are_errors_before_any_allocation() {
-    use nbrdf::scene::camera::{MAX_PIXELS, MAX_SIDE};
+    use nbrdf_scene::scene::camera::{MAX_PIXELS, MAX_SIDE};
     let look = |w, h| Camera::look_at(Vec3::new(0.0, 0.0, 3.0), Vec3::ZERO, Vec3::Y, 0.7, w, h);
     assert!(look(1024, 768).is_ok());
     for (w, h, needle) in [(u32::MAX, 16, "width"), (16, MAX_SIDE as u32 + 1, "height"), (20_000, 20_000, "pixels")] {

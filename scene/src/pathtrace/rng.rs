@@ -31,7 +31,7 @@ impl SampleRng {
     /// Uniform number `dim` of this sample, in [0, 1) with 24 random bits (exactly representable).
     ///
     /// ```
-    /// use nbrdf::pathtrace::rng::SampleRng;
+    /// use nbrdf_scene::pathtrace::rng::SampleRng;
     /// let r = SampleRng::new(7, 3, 1);
     /// assert_eq!(r.get(5), SampleRng::new(7, 3, 1).get(5)); // a pure function of its inputs
     /// assert!((0.0..1.0).contains(&r.get(5)) && r.get(5) != r.get(6));

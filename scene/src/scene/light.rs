@@ -1,6 +1,6 @@
 //! Directional lights: the calibrated light sources of Sec. 5 (one per image).
 
-use crate::{Rgb, Vec3};
+use nbrdf::{Rgb, Vec3};
 
 /// A light at infinity: every surface point sees it in the same direction with the same irradiance
 /// scale, so Eq. 1 collapses to the single term of Eq. 9.
@@ -16,7 +16,7 @@ impl DirectionalLight {
     /// A light from `direction` (normalised here; `None` if zero or non-finite).
     ///
     /// ```
-    /// use nbrdf::scene::DirectionalLight;
+    /// use nbrdf_scene::scene::DirectionalLight;
     /// use nbrdf::Vec3;
     /// let l = DirectionalLight::new(Vec3::new(0.0, 0.0, 2.0), [1.0; 3]).unwrap();
     /// assert_eq!(l.direction, Vec3::Z);
@@ -24,6 +24,6 @@ impl DirectionalLight {
     /// ```
     #[inline]
     pub fn new(direction: Vec3, intensity: Rgb) -> Option<Self> {
-        Some(DirectionalLight { direction: crate::angles::unit(direction)?, intensity })
+        Some(DirectionalLight { direction: nbrdf::angles::unit(direction)?, intensity })
     }
 }

@@ -5,7 +5,7 @@
 //! `(col, row)` is the point `(col, row)` of the image plane, as in OpenCV and Bouguet's calibration
 //! toolbox.
 
-use crate::{Error, Vec3};
+use nbrdf::{Error, Vec3};
 use glam::{Mat3, Vec2};
 
 use super::Ray;
@@ -68,7 +68,7 @@ impl Camera {
     /// of view `fov_y` (radians); the principal point is the image centre.
     ///
     /// ```
-    /// use nbrdf::scene::Camera;
+    /// use nbrdf_scene::scene::Camera;
     /// use nbrdf::Vec3;
     /// let cam = Camera::look_at(Vec3::new(0.0, 0.0, 3.0), Vec3::ZERO, Vec3::Y, 0.7, 64, 48).unwrap();
     /// let (px, depth) = cam.project(Vec3::ZERO).unwrap();
@@ -76,9 +76,9 @@ impl Camera {
     /// assert!(cam.project(Vec3::new(0.0, 0.5, 0.0)).unwrap().0.y < 23.5); // world up is image up
     /// ```
     pub fn look_at(eye: Vec3, target: Vec3, up: Vec3, fov_y: f32, width: u32, height: u32) -> Result<Self, Error> {
-        let f = crate::angles::unit(target - eye)
+        let f = nbrdf::angles::unit(target - eye)
             .ok_or(Error::InvalidValue { what: "camera look-at", reason: "eye and target coincide" })?;
-        let x = crate::angles::unit(f.cross(up))
+        let x = nbrdf::angles::unit(f.cross(up))
             .ok_or(Error::InvalidValue { what: "camera look-at", reason: "up is parallel to the view direction" })?;
         let y = f.cross(x);
         let r = Mat3::from_cols(x, y, f).transpose();

@@ -1,9 +1,9 @@
-//! Path-traces one mesh with any BRDF of the crate: parametric, built-in, MERL, NBRDF-json or a fitted
+//! Path-traces one mesh with any BRDF of `nbrdf`: parametric, built-in, MERL, NBRDF-json or a fitted
 //! `.nbrdf` model, under directional lights and an environment (EXR lat-long map or a constant colour).
-//! The renderer is `nbrdf::pathtrace`; this file is its command line.
+//! The renderer is `nbrdf_scene::pathtrace`; this file is its command line.
 //!
 //! ```text
-//! cargo run --release --example path_tracer -- --mesh sphere --brdf json:../shared/data/nbrdf-merl/chrome-steel.json \
+//! cargo run --release -p nbrdf-scene --example path_tracer -- --mesh sphere --brdf json:../shared/data/nbrdf-merl/chrome-steel.json \
 //!     --env-color 1,1,1 --spp 64 --width 128 --height 128 --out chrome.exr
 //! ```
 //!
@@ -16,13 +16,9 @@ use std::process::ExitCode;
 use clap::Parser;
 use indicatif::{ProgressBar, ProgressStyle};
 
-use nbrdf::builtin::Builtin;
-use nbrdf::ModelBuf;
-use nbrdf::measured::{MerlTable, NbrdfNetwork};
-use nbrdf::parametric::{Lambert, Parametric, ParametricKind, Phong, TorranceSparrow};
-use nbrdf::pathtrace::{render, Environment, Material, Options, Sampling, Scene, MAX_DEPTH, MAX_SPP};
-use nbrdf::scene::{builtin::BuiltinMesh, Camera, DirectionalLight, Geometry, Mesh};
-use nbrdf::{Error, Vec3};
+use nbrdf_scene::pathtrace::{render, Environment, Material, Options, Sampling, Scene, MAX_DEPTH, MAX_SPP};
+use nbrdf_scene::scene::{builtin::BuiltinMesh, Camera, DirectionalLight, Geometry, Mesh};
+use nbrdf::{AnyBrdf, Error, Vec3};
 
 #[derive(Parser, Debug)]
 #[command(about = "Path-trace a mesh with a parametric, measured or neural BRDF")]
@@ -30,10 +26,10 @@ struct Args {
     /// Mesh: `sphere`, `torus`, `grooved`, or an OBJ/PLY file (scaled into the unit sphere).
     #[arg(long, default_value = "sphere")]
     mesh: String,
-    /// BRDF: `lambert:R,G,B`, `phong:KD_R,KD_G,KD_B,KS_R,KS_G,KS_B,N`,
-    /// `torrance-sparrow:KD_R,KD_G,KD_B,KS_R,KS_G,KS_B,ALPHA`, `raw:KIND:V,...` (raw network outputs of
-    /// any parametric kind), `builtin:ID`, `merl:FILE.binary`, `json:FILE.json`, `model:FILE.nbrdf`, or
-    /// a file whose extension says which.
+    /// BRDF spec (the grammar of `nbrdf::any`): `lambert:R,G,B`, `phong:KD×3,KS×3,N`,
+    /// `torrance-sparrow:KD×3,KS×3,ALPHA`, `fmbrdf:…`, `disney:…`, `raw:KIND:V,...` (raw network outputs
+    /// of any parametric kind), `builtin:ID`, `merl:FILE.binary`, `json:FILE.json`, `model:FILE.nbrdf`,
+    /// or a file whose extension says which.
     #[arg(long, default_value = "lambert:0.8,0.8,0.8")]
     brdf: String,
     /// `native` (own lobes or fitted proxy) or `cosine`.
@@ -113,61 +109,7 @@ fn mesh_of(spec: &str) -> Result<Mesh, String> {
 }
 
 fn brdf_of(spec: &str) -> Result<Material, String> {
-    let (kind, rest) = match spec.split_once(':') {
-        Some((k, r)) => (k, r),
-        None => match Path::new(spec).extension().and_then(|e| e.to_str()) {
-            Some("binary") => ("merl", spec),
-            Some("json") => ("json", spec),
-            Some("nbrdf") => ("model", spec),
-            _ => return Err(format!("BRDF `{spec}`: expected KIND:ARGS or a .binary/.json/.nbrdf file")),
-        },
-    };
-    let err = |e: Error| format!("BRDF `{spec}`: {e}");
-    let range = |v: &[f32]| {
-        if v.iter().all(|x| (0.0..=1.0).contains(x)) {
-            Ok(())
-        } else {
-            Err(format!("BRDF `{spec}`: albedos must lie in [0, 1]"))
-        }
-    };
-    Ok(match kind {
-        "lambert" => {
-            let v = parse_floats(rest, 3, "lambert")?;
-            range(&v)?;
-            Material::parametric(Parametric::Lambert(Lambert { kd: [v[0], v[1], v[2]] }))
-        }
-        "phong" => {
-            let v = parse_floats(rest, 7, "phong")?;
-            let rp = Phong::new([v[0], v[1], v[2]], [v[3], v[4], v[5]], v[6]).map_err(err)?;
-            Material::parametric(Parametric::Phong(rp))
-        }
-        "torrance-sparrow" => {
-            let v = parse_floats(rest, 7, "torrance-sparrow")?;
-            range(&v[..6])?;
-            if v[6].is_nan() || v[6] <= 0.0 {
-                return Err(format!("BRDF `{spec}`: alpha must be > 0"));
-            }
-            Material::parametric(Parametric::TorranceSparrow(TorranceSparrow {
-                kd: [v[0], v[1], v[2]],
-                ks: [v[3], v[4], v[5]],
-                alpha: v[6],
-            }))
-        }
-        "raw" => {
-            let (k, vals) = rest.split_once(':').ok_or(format!("BRDF `{spec}`: expected raw:KIND:V,..."))?;
-            let kind = ParametricKind::from_id(k).ok_or(format!("BRDF `{spec}`: unknown parametric kind `{k}`"))?;
-            let v = parse_floats(vals, kind.n_raw() + kind.n_object(), "raw parameters")?;
-            Material::parametric(Parametric::from_raw(kind, &v[..kind.n_raw()], &v[kind.n_raw()..]))
-        }
-        "builtin" => Material::builtin(Builtin::from_id(rest).ok_or_else(|| {
-            let ids: Vec<_> = Builtin::ALL.iter().map(|b| b.id()).collect();
-            format!("BRDF `{spec}`: unknown built-in material (known: {})", ids.join(", "))
-        })?),
-        "merl" => Material::merl(MerlTable::read(rest).map_err(err)?),
-        "json" => Material::nbrdf_json(NbrdfNetwork::load(rest).map_err(err)?),
-        "model" => Material::model(ModelBuf::load(rest).map_err(err)?).map_err(err)?,
-        other => return Err(format!("BRDF `{spec}`: unknown kind `{other}`")),
-    })
+    AnyBrdf::from_spec(spec).and_then(Material::new).map_err(|e| e.to_string())
 }
 
 fn light_of(spec: &str) -> Result<DirectionalLight, String> {
@@ -261,14 +203,14 @@ fn run(args: Args) -> Result<(), String> {
 
 /// Writes the EXR and the PNG under temporary names beside them, then renames both into place, so
 /// that a failure of either leaves the earlier pair as it was.
-fn write_both(exr: &Path, png: &Path, image: &nbrdf::image::RgbImage, exposure: f32) -> Result<(), String> {
+fn write_both(exr: &Path, png: &Path, image: &nbrdf_scene::image::RgbImage, exposure: f32) -> Result<(), String> {
     let temp = |p: &Path| {
         let name = p.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
         p.with_file_name(format!("{}{name}", nbrdf::io::temp_prefix()))
     };
     let (exr_tmp, png_tmp) = (temp(exr), temp(png));
-    let written = nbrdf::image::write_exr(&exr_tmp, image)
-        .and_then(|_| nbrdf::image::write_png_srgb(&png_tmp, image, exposure))
+    let written = nbrdf_scene::image::write_exr(&exr_tmp, image)
+        .and_then(|_| nbrdf_scene::image::write_png_srgb(&png_tmp, image, exposure))
         .map_err(|e| e.to_string())
         .and_then(|_| std::fs::rename(&exr_tmp, exr).map_err(|e| format!("{}: {e}", exr.display())))
         .and_then(|_| std::fs::rename(&png_tmp, png).map_err(|e| format!("{}: {e}", png.display())));

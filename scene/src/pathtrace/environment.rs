@@ -12,8 +12,8 @@
 
 use super::distribution::Distribution2D;
 use crate::image::RgbImage;
-use crate::math::{safe_sqrt, PI};
-use crate::{Error, Rgb, Vec3};
+use nbrdf::math::{safe_sqrt, PI};
+use nbrdf::{Error, Rgb, Vec3};
 
 /// An environment light.
 #[derive(Clone, Debug)]
@@ -132,7 +132,7 @@ impl Environment {
 /// Map coordinates `[u, v] ∈ [0, 1)²` of a unit direction (module docs).
 #[inline]
 pub fn to_uv(d: Vec3) -> [f32; 2] {
-    let theta = crate::math::safe_acos(d.y);
+    let theta = nbrdf::math::safe_acos(d.y);
     let mut phi = libm::atan2f(d.z, d.x);
     if phi < 0.0 {
         phi += 2.0 * PI;
@@ -143,7 +143,7 @@ pub fn to_uv(d: Vec3) -> [f32; 2] {
 /// The unit direction of map coordinates `[u, v]` (inverse of [`to_uv`]).
 ///
 /// ```
-/// use nbrdf::pathtrace::environment::{from_uv, to_uv};
+/// use nbrdf_scene::pathtrace::environment::{from_uv, to_uv};
 /// let d = from_uv([0.3, 0.4]);
 /// let uv = to_uv(d);
 /// assert!((uv[0] - 0.3).abs() < 1e-5 && (uv[1] - 0.4).abs() < 1e-5);

@@ -2,14 +2,14 @@
 //! the `bvh` crate on the same rays), and the time to render one 256x256 view under 30 lights with and
 //! without the shadow pass.
 //!
-//! `cargo bench --bench scene` (add `--features compare-bvh` for the comparison). Criterion reports
+//! `cargo bench -p nbrdf-scene --bench scene` (add `--features compare-bvh` for the comparison). Criterion reports
 //! throughput in elements/s: rays/s for the `ray_cast` group.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use nbrdf::builtin::Builtin;
-use nbrdf::scene::builtin::BuiltinMesh;
-use nbrdf::scene::render::{render_view, RenderOptions, ShadowPass};
-use nbrdf::scene::{Camera, DirectionalLight, Geometry, Mesh, Ray};
+use nbrdf_scene::scene::builtin::BuiltinMesh;
+use nbrdf_scene::scene::render::{render_view, RenderOptions, ShadowPass};
+use nbrdf_scene::scene::{Camera, DirectionalLight, Geometry, Mesh, Ray};
 use nbrdf::Vec3;
 use std::hint::black_box;
 
@@ -52,7 +52,7 @@ fn meshes() -> Vec<(String, Mesh)> {
 mod alt {
     //! The `bvh` crate (binary SAH BVH) over the same triangles, closest hit by candidate iteration.
     use super::*;
-    use nbrdf::scene::ray::intersect_triangle;
+    use nbrdf_scene::scene::ray::intersect_triangle;
     use bvh::aabb::{Aabb, Bounded};
     use bvh::bounding_hierarchy::BHShape;
     use nalgebra::{Point3, Vector3};
@@ -121,7 +121,7 @@ fn ray_cast(c: &mut Criterion) {
 }
 
 fn lights(n: usize, toward: Vec3) -> Vec<DirectionalLight> {
-    let f = nbrdf::scene::Frame::from_normal(toward.normalize());
+    let f = nbrdf_scene::scene::Frame::from_normal(toward.normalize());
     (0..n)
         .map(|i| {
             let z = 1.0 - (i as f32 + 0.5) / n as f32;
@@ -136,7 +136,7 @@ fn render(c: &mut Criterion) {
     let eye = Vec3::new(1.5, -2.0, 2.0);
     let cam = Camera::look_at(eye, Vec3::ZERO, Vec3::Z, 0.75, 256, 256).unwrap();
     let lights = lights(30, eye);
-    let material = |_: &nbrdf::scene::SurfaceSample, wi, wo| Builtin::TwoLobeMetal.eval(wi, wo);
+    let material = |_: &nbrdf_scene::scene::SurfaceSample, wi, wo| Builtin::TwoLobeMetal.eval(wi, wo);
     let mut g = c.benchmark_group("render_256x256_30_lights");
     g.sample_size(10);
     for mesh in [BuiltinMesh::Torus, BuiltinMesh::Sphere] {

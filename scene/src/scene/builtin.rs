@@ -8,7 +8,7 @@ use std::vec::Vec;
 use core::f32::consts::{PI, TAU};
 
 use super::Mesh;
-use crate::Vec3;
+use nbrdf::Vec3;
 
 /// The built-in meshes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -41,7 +41,7 @@ impl BuiltinMesh {
     /// The mesh named `id`, if any.
     ///
     /// ```
-    /// use nbrdf::scene::builtin::BuiltinMesh;
+    /// use nbrdf_scene::scene::builtin::BuiltinMesh;
     /// for m in BuiltinMesh::ALL { assert_eq!(BuiltinMesh::from_id(m.id()), Some(m)); }
     /// assert_eq!(BuiltinMesh::from_id("cube"), None);
     /// ```

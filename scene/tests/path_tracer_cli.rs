@@ -1,4 +1,4 @@
-//! The path tracer example (`examples/path_tracer.rs`) against malformed command lines and files,
+//! The path tracer example (`scene/examples/path_tracer.rs`) against malformed command lines and files,
 //! each written by the test: the run exits 1, the message names the flag or file and the value, and
 //! an output file that existed before is byte for byte the same afterwards.
 
@@ -16,7 +16,7 @@ fn path_tracer() -> Option<PathBuf> {
 #[test]
 fn malformed_input_exits_1_names_the_flag_or_file_and_keeps_the_previous_render() {
     let Some(bin) = path_tracer() else {
-        println!("SKIPPED: the path_tracer example is not built beside this test (run `cargo test`, which builds examples)");
+        println!("SKIPPED: the path_tracer example is not built beside this test (run `cargo test -p nbrdf-scene`, which builds examples)");
         return;
     };
     let dir = tempfile::tempdir().unwrap();
@@ -103,7 +103,7 @@ fn both_outputs_are_checked_before_the_first_write() {
     std::fs::remove_dir(dir.path().join("x.png")).unwrap();
     let run = render(&exr);
     assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
-    assert_eq!(nbrdf::image::read_exr(&exr).unwrap().width, 8);
+    assert_eq!(nbrdf_scene::image::read_exr(&exr).unwrap().width, 8);
     assert!(dir.path().join("x.png").is_file());
     let names: Vec<String> = std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
     assert_eq!(names.len(), 2, "only the EXR and the PNG: {names:?}");

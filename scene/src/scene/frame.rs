@@ -4,7 +4,7 @@
 //! in a rendered image and the same pair fed to a model during fitting are bit-identical. The tangent is
 //! arbitrary but deterministic; every BRDF here is isotropic, so its value does not depend on it.
 
-use crate::Vec3;
+use nbrdf::Vec3;
 
 /// An orthonormal basis `(s, t, n)` with `n` the surface normal; local coordinates are `(·s, ·t, ·n)`.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -22,7 +22,7 @@ impl Frame {
     /// continuous everywhere except across `n.z = 0⁻`. `n` must be unit length.
     ///
     /// ```
-    /// use nbrdf::scene::Frame;
+    /// use nbrdf_scene::scene::Frame;
     /// use nbrdf::Vec3;
     /// let n = Vec3::new(0.3, -0.5, 0.8).normalize();
     /// let f = Frame::from_normal(n);

@@ -9,7 +9,7 @@ use std::vec::Vec;
 
 use super::ray::{intersect_triangle, Hit, Ray};
 use super::Mesh;
-use crate::{Error, Vec3};
+use nbrdf::{Error, Vec3};
 
 use obvhs_glam as og;
 

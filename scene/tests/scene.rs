@@ -1,11 +1,11 @@
 //! Scenes: ray casting against analytic answers, cast shadows, Eq. 9 pixels, exact skipping, bad input.
 
-use nbrdf::image::{read_exr, read_png, srgb_decode, srgb_encode, write_exr, write_png16, RgbImage};
-use nbrdf::scene::builtin::BuiltinMesh;
-use nbrdf::scene::convex::is_convex;
-use nbrdf::scene::ray::intersect_triangle;
-use nbrdf::scene::render::{surface_sample, visibility};
-use nbrdf::scene::{
+use nbrdf_scene::image::{read_exr, read_png, srgb_decode, srgb_encode, write_exr, write_png16, RgbImage};
+use nbrdf_scene::scene::builtin::BuiltinMesh;
+use nbrdf_scene::scene::convex::is_convex;
+use nbrdf_scene::scene::ray::intersect_triangle;
+use nbrdf_scene::scene::render::{surface_sample, visibility};
+use nbrdf_scene::scene::{
     render_view, Camera, DirectionalLight, Frame, Geometry, Mesh, Ray, RenderOptions, ShadowPass, SurfaceSample,
     Visibility,
 };

@@ -20,7 +20,7 @@ use super::Mesh;
 /// one usually fails on an early face.
 ///
 /// ```
-/// use nbrdf::scene::{builtin::BuiltinMesh, convex::is_convex};
+/// use nbrdf_scene::scene::{builtin::BuiltinMesh, convex::is_convex};
 /// assert!(is_convex(&BuiltinMesh::Sphere.mesh()));
 /// assert!(!is_convex(&BuiltinMesh::Torus.mesh()));
 /// ```
@@ -41,7 +41,7 @@ pub fn is_convex(mesh: &Mesh) -> bool {
     let tol = 1e-5 * mesh.radius();
     (0..mesh.triangles.len() as u32).all(|t| {
         let [a, b, c] = mesh.corners(t);
-        let Some(n) = crate::angles::unit((b - a).cross(c - a)) else { return true };
+        let Some(n) = nbrdf::angles::unit((b - a).cross(c - a)) else { return true };
         mesh.positions.iter().all(|p| (*p - a).dot(n) <= tol)
     })
 }

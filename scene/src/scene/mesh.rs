@@ -12,7 +12,7 @@ use std::string::{String, ToString};
 use std::vec::Vec;
 use std::{format, vec};
 
-use crate::{Error, Vec3};
+use nbrdf::{Error, Vec3};
 
 /// An indexed triangle mesh with one shading normal per vertex.
 #[derive(Debug, Clone, PartialEq)]
@@ -38,7 +38,7 @@ impl Normalization {
     /// Maps a point of the original mesh into the normalised frame.
     ///
     /// ```
-    /// use nbrdf::scene::Normalization;
+    /// use nbrdf_scene::scene::Normalization;
     /// use nbrdf::Vec3;
     /// let n = Normalization { center: Vec3::new(1.0, 0.0, 0.0), scale: 0.5 };
     /// assert_eq!(n.apply(Vec3::new(3.0, 0.0, 0.0)), Vec3::new(1.0, 0.0, 0.0));
@@ -60,7 +60,7 @@ impl Mesh {
     /// triangle degenerate).
     ///
     /// ```
-    /// use nbrdf::scene::Mesh;
+    /// use nbrdf_scene::scene::Mesh;
     /// use nbrdf::Vec3;
     /// let quad = Mesh::new(
     ///     vec![Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::Y],
@@ -94,7 +94,7 @@ impl Mesh {
             .iter()
             .enumerate()
             .map(|(i, n)| {
-                crate::angles::unit(*n).ok_or(Error::NonFinite { what: "mesh vertex normals (zero or non-finite)", index: i })
+                nbrdf::angles::unit(*n).ok_or(Error::NonFinite { what: "mesh vertex normals (zero or non-finite)", index: i })
             })
             .collect::<Result<Vec<_>, _>>()?;
         Ok(Mesh { positions, normals, triangles })
@@ -108,18 +108,18 @@ impl Mesh {
             // OBJ is read whole: through the capped reader, so that a device or a huge file is
             // refused instead of filling the memory.
             Some("obj") => {
-                let bytes = crate::io::read(path)?;
+                let bytes = nbrdf::io::read(path)?;
                 Self::from_obj_reader(&mut bytes.as_slice()).map_err(|e| with_path(e, path))
             }
             Some("ply") => {
                 let file = std::fs::File::open(path).map_err(|e| Error::io(path, &e))?;
                 let len = file.metadata().map_err(|e| Error::io(path, &e))?.len();
-                if len > crate::io::MAX_READ_BYTES {
-                    let message = format!("{len} bytes, more than the {} bytes read of a mesh", crate::io::MAX_READ_BYTES);
+                if len > nbrdf::io::MAX_READ_BYTES {
+                    let message = format!("{len} bytes, more than the {} bytes read of a mesh", nbrdf::io::MAX_READ_BYTES);
                     return Err(Error::io(path, &std::io::Error::new(std::io::ErrorKind::FileTooLarge, message)));
                 }
                 // The stream stops at the cap: a device that never ends is a PLY cut short.
-                let capped = std::io::Read::take(file, crate::io::MAX_READ_BYTES);
+                let capped = std::io::Read::take(file, nbrdf::io::MAX_READ_BYTES);
                 Self::from_ply_reader(&mut std::io::BufReader::new(capped))
                     .map_err(|e| with_path(e, path))
             }
@@ -210,7 +210,7 @@ impl Mesh {
     /// strips separated by -1 (or both).
     ///
     /// ```
-    /// use nbrdf::scene::Mesh;
+    /// use nbrdf_scene::scene::Mesh;
     /// let ply = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n\
     ///            property float z\nelement tristrips 1\nproperty list int int vertex_indices\n\
     ///            end_header\n0 0 0\n1 0 0\n0 1 0\n1 1 0\n4 0 1 2 3\n";
@@ -309,7 +309,7 @@ impl Mesh {
     /// at distance 1), with the similarity applied. Normals are unchanged by a uniform scaling.
     ///
     /// ```
-    /// use nbrdf::scene::Mesh;
+    /// use nbrdf_scene::scene::Mesh;
     /// use nbrdf::Vec3;
     /// let m = Mesh::new(vec![Vec3::new(10.0, 0.0, 0.0), Vec3::new(14.0, 0.0, 0.0), Vec3::new(10.0, 2.0, 0.0)],
     ///                   vec![[0, 1, 2]]).unwrap();
@@ -329,13 +329,13 @@ impl Mesh {
     }
 
     /// A hash of the vertex positions (their bits) and the triangles: the identity of the mesh a
-    /// model's per-vertex table was fitted on ([`ModelHeader::mesh_hash`](crate::file::ModelHeader::mesh_hash)).
+    /// model's per-vertex table was fitted on ([`ModelHeader::mesh_hash`](nbrdf::file::ModelHeader::mesh_hash)).
     /// The CRC-32 of the positions in the high half, of the triangles in the low half. The trainer and
     /// the path tracer hash the mesh as they hold it: built-in meshes as built, files after
     /// [`normalized`](Self::normalized).
     ///
     /// ```
-    /// use nbrdf::scene::builtin::BuiltinMesh;
+    /// use nbrdf_scene::scene::builtin::BuiltinMesh;
     /// let (a, b) = (BuiltinMesh::Sphere.mesh(), BuiltinMesh::Torus.mesh());
     /// assert_eq!(a.content_hash(), BuiltinMesh::Sphere.mesh().content_hash());
     /// assert_ne!(a.content_hash(), b.content_hash());
@@ -386,14 +386,14 @@ impl Mesh {
             + self.normals[b as usize] * b1
             + self.normals[c as usize] * b2;
         // Opposite corner normals can cancel (a knife edge); the face normal is the honest fallback.
-        crate::angles::unit(n).unwrap_or_else(|| self.face_normal(t))
+        nbrdf::angles::unit(n).unwrap_or_else(|| self.face_normal(t))
     }
 
     /// Unit geometric normal of triangle `t` (right-handed winding); `+z` for a degenerate triangle.
     #[inline]
     pub fn face_normal(&self, t: u32) -> Vec3 {
         let [a, b, c] = self.corners(t);
-        crate::angles::unit((b - a).cross(c - a)).unwrap_or(Vec3::Z)
+        nbrdf::angles::unit((b - a).cross(c - a)).unwrap_or(Vec3::Z)
     }
 
     /// Surface point at barycentrics `(b1, b2)` of triangle `t`.
@@ -485,14 +485,14 @@ pub fn angle_weighted_normals(positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec
     let mut acc = vec![Vec3::ZERO; positions.len()];
     for &t in triangles {
         let p = t.map(|i| positions[i as usize]);
-        let Some(n) = crate::angles::unit((p[1] - p[0]).cross(p[2] - p[0])) else { continue };
+        let Some(n) = nbrdf::angles::unit((p[1] - p[0]).cross(p[2] - p[0])) else { continue };
         for k in 0..3 {
             let e1 = p[(k + 1) % 3] - p[k];
             let e2 = p[(k + 2) % 3] - p[k];
-            let (Some(e1), Some(e2)) = (crate::angles::unit(e1), crate::angles::unit(e2)) else { continue };
-            let angle = crate::math::safe_acos(e1.dot(e2));
+            let (Some(e1), Some(e2)) = (nbrdf::angles::unit(e1), nbrdf::angles::unit(e2)) else { continue };
+            let angle = nbrdf::math::safe_acos(e1.dot(e2));
             acc[t[k] as usize] += n * angle;
         }
     }
-    acc.into_iter().map(|n| crate::angles::unit(n).unwrap_or(Vec3::Z)).collect()
+    acc.into_iter().map(|n| nbrdf::angles::unit(n).unwrap_or(Vec3::Z)).collect()
 }

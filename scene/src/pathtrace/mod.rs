@@ -1,6 +1,6 @@
-//! A small path tracer (feature `std`) that renders one mesh with any BRDF of the crate under
+//! A small path tracer that renders one mesh with any BRDF of `nbrdf` under
 //! directional lights and an environment map, with importance sampling that works for neural BRDFs.
-//! `examples/path_tracer.rs` is its command line; the tests call it directly.
+//! `scene/examples/path_tracer.rs` is its command line; the tests call it directly.
 //!
 //! - [`material`]: the BRDF and how it is sampled (own lobes, a fitted proxy, or cosine).
 //! - [`environment`]: constant or lat-long environment light, importance-sampled.
@@ -8,10 +8,10 @@
 //! - [`integrator`]: path tracing with next-event estimation, MIS, Russian roulette, rayon.
 //!
 //! ```
-//! use nbrdf::pathtrace::{environment::Environment, integrator::{render, Options, Scene},
-//!                        material::Material};
+//! use nbrdf_scene::pathtrace::{environment::Environment, integrator::{render, Options, Scene},
+//!                              material::Material};
 //! use nbrdf::parametric::{Lambert, Parametric};
-//! use nbrdf::scene::{builtin::BuiltinMesh, Camera, Geometry};
+//! use nbrdf_scene::scene::{builtin::BuiltinMesh, Camera, Geometry};
 //! use nbrdf::Vec3;
 //! let geometry = Geometry::new(BuiltinMesh::Sphere.mesh()).unwrap();
 //! let material = Material::parametric(Parametric::Lambert(Lambert { kd: [0.5; 3] }));
