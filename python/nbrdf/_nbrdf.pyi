@@ -18,6 +18,7 @@ __all__ = [
     "disney",
     "fit",
     "fmbrdf",
+    "from_spec",
     "kernel_level",
     "lambert",
     "merl",
@@ -99,6 +100,14 @@ def nbrdf_json(path: _Path) -> Model:
     """Loads an NBRDF-json network (Sztrajman et al. 2021)."""
 def builtin(id: str) -> Model:
     """A built-in material: "two-lobe-metal", "clear-coat" or "velvet"."""
+def from_spec(spec: str) -> Model:
+    """A BRDF from the path tracer's ``--brdf`` syntax: ``lambert:R,G,B``,
+    ``phong:KD_R,KD_G,KD_B,KS_R,KS_G,KS_B,N`` (or ``rp:``), ``torrance-sparrow:KD×3,KS×3,ALPHA`` (or
+    ``ts:``), ``fmbrdf:RHO×3,KS,ALPHA,BETA,ETA,NORM``, ``disney:BASE×3,SUBSURFACE,METALLIC,SPECULAR,
+    SPECULAR_TINT,ROUGHNESS,SHEEN,SHEEN_TINT,CLEARCOAT,CLEARCOAT_GLOSS``, ``raw:KIND:V,...``,
+    ``builtin:ID``, ``merl:FILE.binary``, ``json:FILE.json``, ``model:FILE.nbrdf``, or a file whose
+    extension says which. Errors (``ValueError``, ``FileNotFoundError``) name the spec and the
+    parameter."""
 def lambert(kd: Sequence[float]) -> Model:
     """Lambert with RGB albedo kd in [0, 1]."""
 def phong(kd: Sequence[float], ks: Sequence[float], n: float) -> Model:
@@ -145,10 +154,55 @@ def render(
     sampling: str,
 ) -> Tuple[_F32, _F32]:
     """The path tracer (see nbrdf.render): (mean, variance of the mean), both (H, W, 3)."""
-def synth(argv: List[str], progress: Optional[Callable[[int, int], None]] = None) -> str:
-    """`trainer synth` with these flags; returns the output folder. `progress` gets (done, total)."""
-def fit(argv: List[str], bar: bool, progress: Optional[Callable[[int, int], None]] = None) -> Tuple[str, str]:
-    """`trainer fit` with these flags; returns the model file and the log as JSON text."""
+def synth(
+    out: _Path,
+    *,
+    mesh: Optional[_Path] = None,
+    material: Optional[str] = None,
+    size: Optional[int] = None,
+    views: Optional[int] = None,
+    train_views: Optional[int] = None,
+    train_lights: Optional[int] = None,
+    test_lights: Optional[int] = None,
+    sigma: Optional[float] = None,
+    seed: Optional[int] = None,
+    fov: Optional[float] = None,
+    light_intensity: Optional[float] = None,
+    target_median: Optional[float] = None,
+    force_shadows: bool = False,
+    quiet: bool = False,
+    progress: Optional[Callable[[int, int], None]] = None,
+) -> str:
+    """`trainer synth`'s typed request from these arguments (unset: its defaults); returns `out`."""
+def fit(
+    model: str,
+    *,
+    data: Optional[_Path] = None,
+    toy: Optional[int] = None,
+    diligent: Optional[_Path] = None,
+    object: Optional[str] = None,
+    out: Optional[_Path] = None,
+    steps: Optional[int] = None,
+    batch: Optional[int] = None,
+    lr: Optional[float] = None,
+    lr_final: Optional[float] = None,
+    seed: Optional[int] = None,
+    reciprocity: Optional[str] = None,
+    enhanced: bool = False,
+    position: Optional[str] = None,
+    angle_frequencies: Optional[int] = None,
+    direction_layers: Optional[int] = None,
+    lambda_diffuse: Optional[float] = None,
+    lambda_specular: Optional[float] = None,
+    checkpoint_every: Optional[int] = None,
+    resume: bool = False,
+    pixel_stride: Optional[int] = None,
+    cache: Optional[_Path] = None,
+    bar: bool = False,
+    progress: Optional[Callable[[int, int], None]] = None,
+) -> Tuple[str, str]:
+    """`trainer fit`'s typed request from these arguments (unset: its defaults); the model file and the
+    log as JSON text."""
 def study(config: Optional[str], out: str, bar: bool, progress: Optional[Callable[[int, int], None]] = None) -> str:
     """`trainer study` with this config file (None: the default) into `out`; the results as JSON text."""
 def compare(

@@ -22,6 +22,7 @@ fn _nbrdf(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(brdf::merl, m)?)?;
     m.add_function(wrap_pyfunction!(brdf::nbrdf_json, m)?)?;
     m.add_function(wrap_pyfunction!(brdf::builtin, m)?)?;
+    m.add_function(wrap_pyfunction!(brdf::from_spec, m)?)?;
     m.add_function(wrap_pyfunction!(brdf::lambert, m)?)?;
     m.add_function(wrap_pyfunction!(brdf::phong, m)?)?;
     m.add_function(wrap_pyfunction!(brdf::torrance_sparrow, m)?)?;

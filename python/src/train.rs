@@ -1,40 +1,27 @@
-//! The trainer's work from Python: `synth` and `fit` take the command line's own flags (the package
-//! turns keyword arguments into them, so defaults and checks are the CLI's, defined once in the
-//! trainer library), `compare` and `brdf_rmse` are the study's metrics.
+//! The trainer's work from Python: `synth` and `fit` build the trainer's typed requests
+//! (`SynthArgs`, `FitArgs`) from keyword arguments — unset ones keep the request's defaults, which are
+//! the command line's — and run them with the trainer's own checks; `compare` and `brdf_rmse` are the
+//! study's metrics.
 
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
-use clap::Parser;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use nbrdf::image::RgbImage;
+use nbrdf_scene::image::RgbImage;
 use trainer::commands::fit::FitArgs;
+use trainer::commands::{parse_kind, parse_position, parse_reciprocity};
 use trainer::dataset::synth::SynthArgs;
 use trainer::metrics::{brdf_rmse::cube_root_rmse, ImageMetrics, Lpips, MaybeMetric};
 
 use crate::arrays;
 use crate::error::{self, guard};
 
-#[derive(Parser)]
-#[command(name = "nbrdf.synth", no_binary_name = true)]
-struct SynthCli {
-    #[command(flatten)]
-    args: SynthArgs,
-}
-
-#[derive(Parser)]
-#[command(name = "nbrdf.fit", no_binary_name = true)]
-struct FitCli {
-    #[command(flatten)]
-    args: FitArgs,
-}
-
-/// Parses `argv` as the flags of a trainer command; clap's message on failure.
-fn parse<T: Parser>(argv: Vec<String>) -> PyResult<T> {
-    T::try_parse_from(argv).map_err(|e| PyValueError::new_err(e.render().to_string().trim_end().to_string()))
+/// A trainer parse error as `ValueError` naming the keyword argument.
+fn named<T>(name: &str, r: trainer::Result<T>) -> PyResult<T> {
+    r.map_err(|e| PyValueError::new_err(format!("{name}: {e}")))
 }
 
 /// Runs `work` on a thread of its own while this one, the caller's, waits without the GIL and, every
@@ -74,27 +61,129 @@ fn interruptible<T: Send>(py: Python<'_>, progress: Option<&Bound<'_, PyAny>>, w
     })
 }
 
-/// `trainer synth` with the flags `argv`; returns the data set's folder. Interruptible; `progress`
-/// receives `(images written, images)`.
+/// `trainer synth`: renders the data set that the keyword arguments describe (`trainer synth`'s
+/// flags; unset ones keep its defaults) into `out`; returns `out`. Interruptible; `progress` receives
+/// `(images written, images)`.
 #[pyfunction]
-#[pyo3(signature = (argv, progress = None))]
-pub(crate) fn synth(py: Python<'_>, argv: Vec<String>, progress: Option<Bound<'_, PyAny>>) -> PyResult<PathBuf> {
+#[pyo3(signature = (out, *, mesh = None, material = None, size = None, views = None, train_views = None,
+                    train_lights = None, test_lights = None, sigma = None, seed = None, fov = None,
+                    light_intensity = None, target_median = None, force_shadows = false, quiet = false,
+                    progress = None))]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn synth(
+    py: Python<'_>,
+    out: PathBuf,
+    mesh: Option<PathBuf>,
+    material: Option<String>,
+    size: Option<u32>,
+    views: Option<usize>,
+    train_views: Option<usize>,
+    train_lights: Option<usize>,
+    test_lights: Option<usize>,
+    sigma: Option<f32>,
+    seed: Option<u64>,
+    fov: Option<f32>,
+    light_intensity: Option<f32>,
+    target_median: Option<f32>,
+    force_shadows: bool,
+    quiet: bool,
+    progress: Option<Bound<'_, PyAny>>,
+) -> PyResult<PathBuf> {
     guard(|| {
-        let cli: SynthCli = parse(argv)?;
-        interruptible(py, progress.as_ref(), || trainer::dataset::synth::synthesize(&cli.args))?.map_err(error::core)?;
-        Ok(cli.args.out)
+        if light_intensity.is_some() && target_median.is_some() {
+            return Err(PyValueError::new_err("light_intensity and target_median exclude each other (target_median chooses the intensity)"));
+        }
+        let mut a = SynthArgs::new(out);
+        if let Some(m) = mesh {
+            a.mesh = m.to_string_lossy().into_owned();
+        }
+        a.material = material.unwrap_or(a.material);
+        a.size = size.unwrap_or(a.size);
+        a.views = views.unwrap_or(a.views);
+        a.train_views = train_views.unwrap_or(a.train_views);
+        a.train_lights = train_lights.unwrap_or(a.train_lights);
+        a.test_lights = test_lights.unwrap_or(a.test_lights);
+        a.sigma = sigma.unwrap_or(a.sigma);
+        a.seed = seed.unwrap_or(a.seed);
+        a.fov = fov.unwrap_or(a.fov);
+        a.light_intensity = light_intensity.unwrap_or(a.light_intensity);
+        (a.target_median, a.force_shadows, a.quiet) = (target_median, force_shadows, quiet);
+        // The checks name the keyword arguments, not the command line's flags.
+        a.check_as(&|key| key.to_string()).map_err(error::core)?;
+        interruptible(py, progress.as_ref(), || trainer::dataset::synth::synthesize(&a))?.map_err(error::core)?;
+        Ok(a.out)
     })
 }
 
-/// `trainer fit` with the flags `argv`; returns the model file and the training log as JSON text.
-/// Interruptible; `bar` draws the trainer's terminal bar, `progress` receives `(steps done, steps)`.
+/// `trainer fit`: fits `model` as the keyword arguments ask (`trainer fit`'s flags; unset ones keep
+/// its defaults); returns the model file and the training log as JSON text. `model`, `reciprocity` and
+/// `position` are parsed by the trainer's own parsers. Interruptible; `bar` draws the trainer's
+/// terminal bar, `progress` receives `(steps done, steps)`.
 #[pyfunction]
-#[pyo3(signature = (argv, bar, progress = None))]
-pub(crate) fn fit(py: Python<'_>, argv: Vec<String>, bar: bool, progress: Option<Bound<'_, PyAny>>) -> PyResult<(PathBuf, String)> {
+#[pyo3(signature = (model, *, data = None, toy = None, diligent = None, object = None, out = None, steps = None,
+                    batch = None, lr = None, lr_final = None, seed = None, reciprocity = None, enhanced = false,
+                    position = None, angle_frequencies = None, direction_layers = None, lambda_diffuse = None,
+                    lambda_specular = None, checkpoint_every = None, resume = false, pixel_stride = None,
+                    cache = None, bar = false, progress = None))]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn fit(
+    py: Python<'_>,
+    model: &str,
+    data: Option<PathBuf>,
+    toy: Option<usize>,
+    diligent: Option<PathBuf>,
+    object: Option<String>,
+    out: Option<PathBuf>,
+    steps: Option<usize>,
+    batch: Option<usize>,
+    lr: Option<f32>,
+    lr_final: Option<f32>,
+    seed: Option<u64>,
+    reciprocity: Option<&str>,
+    enhanced: bool,
+    position: Option<&str>,
+    angle_frequencies: Option<u8>,
+    direction_layers: Option<u8>,
+    lambda_diffuse: Option<f32>,
+    lambda_specular: Option<f32>,
+    checkpoint_every: Option<usize>,
+    resume: bool,
+    pixel_stride: Option<usize>,
+    cache: Option<PathBuf>,
+    bar: bool,
+    progress: Option<Bound<'_, PyAny>>,
+) -> PyResult<(PathBuf, String)> {
     guard(|| {
-        let cli: FitCli = parse(argv)?;
+        let given: Vec<&str> =
+            [("data", data.is_some()), ("toy", toy.is_some()), ("diligent", diligent.is_some())].iter().filter(|g| g.1).map(|g| g.0).collect();
+        if let [a, b, ..] = given[..] {
+            return Err(PyValueError::new_err(format!("{a} and {b} exclude each other: fit one data set")));
+        }
+        let mut a = FitArgs::new(named("model", parse_kind(model))?);
+        if let Some(r) = reciprocity {
+            a.model.reciprocity = named("reciprocity", parse_reciprocity(r))?;
+        }
+        if let Some(p) = position {
+            a.model.position = named("position", parse_position(p))?;
+        }
+        a.model.enhanced = enhanced;
+        a.model.angle_frequencies = angle_frequencies.unwrap_or(a.model.angle_frequencies);
+        a.model.direction_layers = direction_layers;
+        (a.data, a.toy, a.diligent, a.resume) = (data, toy, diligent, resume);
+        a.object = object.unwrap_or(a.object);
+        a.out = out.unwrap_or(a.out);
+        a.steps = steps.unwrap_or(a.steps);
+        a.batch = batch.unwrap_or(a.batch);
+        a.lr = lr.unwrap_or(a.lr);
+        a.lr_final = lr_final.unwrap_or(a.lr_final);
+        a.seed = seed.unwrap_or(a.seed);
+        a.lambda_diffuse = lambda_diffuse.unwrap_or(a.lambda_diffuse);
+        a.lambda_specular = lambda_specular.unwrap_or(a.lambda_specular);
+        a.checkpoint_every = checkpoint_every.unwrap_or(a.checkpoint_every);
+        a.pixel_stride = pixel_stride.unwrap_or(a.pixel_stride);
+        a.cache = cache.unwrap_or(a.cache);
         let (outputs, log) =
-            interruptible(py, progress.as_ref(), || trainer::commands::fit::run_args(&cli.args, bar))?.map_err(error::trainer)?;
+            interruptible(py, progress.as_ref(), || trainer::commands::fit::run_args(&a, bar))?.map_err(error::trainer)?;
         let log = serde_json::to_string(&log).map_err(|e| PyValueError::new_err(e.to_string()))?;
         Ok((outputs.model, log))
     })

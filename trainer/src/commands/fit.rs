@@ -5,28 +5,29 @@ use std::path::{Path, PathBuf};
 
 use candle_core::Device;
 
-use crate::models::{Config, Model, OutputStart, PositionEncoding};
+use crate::models::{Config, Kind, Model, OutputStart, PositionEncoding, Reciprocity};
 use crate::observations::Observations;
 use super::data::PositionTable;
 use crate::staging::{self, StagedFile};
 use crate::train::{self, Checkpoint, RunSetup, TrainOptions, PAPER_BATCH_PIXELS};
 use crate::{Error, Result};
 
-/// The model variant named on the command line (`trainer fit`, the Python package's `nbrdf.fit`).
+/// The model variant a fit asks for: typed values (the command line parses its flags into them, the
+/// Python package builds them from keyword arguments), checked together by [`super::config`].
 #[derive(clap::Args, Clone, Debug)]
 pub struct ModelArgs {
     /// rp, ts, fmbrdf, disney, lambert, single-mlp, additive-separate, additive-shared
-    #[arg(long)]
-    pub model: String,
+    #[arg(long, value_parser = super::kind_arg)]
+    pub model: Kind,
     /// Reciprocity strategy of the purely neural models (Sec. 4.3): none, swap or exact
-    #[arg(long, default_value = "exact")]
-    pub reciprocity: String,
+    #[arg(long, default_value = "exact", value_parser = super::reciprocity_arg)]
+    pub reciprocity: Reciprocity,
     /// The enhanced additive split of Eq. 8
     #[arg(long)]
     pub enhanced: bool,
     /// Position input: uniform, intrinsic:K (K eigenfunctions) or extrinsic:F (PE of xyz, F octaves)
-    #[arg(long, default_value = "intrinsic:32")]
-    pub position: String,
+    #[arg(long, default_value = "intrinsic:32", value_parser = super::position_arg)]
+    pub position: PositionEncoding,
     /// Octaves of the angles' positional encoding
     #[arg(long, default_value_t = crate::models::arch::DEFAULT_ANGLE_FREQUENCIES)]
     pub angle_frequencies: u8,
@@ -35,8 +36,15 @@ pub struct ModelArgs {
     pub direction_layers: Option<u8>,
 }
 
-/// Everything `trainer fit` takes. In the library so that the command line and the Python package
-/// (`nbrdf.fit`, which parses the same flags) share one definition and one body, [`run_args`].
+impl ModelArgs {
+    /// `kind` with the defaults of the command line: exact reciprocity, 32 intrinsic eigenfunctions.
+    pub fn new(kind: Kind) -> Self {
+        FitArgs::new(kind).model
+    }
+}
+
+/// Everything `trainer fit` takes: the one request the command line and the Python package
+/// (`nbrdf.fit`) both build, run by [`run_args`].
 #[derive(clap::Args, Clone, Debug)]
 pub struct FitArgs {
     /// Semi-synthetic data set directory (written by `trainer synth`)
@@ -85,6 +93,34 @@ pub struct FitArgs {
     pub resume: bool,
 }
 
+impl FitArgs {
+    /// A fit of `model` with the command line's defaults (no data named yet).
+    ///
+    /// ```
+    /// use trainer::commands::fit::FitArgs;
+    /// use clap::Parser;
+    /// #[derive(Parser)]
+    /// struct Cli {
+    ///     #[command(flatten)]
+    ///     args: FitArgs,
+    /// }
+    /// // The typed request and the parsed command line agree on every default.
+    /// let parsed = Cli::parse_from(["fit", "--model", "ts"]).args;
+    /// let built = FitArgs::new(trainer::commands::parse_kind("ts").unwrap());
+    /// assert_eq!(format!("{parsed:?}"), format!("{built:?}"));
+    /// ```
+    pub fn new(model: Kind) -> Self {
+        // The defaults are clap's, declared once on the fields above.
+        #[derive(clap::Parser)]
+        struct Defaults {
+            #[command(flatten)]
+            args: FitArgs,
+        }
+        let argv = ["fit", "--model", crate::models::arch::kind_name(model)];
+        <Defaults as clap::Parser>::try_parse_from(argv).expect("every kind's name parses with the defaults").args
+    }
+}
+
 /// Most pixels per batch: bounds the activations' memory (the paper's batch is 2^15 colour values).
 pub const MAX_BATCH: usize = 1 << 20;
 /// Most pixels of the built-in toy set (~170 bytes each).
@@ -107,7 +143,7 @@ pub fn run_args(args: &FitArgs, progress: bool) -> Result<(Outputs, train::Train
 /// [`run_args`] but for the cleanup of a folder it created.
 fn run_checked(args: &FitArgs, progress: bool) -> Result<(Outputs, train::TrainLog)> {
     let m = &args.model;
-    let config = super::parse_config(&m.model, &m.reciprocity, m.enhanced, &m.position, m.angle_frequencies, m.direction_layers)?;
+    let config = super::config(m.model, m.reciprocity, m.enhanced, m.position, m.angle_frequencies, m.direction_layers)?;
     // Numbers checked before any work, naming the flag and what is allowed.
     let (lr, lr_final, batch) = (args.lr, args.lr_final, args.batch);
     if !(lr.is_finite() && lr > 0.0) {

@@ -69,21 +69,43 @@ pub fn check_direction_layers(kind: Kind, model: &str, n: Option<u8>, name: &str
     }
 }
 
-/// The model configuration named on the command line.
-pub fn parse_config(
-    model: &str,
-    reciprocity: &str,
+/// The model kind named `name` (the core's name table for the parametric ones, with its aliases).
+pub fn parse_kind(name: &str) -> Result<Kind> {
+    crate::models::arch::parse_kind(name).ok_or_else(|| {
+        Error::Invalid(format!(
+            "unknown model {name:?}; expected one of rp, ts, fmbrdf, disney, lambert, single-mlp, \
+             additive-separate, additive-shared"
+        ))
+    })
+}
+
+/// [`parse_kind`], [`parse_reciprocity`] and [`parse_position`] as clap's value parsers: the command
+/// line holds the typed values, checked as it is parsed.
+pub(crate) fn kind_arg(s: &str) -> std::result::Result<Kind, String> {
+    parse_kind(s).map_err(|e| e.to_string())
+}
+
+/// See [`kind_arg`].
+pub(crate) fn reciprocity_arg(s: &str) -> std::result::Result<Reciprocity, String> {
+    parse_reciprocity(s).map_err(|e| e.to_string())
+}
+
+/// See [`kind_arg`].
+pub(crate) fn position_arg(s: &str) -> std::result::Result<PositionEncoding, String> {
+    parse_position(s).map_err(|e| e.to_string())
+}
+
+/// The model configuration of a typed request: checks what the kinds allow (`--enhanced` for the
+/// additive models, the direction layers, the angle octaves), naming the flags.
+pub fn config(
+    kind: Kind,
+    reciprocity: Reciprocity,
     enhanced: bool,
-    position: &str,
+    position: PositionEncoding,
     angle_frequencies: u8,
     direction_layers: Option<u8>,
 ) -> Result<Config> {
-    let kind = crate::models::arch::parse_kind(model).ok_or_else(|| {
-        Error::Invalid(format!(
-            "unknown model {model:?}; expected one of rp, ts, fmbrdf, disney, lambert, single-mlp, \
-             additive-separate, additive-shared"
-        ))
-    })?;
+    let model = crate::models::arch::kind_name(kind);
     if enhanced && !matches!(kind, Kind::AdditiveSeparate | Kind::AdditiveShared) {
         return Err(Error::Invalid(format!("--enhanced (Eq. 8) applies to the additive models, not {model}")));
     }
@@ -94,8 +116,20 @@ pub fn parse_config(
             nbrdf::file::MAX_FREQUENCIES
         )));
     }
-    let mut c = Config::paper(kind, enhanced, parse_reciprocity(reciprocity)?, parse_position(position)?);
+    let mut c = Config::paper(kind, enhanced, reciprocity, position);
     c.angle_frequencies = angle_frequencies;
     c.direction_layers = direction_layers;
     Ok(c)
+}
+
+/// [`config`] from the names a study config holds.
+pub fn parse_config(
+    model: &str,
+    reciprocity: &str,
+    enhanced: bool,
+    position: &str,
+    angle_frequencies: u8,
+    direction_layers: Option<u8>,
+) -> Result<Config> {
+    config(parse_kind(model)?, parse_reciprocity(reciprocity)?, enhanced, parse_position(position)?, angle_frequencies, direction_layers)
 }

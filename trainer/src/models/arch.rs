@@ -79,16 +79,7 @@ impl Config {
 
     /// Short name for the command line, logs and the study tables.
     pub fn name(&self) -> String {
-        let base = match self.kind {
-            Kind::Parametric(ParametricKind::Lambert) => "lambert",
-            Kind::Parametric(ParametricKind::Phong) => "rp",
-            Kind::Parametric(ParametricKind::TorranceSparrow) => "ts",
-            Kind::Parametric(ParametricKind::FresnelMicrofacet) => "fmbrdf",
-            Kind::Parametric(ParametricKind::Disney) => "disney",
-            Kind::SingleMlp => "single-mlp",
-            Kind::AdditiveSeparate => "additive-separate",
-            Kind::AdditiveShared => "additive-shared",
-        };
+        let base = kind_name(self.kind);
         let mut s = base.to_string();
         if self.has_xi() {
             s.push_str("+enhanced");
@@ -107,15 +98,28 @@ impl Config {
     }
 }
 
-/// The kind named on the command line (`rp`, `ts`, `fmbrdf`, `disney`, `lambert`, `single-mlp`,
-/// `additive-separate`, `additive-shared`).
+/// The short name of a kind in logs and the study tables (the paper's abbreviations `rp`, `ts`).
+pub const fn kind_name(kind: Kind) -> &'static str {
+    match kind {
+        Kind::Parametric(ParametricKind::Lambert) => "lambert",
+        Kind::Parametric(ParametricKind::Phong) => "rp",
+        Kind::Parametric(ParametricKind::TorranceSparrow) => "ts",
+        Kind::Parametric(ParametricKind::FresnelMicrofacet) => "fmbrdf",
+        Kind::Parametric(ParametricKind::Disney) => "disney",
+        Kind::SingleMlp => "single-mlp",
+        Kind::AdditiveSeparate => "additive-separate",
+        Kind::AdditiveShared => "additive-shared",
+    }
+}
+
+/// The kind named on the command line: a parametric model by the core's name table
+/// ([`ParametricKind::from_name`]: `lambert`, `rp`/`phong`, `ts`/`torrance-sparrow`, `fmbrdf`,
+/// `disney`), or `single-mlp`, `additive-separate`, `additive-shared`.
 pub fn parse_kind(name: &str) -> Option<Kind> {
+    if let Some(k) = ParametricKind::from_name(name) {
+        return Some(Kind::Parametric(k));
+    }
     Some(match name {
-        "lambert" => Kind::Parametric(ParametricKind::Lambert),
-        "rp" | "phong" => Kind::Parametric(ParametricKind::Phong),
-        "ts" | "torrance-sparrow" => Kind::Parametric(ParametricKind::TorranceSparrow),
-        "fmbrdf" | "fresnel-microfacet" => Kind::Parametric(ParametricKind::FresnelMicrofacet),
-        "disney" => Kind::Parametric(ParametricKind::Disney),
         "single-mlp" => Kind::SingleMlp,
         "additive-separate" => Kind::AdditiveSeparate,
         "additive-shared" => Kind::AdditiveShared,
