@@ -9,9 +9,9 @@
 use std::path::{Path, PathBuf};
 
 use indicatif::{ProgressBar, ProgressStyle};
-use nbrdf::image::{write_exr, write_png_mask, write_png_srgb, RgbImage};
-use nbrdf::scene::render::{render_view, RenderOptions, RenderReport, ShadowPass};
-use nbrdf::scene::{Camera, DirectionalLight, Frame, Geometry};
+use nbrdf_scene::image::{write_exr, write_png_mask, write_png_srgb, RgbImage};
+use nbrdf_scene::scene::render::{render_view, LightImage, RenderOptions, RenderReport, ShadowPass};
+use nbrdf_scene::scene::{Camera, DirectionalLight, Frame, Geometry};
 use nbrdf::{Error, Vec3};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -61,10 +61,10 @@ pub struct SynthArgs {
     /// Light intensity L_i (all channels).
     #[arg(long, default_value_t = 1.0, conflicts_with = "target_median")]
     pub light_intensity: f32,
-    /// Instead of --light-intensity: choose the intensity so that the object's median luminance is
-    /// this (0.1-0.3 looks like a well-exposed capture), but dimmer where that would saturate more than
-    /// [`MAX_SATURATED`] of the object's pixels, as a photographer exposes for the highlights; measured
-    /// on a noise-free probe of the first view.
+    /// Instead of --light-intensity: choose the intensity so that the median luminance of the
+    /// object's lit pixels is this (0.1-0.3 looks like a well-exposed capture), but dimmer where that
+    /// would saturate more than [`MAX_SATURATED`] of them, as a photographer exposes a glossy object:
+    /// for its body, letting the highlights clip. Measured on a noise-free probe of four of the views.
     #[arg(long)]
     pub target_median: Option<f32>,
     /// Cast shadow rays even on a convex mesh (they change nothing; for checking).
@@ -237,51 +237,57 @@ pub fn luminance(c: [f32; 3]) -> f32 {
 /// Longest side of the calibration probe: the median needs the object's shading, not its detail.
 const PROBE_SIZE: u32 = 96;
 
-/// Share of object pixels a calibrated exposure lets saturate at most: measured captures clip a few
-/// specular highlights, not whole lobes.
-pub const MAX_SATURATED: f32 = 0.02;
+/// Views the calibration probe renders.
+const PROBE_VIEWS: usize = 4;
 
-/// The light intensity that gives the object a median luminance of `target` over the images of one
-/// view (noise-free, at most [`PROBE_SIZE`]² pixels; over its lit pixels where more than half are
-/// black, as for a specular object), or the dimmer one that saturates
-/// [`MAX_SATURATED`] of its pixels: rendering is linear in the intensity, so one probe at intensity 1
-/// fixes both.
+/// Share of the object's lit pixels a calibrated exposure lets saturate at most. A photographer
+/// exposes a glossy object for its body and lets the highlights clip, since saturated pixels are
+/// left out of the comparison; past a tenth of the lit surface, the body itself would clip.
+pub const MAX_SATURATED: f32 = 0.10;
+
+/// The light intensity that gives the object's lit pixels (those that return light, [`returns_light`])
+/// a median luminance of `target` over the probe's images (noise-free, [`PROBE_VIEWS`] views of at
+/// most [`PROBE_SIZE`]² pixels), or the dimmer one that saturates [`MAX_SATURATED`] of them: rendering
+/// is linear in the intensity, so one probe at intensity 1 fixes both. Metering the lit pixels only
+/// keeps a specular object, black wherever no highlight falls, from being refused or blown out.
 fn calibrate_intensity(
     geometry: &Geometry,
-    camera_at: impl Fn(u32) -> Result<Camera, Error>,
-    lights: &[DirectionalLight],
+    probes: &[(Camera, Vec<DirectionalLight>)],
     material: &super::material::Material,
     target: f32,
 ) -> Result<f32, Error> {
-    let camera = camera_at(PROBE_SIZE)?;
-    let unit: Vec<DirectionalLight> = lights.iter().filter_map(|l| DirectionalLight::new(l.direction, [1.0; 3])).collect();
     let options = RenderOptions { noise_sigma: 0.0, ..RenderOptions::default() };
-    let probe = render_view(geometry, &camera, &unit, |_, wi, wo| material.eval(wi, wo), &options);
-    let mask: Vec<bool> = probe.gbuffer.samples.iter().map(Option::is_some).collect();
-    let object: Vec<[f32; 3]> =
-        probe.images.iter().flat_map(|im| im.radiance.iter().zip(&mask).filter(|(_, m)| **m).map(|(c, _)| *c)).collect();
-    let mut lum: Vec<f32> = object.iter().map(|c| luminance(*c)).collect();
-    let mut median = ExposureSpec::median(&mut lum);
-    if median <= 0.0 {
-        // A specular object is dark at most pixels; a photographer meters on the lit part then.
-        let mut lit: Vec<f32> = lum.into_iter().filter(|&l| l > 0.0).collect();
-        median = if lit.is_empty() { 0.0 } else { ExposureSpec::median(&mut lit) };
+    let mut lit: Vec<[f32; 3]> = Vec::new();
+    for (camera, lights) in probes {
+        let unit: Vec<DirectionalLight> =
+            lights.iter().filter_map(|l| DirectionalLight::new(l.direction, [1.0; 3])).collect();
+        let probe = render_view(geometry, camera, &unit, |_, wi, wo| material.eval(wi, wo), &options);
+        lit.extend(
+            probe.images.iter().flat_map(|im| (0..im.lit.len()).filter(|&p| returns_light(im, p)).map(|p| im.radiance[p])),
+        );
     }
-    if !(median.is_finite() && median > 0.0) {
+    if lit.is_empty() {
         return Err(Error::Context {
             what: "--target-median".into(),
             message: "no object pixel receives light (a black material, or the mesh is not in view)".into(),
         });
     }
-    // The brightest channel of the pixel at the (1 - MAX_SATURATED) quantile maps to SATURATED.
-    let mut peak: Vec<f32> = object.iter().map(|c| c[0].max(c[1]).max(c[2])).collect();
+    // Meter the body: the lit pixels' median luminance maps to the target.
+    let median = ExposureSpec::median(&mut lit.iter().map(|c| luminance(*c)).collect::<Vec<_>>());
+    // Clip at most MAX_SATURATED of them: the brightest channel at the (1 - MAX_SATURATED) quantile maps to SATURATED.
+    let mut peak: Vec<f32> = lit.iter().map(|c| c[0].max(c[1]).max(c[2])).collect();
     let q = (((1.0 - MAX_SATURATED) * peak.len() as f32) as usize).min(peak.len() - 1);
     let bright = *peak.select_nth_unstable_by(q, f32::total_cmp).1;
-    let by_highlights = if bright > 0.0 { SATURATED / bright } else { f32::INFINITY };
-    Ok((target / median).min(by_highlights))
+    Ok((target / median).min(SATURATED / bright))
 }
 
-/// Object pixels sampled per image for the exposure statistics (a stride over the mask).
+/// Whether pixel `p` is lit and its material sends some of that light to the camera (noise-free): the
+/// pixels exposure is metered on. A mirror-like material is black at the others, as in a capture.
+fn returns_light(img: &LightImage, p: usize) -> bool {
+    img.lit[p] && luminance(img.brdf[p]) > 0.0
+}
+
+/// Lit object pixels sampled per image for the exposure statistics (a stride over them).
 const STATS_PER_IMAGE: usize = 4096;
 
 /// Renders and writes the data set; returns its description and one render report per view.
@@ -334,12 +340,19 @@ pub fn synthesize(args: &SynthArgs) -> Result<(DatasetFile, Vec<RenderReport>), 
     let intensity = match args.target_median {
         None => args.light_intensity,
         Some(target) => {
-            let d0 = dirs[0];
-            calibrate_intensity(&geometry, |s| camera_of(d0, s.min(args.size)), &lights_of(0, d0, 1.0), &material, target)?
+            // A few views spread over the set: one view's highlights are not the object's.
+            let count = PROBE_VIEWS.min(n);
+            let probes = (0..count)
+                .map(|k| {
+                    let i = k * n / count;
+                    Ok((camera_of(dirs[i], PROBE_SIZE.min(args.size))?, lights_of(i, dirs[i], 1.0)))
+                })
+                .collect::<Result<Vec<_>, Error>>()?;
+            calibrate_intensity(&geometry, &probes, &material, target)?
         }
     };
     let mut luminances = Vec::new();
-    let (mut saturated, mut object_pixels) = (0usize, 0usize);
+    let (mut saturated, mut lit_pixels) = (0usize, 0usize);
 
     let mut views = Vec::with_capacity(n);
     let mut reports = Vec::with_capacity(n);
@@ -359,12 +372,12 @@ pub fn synthesize(args: &SynthArgs) -> Result<(DatasetFile, Vec<RenderReport>), 
         std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, &e))?;
         let mask: Vec<bool> = rendered.gbuffer.samples.iter().map(Option::is_some).collect();
         write_png_mask(dir.join("mask.png"), args.size, args.size, &mask)?;
-        let on_object: Vec<usize> = (0..mask.len()).filter(|&p| mask[p]).collect();
-        let stride = on_object.len().div_ceil(STATS_PER_IMAGE).max(1);
         for img in &rendered.images {
-            saturated += on_object.iter().filter(|&&p| img.radiance[p].iter().any(|&c| c >= SATURATED)).count();
-            object_pixels += on_object.len();
-            luminances.extend(on_object.iter().step_by(stride).map(|&p| luminance(img.radiance[p])));
+            let lit: Vec<usize> = (0..mask.len()).filter(|&p| returns_light(img, p)).collect();
+            let stride = lit.len().div_ceil(STATS_PER_IMAGE).max(1);
+            saturated += lit.iter().filter(|&&p| img.radiance[p].iter().any(|&c| c >= SATURATED)).count();
+            lit_pixels += lit.len();
+            luminances.extend(lit.iter().step_by(stride).map(|&p| luminance(img.radiance[p])));
         }
         let mut images = Vec::with_capacity(count);
         for (li, (light, img)) in lights.iter().zip(&rendered.images).enumerate() {
@@ -423,7 +436,7 @@ pub fn synthesize(args: &SynthArgs) -> Result<(DatasetFile, Vec<RenderReport>), 
         exposure: Some(ExposureSpec {
             light_intensity: intensity,
             median_luminance: ExposureSpec::median(&mut luminances),
-            saturated_share: saturated as f64 / object_pixels.max(1) as f64,
+            saturated_share: saturated as f64 / lit_pixels.max(1) as f64,
         }),
     };
     file.validate()?;
@@ -451,7 +464,7 @@ pub fn run(args: &SynthArgs) -> Result<DatasetFile, Error> {
     println!("shadow rays in all views: {shadow_rays}");
     if let Some(e) = &file.exposure {
         println!(
-            "light intensity {:.4}: object median luminance {:.3}, {:.2}% of object pixels saturated (a channel >= {SATURATED})",
+            "light intensity {:.4}: median luminance of the lit object pixels {:.3}, {:.2}% of them saturated (a channel >= {SATURATED})",
             e.light_intensity,
             e.median_luminance,
             100.0 * e.saturated_share
