@@ -5,12 +5,10 @@
 
 use core::arch::x86_64::*;
 
-use super::lanes::Lanes;
+use nbrdf_lanes::Avx2;
+
 use super::x86::{self, Load, X86};
 use super::{Dense, PACKET};
-
-/// A vector of 8 f32 lanes.
-pub(super) struct Avx2;
 
 /// The valid lanes of a partial vector: as a `vmaskmovps` mask, and their number (for f16 loads).
 #[derive(Clone, Copy)]
@@ -21,43 +19,6 @@ pub(super) struct Tail {
 
 // SAFETY: the dispatch hands out this level only where the CPU has AVX2, FMA and F16C (`detect`); every
 // entry point below enables them.
-unsafe impl Lanes for Avx2 {
-    const N: usize = 8;
-    type V = __m256;
-
-    #[inline(always)]
-    fn splat(x: f32) -> __m256 {
-        // SAFETY: the level is present (see the impl's SAFETY).
-        unsafe { _mm256_set1_ps(x) }
-    }
-
-    #[inline(always)]
-    unsafe fn load(p: *const f32) -> __m256 {
-        // SAFETY: the caller's contract (8 readable values), unaligned.
-        unsafe { _mm256_loadu_ps(p) }
-    }
-
-    #[inline(always)]
-    unsafe fn store(p: *mut f32, v: __m256) {
-        // SAFETY: the caller's contract (8 writable values), unaligned.
-        unsafe { _mm256_storeu_ps(p, v) }
-    }
-
-    #[inline(always)]
-    fn mul_add(a: __m256, b: __m256, c: __m256) -> __m256 {
-        // SAFETY: the level is present.
-        unsafe { _mm256_fmadd_ps(a, b, c) }
-    }
-
-    #[inline(always)]
-    fn relu(v: __m256) -> __m256 {
-        // `max(v, 0)` returns its second operand where `v` is NaN or either zero: +0.
-        // SAFETY: the level is present.
-        unsafe { _mm256_max_ps(v, _mm256_setzero_ps()) }
-    }
-}
-
-// SAFETY: as for `Lanes`.
 unsafe impl X86 for Avx2 {
     /// 4 queries × 2 vectors: 8 of the 16 registers hold accumulators, the packet in four quarters.
     const QT: usize = 4;

@@ -6,52 +6,13 @@
 
 use core::arch::x86_64::*;
 
-use super::lanes::Lanes;
+use nbrdf_lanes::{Avx512, Lanes};
+
 use super::x86::{self, Compressed, Load, SparseBlock, X86, SPARSE_WIDTH};
 use super::{Chain, Dense, Init, CHAIN_TAIL_MAX, CHAIN_WIDTH, PACKET};
 
-/// A vector of 16 f32 lanes.
-pub(super) struct Avx512;
-
 // SAFETY: the dispatch hands out this level only where the CPU has AVX-512 F, BW and VL, FMA, F16C and
 // POPCNT (`detect`); every entry point below enables them.
-unsafe impl Lanes for Avx512 {
-    const N: usize = 16;
-    type V = __m512;
-
-    #[inline(always)]
-    fn splat(x: f32) -> __m512 {
-        // SAFETY: the level is present (see the impl's SAFETY).
-        unsafe { _mm512_set1_ps(x) }
-    }
-
-    #[inline(always)]
-    unsafe fn load(p: *const f32) -> __m512 {
-        // SAFETY: the caller's contract (16 readable values), unaligned.
-        unsafe { _mm512_loadu_ps(p) }
-    }
-
-    #[inline(always)]
-    unsafe fn store(p: *mut f32, v: __m512) {
-        // SAFETY: the caller's contract (16 writable values), unaligned.
-        unsafe { _mm512_storeu_ps(p, v) }
-    }
-
-    #[inline(always)]
-    fn mul_add(a: __m512, b: __m512, c: __m512) -> __m512 {
-        // SAFETY: the level is present.
-        unsafe { _mm512_fmadd_ps(a, b, c) }
-    }
-
-    #[inline(always)]
-    fn relu(v: __m512) -> __m512 {
-        // `max(v, 0)` returns its second operand where `v` is NaN or either zero: +0.
-        // SAFETY: the level is present.
-        unsafe { _mm512_max_ps(v, _mm512_setzero_ps()) }
-    }
-}
-
-// SAFETY: as for `Lanes`.
 unsafe impl X86 for Avx512 {
     /// All 16 queries × 1 vector: 16 accumulators of the 32 registers, so one weight load (and, for
     /// f16, one `vcvtph2ps`) serves 16 FMAs.

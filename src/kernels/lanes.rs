@@ -1,82 +1,21 @@
-//! The one-query and packet kernels written once over a small lane trait, for the levels without
-//! hand-tiled x86 kernels: [`Scalar`] (portable, every target) and `Neon` (aarch64, `neon.rs`).
-//!
-//! A level supplies [`Lanes`]: a vector of `N` f32 lanes with load, store, broadcast, multiply-add and
-//! ReLU. The algorithm lives here only: outputs go in tiles of [`TILE`]; a packet reads each weight
+//! The one-query and packet kernels written once over the workspace's lane trait
+//! ([`nbrdf_lanes::Lanes`], shared with the trainer's dense products), for the levels without
+//! hand-tiled x86 kernels: [`Scalar`] (portable, every target, 8 lanes) and `Neon` (aarch64,
+//! `neon.rs`). The algorithm lives here only: outputs go in tiles of [`TILE`]; a packet reads each weight
 //! row once (widened into a padded f32 buffer) and adds it to every query whose input is nonzero.
 //! Each query's accumulator sees its `init`, then one multiply-add per nonzero input in row order, in
 //! both kernels, so a packet gives every query the bits of [`one`] at the same level.
 
+use nbrdf_lanes::{Lanes, Scalar};
+
 use super::{Dense, Weight, PACKET};
 
-/// A vector of `N` f32 lanes of one instruction-set level.
-///
-/// # Safety
-/// Implementors' functions may use instructions of their level: callers run them only on CPUs that
-/// have it (the dispatch hands out levels at most [`super::detected`]).
-pub(super) unsafe trait Lanes {
-    /// Lanes per vector; divides [`TILE`].
-    const N: usize;
-    /// The vector.
-    type V: Copy;
-    /// All lanes `x`.
-    fn splat(x: f32) -> Self::V;
-    /// `N` values from `p`.
-    ///
-    /// # Safety
-    /// `p` addresses `N` readable values.
-    unsafe fn load(p: *const f32) -> Self::V;
-    /// `N` values to `p`.
-    ///
-    /// # Safety
-    /// `p` addresses `N` writable values.
-    unsafe fn store(p: *mut f32, v: Self::V);
-    /// `c + a · b`, fused or not as the level computes it (every lane alike).
-    fn mul_add(a: Self::V, b: Self::V, c: Self::V) -> Self::V;
-    /// `max(v, 0)` as every kernel computes it: `+0` for either zero and for NaN.
-    fn relu(v: Self::V) -> Self::V;
-}
+/// The portable level's lanes: 8, as an array the compiler vectorises for the compile-time target.
+type Portable = Scalar<8>;
 
 /// Outputs per tile: a query's accumulators for a tile (64 values) and one widened row stay in L1
 /// (a packet's 16 × 64 accumulators are 4 KB) while the weight rows stream past.
 pub(super) const TILE: usize = 64;
-
-/// Plain Rust, 8 lanes as an array the compiler vectorises for the compile-time target; multiply,
-/// then add (`mul_add` is not in `core`, and its software fallback is slow).
-pub(super) struct Scalar;
-
-// SAFETY: plain Rust, no instruction beyond the compile-time target's.
-unsafe impl Lanes for Scalar {
-    const N: usize = 8;
-    type V = [f32; 8];
-
-    #[inline(always)]
-    fn splat(x: f32) -> [f32; 8] {
-        [x; 8]
-    }
-
-    #[inline(always)]
-    unsafe fn load(p: *const f32) -> [f32; 8] {
-        // SAFETY: the caller's contract.
-        unsafe { p.cast::<[f32; 8]>().read_unaligned() }
-    }
-
-    #[inline(always)]
-    unsafe fn store(p: *mut f32, v: [f32; 8]) {
-        // SAFETY: the caller's contract.
-        unsafe { p.cast::<[f32; 8]>().write_unaligned(v) }
-    }
-
-    #[inline(always)]
-    fn mul_add(a: [f32; 8], b: [f32; 8], c: [f32; 8]) -> [f32; 8] {
-        core::array::from_fn(|i| c[i] + a[i] * b[i])
-    }
-
-    #[inline(always)]
-    fn relu(v: [f32; 8]) -> [f32; 8] {
-        v.map(|x| if x > 0.0 { x } else { 0.0 })
-    }
-}
 
 /// `acc[..w] = mul_add(x, row[..w], acc[..w])` over whole vectors (the lanes past `w` are padding).
 ///
@@ -221,21 +160,21 @@ pub(super) unsafe fn packet<L: Lanes, W: Weight>(layer: &Dense<'_, W>, out: *mut
 pub(super) mod portable {
     use super::*;
 
-    /// [`super::one`] over [`Scalar`].
+    /// [`super::one`] over 8 [`Scalar`] lanes.
     ///
     /// # Safety
     /// As [`super::one`].
     pub(in crate::kernels) unsafe fn one<W: Weight>(layer: &Dense<'_, W>, out: *mut f32) {
         // SAFETY: forwarded; `Scalar` needs no CPU feature.
-        unsafe { super::one::<Scalar, W>(layer, out) }
+        unsafe { super::one::<Portable, W>(layer, out) }
     }
 
-    /// [`super::packet`] over [`Scalar`].
+    /// [`super::packet`] over 8 [`Scalar`] lanes.
     ///
     /// # Safety
     /// As [`super::packet`].
     pub(in crate::kernels) unsafe fn packet<W: Weight>(layer: &Dense<'_, W>, out: *mut f32, out_stride: usize) {
         // SAFETY: forwarded; `Scalar` needs no CPU feature.
-        unsafe { super::packet::<Scalar, W>(layer, out, out_stride) }
+        unsafe { super::packet::<Portable, W>(layer, out, out_stride) }
     }
 }

@@ -33,7 +33,7 @@
 
 use core::mem::MaybeUninit;
 
-use super::lanes::Lanes;
+use nbrdf_lanes::Lanes;
 use super::{Dense, Weight, PACKET};
 
 /// The lanes of an x86 level, with what the kernels here need beyond [`Lanes`].

@@ -3,7 +3,9 @@
 //! that maps and encodes 16 pairs at once.
 
 use super::{Model, Prepared, Weights, MAX_ANGLE_INPUT};
-use crate::file::{ModelKind, Reciprocity, MAX_NETS};
+#[cfg(target_arch = "x86_64")]
+use crate::file::Reciprocity;
+use crate::file::{ModelKind, MAX_NETS};
 use crate::math::sanitize;
 use crate::mlp::{Net, Weight, PACKET};
 use crate::neural::{additive_separate, additive_shared, single_mlp};

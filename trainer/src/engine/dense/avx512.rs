@@ -1,60 +1,15 @@
 //! The AVX-512 level of the dense products: 16 lanes, tiles of 6 × 4 vectors (24 of the 32
 //! registers) and a narrow tile of 24 rows.
 
-use core::arch::x86_64::*;
+use nbrdf_lanes::Avx512;
 
-use super::kernel::{self, Lanes};
+use super::kernel::{self, Tile};
 use super::{Epilogue, Mat};
 
-pub(super) struct Avx512;
-
-// SAFETY: the entry points below enable AVX-512F and FMA, and are only called where the CPU has them.
-unsafe impl Lanes for Avx512 {
-    const N: usize = 16;
+// SAFETY: the entry points below enable the level's features and are only called where the CPU has them.
+unsafe impl Tile for Avx512 {
     const MR: usize = 6;
     const NV: usize = 4;
-    type V = __m512;
-
-    #[inline(always)]
-    fn zero() -> __m512 {
-        // SAFETY: inlined into the level's entry points (the trait's contract).
-        unsafe { _mm512_setzero_ps() }
-    }
-    #[inline(always)]
-    fn splat(x: f32) -> __m512 {
-        // SAFETY: as `zero`.
-        unsafe { _mm512_set1_ps(x) }
-    }
-    #[inline(always)]
-    unsafe fn load(p: *const f32) -> __m512 {
-        // SAFETY: the caller's contract.
-        unsafe { _mm512_loadu_ps(p) }
-    }
-    #[inline(always)]
-    unsafe fn store(p: *mut f32, v: __m512) {
-        // SAFETY: the caller's contract.
-        unsafe { _mm512_storeu_ps(p, v) }
-    }
-    #[inline(always)]
-    fn mul_add(a: __m512, b: __m512, c: __m512) -> __m512 {
-        // SAFETY: as `zero`.
-        unsafe { _mm512_fmadd_ps(a, b, c) }
-    }
-    #[inline(always)]
-    fn add(a: __m512, b: __m512) -> __m512 {
-        // SAFETY: as `zero`.
-        unsafe { _mm512_add_ps(a, b) }
-    }
-    #[inline(always)]
-    fn relu(v: __m512) -> __m512 {
-        // SAFETY: as `zero`. `max` returns its second operand, 0, for NaN.
-        unsafe { _mm512_max_ps(v, _mm512_setzero_ps()) }
-    }
-    #[inline(always)]
-    fn keep_positive(m: __m512, v: __m512) -> __m512 {
-        // SAFETY: as `zero`. Ordered compare: NaN is not > 0.
-        unsafe { _mm512_maskz_mov_ps(_mm512_cmp_ps_mask::<_CMP_GT_OQ>(m, _mm512_setzero_ps()), v) }
-    }
 }
 
 /// Rows of the narrow tile.

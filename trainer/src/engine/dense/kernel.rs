@@ -1,8 +1,8 @@
-//! The dense products written once over [`Lanes`], a vector of `N` f32 lanes of one CPU level with
-//! its register tile; `avx512.rs`, `avx2.rs`, `neon.rs` and `portable.rs` supply the lanes and the
+//! The dense products written once over [`Tile`]: the workspace's lane trait ([`Lanes`], a vector
+//! of `N` f32 lanes of one CPU level, shared with the core's kernels) with the level's register tile; `avx512.rs`, `avx2.rs`, `neon.rs` and `portable.rs` supply the lanes and the
 //! entry points that instantiate this body with their level's instructions.
 //!
-//! Register tiles: `R` rows × `V` vectors of accumulators, `R ≤` [`Lanes::MR`] and `V ≤` [`Lanes::NV`]
+//! Register tiles: `R` rows × `V` vectors of accumulators, `R ≤` [`Tile::MR`] and `V ≤` [`Tile::NV`]
 //! (AVX-512: 6 × 4 of 32 registers; AVX2: 6 × 2 of 16; NEON: 6 × 4 of 32); per inner index `V` loads
 //! of `B`, `R` broadcasts of `A` and `R·V` FMAs. Where the columns are one vector (a network's 3 or 6
 //! outputs) a narrow tile of more rows (a const parameter of the entry points: stable Rust cannot size an
@@ -18,43 +18,20 @@
 //! Everything here is `#[inline(always)]` and generic; no closure holds a kernel loop (a closure is a
 //! function of its own, compiled without the level's features wherever it is not inlined).
 
+use nbrdf_lanes::Lanes;
+
 use super::{Epilogue, Mat};
 
-/// A vector of `N` f32 lanes of one instruction-set level, and the register tile of its kernels.
+/// The register tile of a level's lanes ([`Lanes`], the workspace's lane trait shared with the core's
+/// kernels).
 ///
 /// # Safety
-/// Implementors may use instructions of their level: callers run them only on CPUs that have it.
-pub(super) unsafe trait Lanes {
-    /// Lanes per vector.
-    const N: usize;
+/// As [`Lanes`]: callers run the kernels only on CPUs that have the level.
+pub(super) unsafe trait Tile: Lanes {
     /// Rows of a full tile (at most 6).
     const MR: usize;
     /// Vectors of a full tile (at most 4).
     const NV: usize;
-    /// The vector.
-    type V: Copy;
-    /// All lanes 0.
-    fn zero() -> Self::V;
-    /// All lanes `x`.
-    fn splat(x: f32) -> Self::V;
-    /// `N` values from `p`.
-    ///
-    /// # Safety
-    /// `p` addresses `N` readable values.
-    unsafe fn load(p: *const f32) -> Self::V;
-    /// `N` values to `p`.
-    ///
-    /// # Safety
-    /// `p` addresses `N` writable values.
-    unsafe fn store(p: *mut f32, v: Self::V);
-    /// `c + a · b`, fused where the level has it.
-    fn mul_add(a: Self::V, b: Self::V, c: Self::V) -> Self::V;
-    /// `a + b`.
-    fn add(a: Self::V, b: Self::V) -> Self::V;
-    /// `max(v, 0)`, `+0` for NaN.
-    fn relu(v: Self::V) -> Self::V;
-    /// `v` where `m > 0`, else 0 (NaN in `m` counts as not `> 0`).
-    fn keep_positive(m: Self::V, v: Self::V) -> Self::V;
 }
 
 /// The widest panel any level uses: 4 vectors of 16 lanes.
@@ -68,7 +45,7 @@ const TILE_MAX: usize = 24 * 16;
 /// Every address within the tile must be valid (the callers' contract); the level's features present.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-unsafe fn tile<L: Lanes, const R: usize, const V: usize>(a1: Mat, p1: usize, a2: Mat, p2: usize, b: *const f32, ldb: usize, c: *mut f32, ldc: usize, bias: Option<*const f32>, mask: Option<Mat>, accumulate: bool, relu: bool) {
+unsafe fn tile<L: Tile, const R: usize, const V: usize>(a1: Mat, p1: usize, a2: Mat, p2: usize, b: *const f32, ldb: usize, c: *mut f32, ldc: usize, bias: Option<*const f32>, mask: Option<Mat>, accumulate: bool, relu: bool) {
     // SAFETY (whole body): the caller's tile contract.
     unsafe {
         let mut acc: [[L::V; V]; R] = core::array::from_fn(|r| core::array::from_fn(|j| if accumulate { L::load(c.add(r * ldc + j * L::N)) } else { L::zero() }));
@@ -93,7 +70,7 @@ unsafe fn tile<L: Lanes, const R: usize, const V: usize>(a1: Mat, p1: usize, a2:
 /// The multiply-adds of a tile over the `p` columns of one part of its input, `B` from `brow` (row
 /// stride `ldb`): returns the next row of `B`.
 #[inline(always)]
-unsafe fn sweep<L: Lanes, const R: usize, const V: usize>(acc: &mut [[L::V; V]; R], a: Mat, p: usize, mut brow: *const f32, ldb: usize) -> *const f32 {
+unsafe fn sweep<L: Tile, const R: usize, const V: usize>(acc: &mut [[L::V; V]; R], a: Mat, p: usize, mut brow: *const f32, ldb: usize) -> *const f32 {
     // SAFETY (whole body): the caller's tile contract covers `p` rows of `a` and `B`.
     unsafe {
         for q in 0..p {
@@ -127,9 +104,9 @@ macro_rules! dispatch {
 }
 
 /// The rows of a tile that starts at row `r0` of a panel of `vecs` vectors: the narrow tile where the
-/// panel is one vector and enough rows remain, else up to [`Lanes::MR`].
+/// panel is one vector and enough rows remain, else up to [`Tile::MR`].
 #[inline(always)]
-fn tile_rows<L: Lanes, const NARROW: usize>(rows: usize, r0: usize, vecs: usize) -> usize {
+fn tile_rows<L: Tile, const NARROW: usize>(rows: usize, r0: usize, vecs: usize) -> usize {
     if vecs == 1 && rows - r0 >= NARROW {
         NARROW
     } else {
@@ -138,14 +115,14 @@ fn tile_rows<L: Lanes, const NARROW: usize>(rows: usize, r0: usize, vecs: usize)
 }
 
 /// `C [rows × cols] ← epi(A1 · B[0..p1] + A2 · B[p1..p1 + p2])` (see `super::product`) at level `L`:
-/// column panels of [`Lanes::NV`] vectors, each swept by tiles of rows, so that a panel of `B`
+/// column panels of [`Tile::NV`] vectors, each swept by tiles of rows, so that a panel of `B`
 /// (≤ 50 KiB) is reused from L1/L2 by every tile of the block.
 ///
 /// # Safety
 /// As `super::product`; the CPU has `L`'s level.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-pub(super) unsafe fn product<L: Lanes, const NARROW: usize>(rows: usize, cols: usize, a1: Mat, p1: usize, a2: Mat, p2: usize, b: Mat, c: *mut f32, ldc: usize, epi: Epilogue) {
+pub(super) unsafe fn product<L: Tile, const NARROW: usize>(rows: usize, cols: usize, a1: Mat, p1: usize, a2: Mat, p2: usize, b: Mat, c: *mut f32, ldc: usize, epi: Epilogue) {
     let panel = L::NV * L::N;
     let p = p1 + p2;
     // SAFETY (whole body): every tile lies within the block the caller names; the padded copies hold
@@ -206,7 +183,7 @@ pub(super) unsafe fn product<L: Lanes, const NARROW: usize>(rows: usize, cols: u
 /// # Safety
 /// Within the tile the caller names; the level's features present.
 #[inline(always)]
-unsafe fn weight_tile<L: Lanes, const R: usize, const V: usize>(rows: usize, a: Mat, g: Mat, w: *mut f32, ldw: usize, accumulate: bool) {
+unsafe fn weight_tile<L: Tile, const R: usize, const V: usize>(rows: usize, a: Mat, g: Mat, w: *mut f32, ldw: usize, accumulate: bool) {
     // SAFETY (whole body): the caller's tile contract.
     unsafe {
         let mut acc: [[L::V; V]; R] = core::array::from_fn(|r| core::array::from_fn(|j| if accumulate { L::load(w.add(r * ldw + j * L::N)) } else { L::zero() }));
@@ -237,7 +214,7 @@ const W_ROWS: usize = 256;
 /// # Safety
 /// As `super::weight_product`; the CPU has `L`'s level.
 #[inline(always)]
-pub(super) unsafe fn weight_product<L: Lanes, const NARROW: usize>(rows: usize, k: usize, m: usize, a: Mat, g: Mat, w: *mut f32, accumulate: bool) {
+pub(super) unsafe fn weight_product<L: Tile, const NARROW: usize>(rows: usize, k: usize, m: usize, a: Mat, g: Mat, w: *mut f32, accumulate: bool) {
     let panel = L::NV * L::N;
     // SAFETY (whole body): every tile lies within the matrices the caller names; the padded copies
     // hold a whole number of vectors per row.
@@ -288,7 +265,7 @@ pub(super) unsafe fn weight_product<L: Lanes, const NARROW: usize>(rows: usize, 
 /// multiply-adds on registers, `iters` rounds; returns the flops done (2 per lane and FMA) and a
 /// value that depends on every chain, so that none is optimised away.
 #[inline(always)]
-pub(super) fn fma_peak<L: Lanes>(iters: usize) -> (f64, f32) {
+pub(super) fn fma_peak<L: Tile>(iters: usize) -> (f64, f32) {
     let (a, b) = (L::splat(0.999_999), L::splat(1e-7));
     let mut acc = [L::zero(); 12];
     for _ in 0..iters {

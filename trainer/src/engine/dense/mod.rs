@@ -193,7 +193,8 @@ pub fn fma_peak_gflops() -> f64 {
     let mut best = 0.0f64;
     for _ in 0..5 {
         let t = std::time::Instant::now();
-        // SAFETY: the level is the detected one, which the CPU has.
+        // SAFETY: the level is the detected one, which the CPU has. (On aarch64 no arm needs it.)
+        #[cfg_attr(target_arch = "aarch64", allow(unused_unsafe))]
         let (flops, sink) = unsafe {
             match level {
                 #[cfg(target_arch = "x86_64")]

@@ -1,53 +1,19 @@
-//! The portable level of the dense products: plain Rust on 4 lanes as an array (one SSE2 or NEON register), which the compiler
-//! vectorises for the compile-time target; multiply, then add (`mul_add` is not in `core`, and its
-//! software fallback is slow). Tiles of 4 × 2 vectors (8 of the 16 SSE2 registers) and a narrow tile of 8 rows.
+//! The portable level of the dense products: the workspace's plain-Rust lanes on 4 lanes (one SSE2
+//! or NEON register), multiply then add. Tiles of 4 × 2 vectors (8 of the 16 SSE2 registers) and a
+//! narrow tile of 8 rows.
 
-use super::kernel::{self, Lanes};
+use nbrdf_lanes::Scalar;
+
+use super::kernel::{self, Tile};
 use super::{Epilogue, Mat};
 
-pub(super) struct Portable;
+/// Plain Rust on 4 lanes (one SSE2 or NEON register).
+type Portable = Scalar<4>;
 
 // SAFETY: plain Rust, no instruction beyond the compile-time target's.
-unsafe impl Lanes for Portable {
-    const N: usize = 4;
+unsafe impl Tile for Portable {
     const MR: usize = 4;
     const NV: usize = 2;
-    type V = [f32; 4];
-
-    #[inline(always)]
-    fn zero() -> [f32; 4] {
-        [0.0; 4]
-    }
-    #[inline(always)]
-    fn splat(x: f32) -> [f32; 4] {
-        [x; 4]
-    }
-    #[inline(always)]
-    unsafe fn load(p: *const f32) -> [f32; 4] {
-        // SAFETY: the caller's contract.
-        unsafe { p.cast::<[f32; 4]>().read_unaligned() }
-    }
-    #[inline(always)]
-    unsafe fn store(p: *mut f32, v: [f32; 4]) {
-        // SAFETY: the caller's contract.
-        unsafe { p.cast::<[f32; 4]>().write_unaligned(v) }
-    }
-    #[inline(always)]
-    fn mul_add(a: [f32; 4], b: [f32; 4], c: [f32; 4]) -> [f32; 4] {
-        core::array::from_fn(|i| c[i] + a[i] * b[i])
-    }
-    #[inline(always)]
-    fn add(a: [f32; 4], b: [f32; 4]) -> [f32; 4] {
-        core::array::from_fn(|i| a[i] + b[i])
-    }
-    #[inline(always)]
-    fn relu(v: [f32; 4]) -> [f32; 4] {
-        v.map(|x| if x > 0.0 { x } else { 0.0 })
-    }
-    #[inline(always)]
-    fn keep_positive(m: [f32; 4], v: [f32; 4]) -> [f32; 4] {
-        core::array::from_fn(|i| if m[i] > 0.0 { v[i] } else { 0.0 })
-    }
 }
 
 /// Rows of the narrow tile.
