@@ -96,8 +96,8 @@ struct StudyArgs {
 
 #[derive(Subcommand, Clone)]
 enum StudyAction {
-    /// Joins the results.json of several study outputs (e.g. shards run with different --out) and
-    /// writes the report into --out
+    /// Joins the results.json of several study outputs (shards run with different --out, or studies
+    /// whose configs differ only in their scenes) and writes the report into --out
     Merge {
         /// The study output folders to join
         #[arg(required = true)]

@@ -197,6 +197,23 @@ fn tiny_study_writes_every_table_and_reuses_jobs() {
         n
     };
     assert_eq!(names(&merged), names(&results));
+
+    // Studies of one protocol on other scenes (one mesh per machine) merge into one report over every
+    // scene; here a copy of shard `b` relabelled as another object stands for the second machine's run.
+    let other = dir.path().join("other");
+    std::fs::create_dir_all(&other).unwrap();
+    let mut saved: serde_json::Value = serde_json::from_slice(&std::fs::read(shards[1].join("results.json")).unwrap()).unwrap();
+    let scene = study::SceneConfig { mesh: "torus".into(), material: "clear-coat".into() };
+    saved["config"]["scenes"] = serde_json::to_value([&scene]).unwrap();
+    for job in saved["jobs"].as_array_mut().unwrap() {
+        job["scene"] = scene.id().into();
+    }
+    std::fs::write(other.join("results.json"), serde_json::to_vec(&saved).unwrap()).unwrap();
+    let (both, jobs) = study::report::merge(&[shards[0].clone(), shards[1].clone(), other]).unwrap();
+    assert_eq!(both.scenes, [config.scenes[0].clone(), scene.clone()]);
+    assert_eq!(jobs.len(), merged.len() + s1.len());
+    assert!(jobs[..merged.len()].iter().all(|j| j.scene == config.scenes[0].id()), "config order: scene-major");
+    assert!(jobs[merged.len()..].iter().all(|j| j.scene == scene.id()));
 }
 
 /// `results.json` without what depends on the machine's load: every field whose name says it is a

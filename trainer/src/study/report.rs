@@ -776,10 +776,12 @@ pub fn write(out: &Path, config: &StudyConfig, results: &[JobResult], comparison
     Ok(())
 }
 
-/// Reads the `results.json` of several study outputs (e.g. one per shard) and joins their jobs; a job
-/// (scene, model) found twice keeps the later folder's result. Every folder must hold the same config
-/// (jobs of two configs in one table would compare unlike runs); one that differs is refused, naming
-/// both folders and the keys that differ.
+/// Reads the `results.json` of several study outputs (e.g. one per shard, or one per mesh run on
+/// different machines) and joins their jobs; a job (scene, model) found twice keeps the later folder's
+/// result. The folders must hold one config, or configs that differ only in their scenes (the joined
+/// config lists every scene, in the order the folders first name them): jobs of two protocols in one
+/// table would compare unlike runs, so a folder whose config differs in anything else is refused,
+/// naming both folders and the keys that differ.
 pub fn merge(dirs: &[std::path::PathBuf]) -> Result<(StudyConfig, Vec<JobResult>)> {
     #[derive(serde::Deserialize)]
     struct Saved {
@@ -791,17 +793,35 @@ pub fn merge(dirs: &[std::path::PathBuf]) -> Result<(StudyConfig, Vec<JobResult>
     for d in dirs {
         let p = d.join("results.json");
         let saved: Saved = crate::json::read(&p, "study results file")?;
-        match &config {
+        match &mut config {
             None => config = Some((saved.config, d)),
-            Some((first, first_dir)) if *first != saved.config => {
-                return Err(Error::Invalid(format!(
-                    "study merge: {} holds a study of another config than {} (they differ in {}); merge only shards of one config",
-                    d.display(),
-                    first_dir.display(),
-                    differing_keys(first, &saved.config)
-                )));
+            Some((first, first_dir)) => {
+                let keys = differing_keys(first, &saved.config);
+                if keys == "\"scenes\"" {
+                    // A model limited to some scenes names them by index, which a longer list would shift.
+                    if let Some(m) = first.models.iter().find(|m| m.scenes.is_some()) {
+                        return Err(Error::Invalid(format!(
+                            "study merge: {} and {} hold studies of different scenes, and model {:?} runs on scenes \
+                             chosen by index, which joining the lists would change; merge only shards of one config",
+                            d.display(),
+                            first_dir.display(),
+                            m.model
+                        )));
+                    }
+                    for scene in saved.config.scenes {
+                        if !first.scenes.contains(&scene) {
+                            first.scenes.push(scene);
+                        }
+                    }
+                } else if !keys.is_empty() {
+                    return Err(Error::Invalid(format!(
+                        "study merge: {} holds a study of another config than {} (they differ in {keys}); merge only \
+                         shards of one config, or studies that differ only in their scenes",
+                        d.display(),
+                        first_dir.display(),
+                    )));
+                }
             }
-            Some(_) => {}
         }
         for j in saved.jobs {
             match jobs.iter_mut().find(|k| k.scene == j.scene && k.model == j.model) {
