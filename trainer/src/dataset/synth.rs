@@ -82,24 +82,15 @@ pub struct SynthArgs {
 impl SynthArgs {
     /// The paper's defaults writing to `out`.
     pub fn new(out: impl Into<PathBuf>) -> Self {
-        SynthArgs {
-            out: out.into(),
-            mesh: "sphere".into(),
-            material: "two-lobe-metal".into(),
-            size: 256,
-            views: 20,
-            train_views: 10,
-            train_lights: 30,
-            test_lights: 12,
-            sigma: 1e-3,
-            seed: 0,
-            fov: 40.0,
-            light_intensity: 1.0,
-            target_median: None,
-            force_shadows: false,
-            verbose: false,
-            quiet: false,
+        // The defaults are clap's, declared once on the fields above.
+        #[derive(clap::Parser)]
+        struct Defaults {
+            #[command(flatten)]
+            args: SynthArgs,
         }
+        let mut args = <Defaults as clap::Parser>::try_parse_from(["synth", "--out", "."]).expect("the defaults parse").args;
+        args.out = out.into();
+        args
     }
 
     /// Checks every size and number before any work, with the flags named as on the command line.
@@ -475,4 +466,20 @@ pub fn run(args: &SynthArgs) -> Result<DatasetFile, Error> {
 
 fn display(p: &Path) -> String {
     p.display().to_string()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn new_has_the_paper_defaults_of_the_command_line() {
+        let a = SynthArgs::new("data");
+        assert_eq!(a.out, PathBuf::from("data"));
+        // Sec. 5.3: 20 views, 10 of them training views with 30 lights each, 12 lights per test view, σ 1e-3.
+        assert_eq!((a.size, a.views, a.train_views, a.train_lights, a.test_lights), (256, 20, 10, 30, 12));
+        assert_eq!((a.sigma, a.light_intensity, a.target_median), (1e-3, 1.0, None));
+        assert_eq!((a.mesh.as_str(), a.material.as_str()), ("sphere", "two-lobe-metal"));
+        a.check().unwrap();
+    }
 }
