@@ -50,7 +50,7 @@ pub mod mlp;
 pub mod model;
 pub mod neural;
 pub mod parametric;
-pub mod real;
+pub(crate) mod real;
 pub mod sampling;
 pub mod warp;
 

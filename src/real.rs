@@ -65,8 +65,6 @@ pub trait Real:
     fn powf_base(base: f32, e: Self) -> Self;
     /// The larger of two values (`f32::max`); the derivative is the chosen one's.
     fn max(self, other: Self) -> Self;
-    /// The smaller of two values (`f32::min`); the derivative is the chosen one's.
-    fn min(self, other: Self) -> Self;
     /// `f32::clamp` to `[lo, hi]`; the derivative is 0 where the value is clamped.
     fn clamp(self, lo: f32, hi: f32) -> Self;
     /// The logistic sigmoid, [`crate::math::sigmoid`].
@@ -110,10 +108,6 @@ impl Real for f32 {
     #[inline]
     fn max(self, other: Self) -> Self {
         f32::max(self, other)
-    }
-    #[inline]
-    fn min(self, other: Self) -> Self {
-        f32::min(self, other)
     }
     #[inline]
     fn clamp(self, lo: f32, hi: f32) -> Self {

@@ -193,15 +193,6 @@ impl<const N: usize> Real for Dual<N> {
         }
     }
 
-    #[inline]
-    fn min(self, o: Self) -> Self {
-        let v = f32::min(self.v, o.v);
-        if self.v <= o.v || o.v.is_nan() {
-            Self { v, d: self.d }
-        } else {
-            Self { v, d: o.d }
-        }
-    }
 
     #[inline]
     fn clamp(self, lo: f32, hi: f32) -> Self {
@@ -275,7 +266,6 @@ mod tests {
         check("softplus", math::softplus, |x| x.softplus(), &raw);
         check("clamp", |x| x.clamp(-1.0, 1.0), |x| x.clamp(-1.0, 1.0), &[-0.5, 0.25, 3.0, -3.0]);
         check("max", |x| x.max(0.5), |x| x.max(Dual::constant(0.5)), &[0.25, 3.0]);
-        check("min", |x| x.min(0.5), |x| x.min(Dual::constant(0.5)), &[0.25, 3.0]);
     }
 
     #[test]

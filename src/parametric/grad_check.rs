@@ -66,9 +66,6 @@ impl Real for F64 {
     fn max(self, o: Self) -> Self {
         F64(self.0.max(o.0))
     }
-    fn min(self, o: Self) -> Self {
-        F64(self.0.min(o.0))
-    }
     fn clamp(self, lo: f32, hi: f32) -> Self {
         F64(self.0.clamp(lo as f64, hi as f64))
     }

@@ -42,7 +42,7 @@
 //! ```
 
 pub mod disney;
-pub mod dual;
+pub(crate) mod dual;
 pub mod fresnel_microfacet;
 pub mod lambert;
 pub mod phong;

@@ -21,7 +21,7 @@
 
 mod tiny;
 
-pub use tiny::{half_diff_packet, TinyLayer, TinyNet, TINY_INPUTS, TINY_MAX_WIDTH, TINY_PACKET};
+pub(crate) use tiny::{half_diff_packet, TinyLayer, TinyNet, TINY_INPUTS, TINY_MAX_WIDTH, TINY_PACKET};
 
 use alloc::string::{String, ToString};
 use alloc::vec::Vec;

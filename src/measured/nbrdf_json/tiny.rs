@@ -29,9 +29,7 @@
 //!   (`Kernels::one` and `Kernels::packet`, one FMA chain per output; single queries and packets agree
 //!   bit for bit there too) and `libm::expm1f`.
 
-#[cfg(target_arch = "x86_64")]
-use crate::kernels::{level, Level};
-use crate::kernels::{Dense, Segment};
+use crate::kernels::{detected, level, Dense, Level, Segment, Weight};
 
 /// Widest layer the tiny kernels accept (a multiple of 8).
 pub const TINY_MAX_WIDTH: usize = 64;
@@ -106,27 +104,23 @@ impl TinyNet<'_> {
         assert!(width == 3 && self.layers.last().is_some_and(|l| l.padded == 8), "the last layer has 3 outputs, padded to 8");
     }
 
-    /// The network on one input, then `expm1` (not clamped), at the active kernel level.
-    #[inline]
-    pub fn one(&self, x: &[f32; TINY_INPUTS]) -> [f32; 3] {
-        self.single::<false>(x)
-    }
-
-    /// The NBRDF-json output of one input: [`one`](Self::one) clamped by `max(·, 0)`, with non-finite
-    /// values (an overflowing `expm1`) replaced by 0, as [`crate::math::sanitize`] does, without its
-    /// branches on the AVX-512 level.
+    /// The NBRDF-json output of one input at the active kernel level: the network, then `expm1`,
+    /// clamped by `max(·, 0)`, with non-finite values (an overflowing `expm1`) replaced by 0, as
+    /// [`crate::math::sanitize`] does, without its branches on the AVX-512 level.
     #[inline]
     pub fn brdf(&self, x: &[f32; TINY_INPUTS]) -> [f32; 3] {
-        self.single::<true>(x)
+        self.single::<true>(level(), x)
     }
 
+    /// One input at `level` (clamped to the detected level), then `expm1`, clamped if `CLAMP`.
     #[inline]
-    fn single<const CLAMP: bool>(&self, x: &[f32; TINY_INPUTS]) -> [f32; 3] {
+    fn single<const CLAMP: bool>(&self, level: Level, x: &[f32; TINY_INPUTS]) -> [f32; 3] {
         self.check();
+        let level = level.min(detected());
         #[cfg(target_arch = "x86_64")]
-        if level() == Level::Avx512 {
+        if level == Level::Avx512 {
             use core::arch::x86_64::*;
-            // SAFETY: `level()` is at most the detected level, so the CPU has AVX-512; `check` verified
+            // SAFETY: `level` is at most the detected level, so the CPU has AVX-512; `check` verified
             // every extent the kernel reads.
             let v = unsafe { avx512::one::<CLAMP>(self, x[0], x[1], x[2], x[3], x[4], x[5]) };
             // SAFETY: SSE, which these take, is part of x86_64.
@@ -134,17 +128,25 @@ impl TinyNet<'_> {
                 [_mm_cvtss_f32(v), _mm_cvtss_f32(_mm_shuffle_ps::<0x55>(v, v)), _mm_cvtss_f32(_mm_movehl_ps(v, v))]
             };
         }
-        let y = generic_one(self, x);
+        let y = generic_one(self, level, x);
         if CLAMP { crate::math::sanitize(y) } else { y }
     }
 
-    /// [`one`](Self::one) for [`TINY_PACKET`] inputs, bit for bit, feature-major: query `q`'s input is
+    /// The network, then `expm1` (not clamped), on [`TINY_PACKET`] inputs, each with the bits one input
+    /// alone gets, feature-major: query `q`'s input is
     /// `x[..][q]`, its RGB goes to `out[..][q]`.
     #[inline]
     pub fn packet(&self, x: &[[f32; TINY_PACKET]; TINY_INPUTS], out: &mut [[f32; TINY_PACKET]; 3]) {
+        self.packet_at(level(), x, out)
+    }
+
+    /// [`packet`](Self::packet) at `level` (clamped to the detected level).
+    #[inline]
+    fn packet_at(&self, level: Level, x: &[[f32; TINY_PACKET]; TINY_INPUTS], out: &mut [[f32; TINY_PACKET]; 3]) {
         self.check();
+        let level = level.min(detected());
         #[cfg(target_arch = "x86_64")]
-        if level() == Level::Avx512 {
+        if level == Level::Avx512 {
             // SAFETY: as in `one`.
             return unsafe { avx512::packet(self, x, out) };
         }
@@ -155,7 +157,7 @@ impl TinyNet<'_> {
                 a[q * W + f] = *v;
             }
         }
-        generic::<TINY_PACKET>(self, &mut a, &mut b);
+        generic::<TINY_PACKET>(self, level, &mut a, &mut b);
         for (c, o) in out.iter_mut().enumerate() {
             for (q, o) in o.iter_mut().enumerate() {
                 *o = libm::expm1f(a[q * W + c]);
@@ -167,12 +169,12 @@ impl TinyNet<'_> {
 /// Widest layer of the generic path: `TINY_MAX_WIDTH` floats per query.
 const W: usize = TINY_MAX_WIDTH;
 
-/// The network on `Q` queries (`x[q * W..][..6]`) through the generic layer kernels of the active
-/// level (`Kernels::one` for `Q = 1`, `Kernels::packet` for `Q = TINY_PACKET`, which agree bit for bit),
+/// The network on `Q` queries (`x[q * W..][..6]`) through the generic layer kernels of `level`
+/// (`Kernels::one` for `Q = 1`, `Kernels::packet` for `Q = TINY_PACKET`, which agree bit for bit),
 /// leaving the last layer's outputs at `x[q * W..][..3]`.
 #[inline(always)]
-fn generic<const Q: usize>(net: &TinyNet<'_>, x: &mut [f32], y: &mut [f32]) {
-    let k = crate::kernels::kernels::<f32>();
+fn generic<const Q: usize>(net: &TinyNet<'_>, level: Level, x: &mut [f32], y: &mut [f32]) {
+    let k = <f32 as Weight>::table(level);
     let (mut a, mut b) = (x, y);
     for l in net.layers {
         let (n_in, n_out) = (l.inputs, l.padded);
@@ -200,12 +202,12 @@ fn generic<const Q: usize>(net: &TinyNet<'_>, x: &mut [f32], y: &mut [f32]) {
     }
 }
 
-/// [`TinyNet::one`] below AVX-512.
-fn generic_one(net: &TinyNet<'_>, input: &[f32; TINY_INPUTS]) -> [f32; 3] {
+/// One input through the generic kernels (below AVX-512), then `expm1`.
+fn generic_one(net: &TinyNet<'_>, level: Level, input: &[f32; TINY_INPUTS]) -> [f32; 3] {
     let mut x = [0.0f32; W];
     let mut y = [0.0f32; W];
     x[..TINY_INPUTS].copy_from_slice(input);
-    generic::<1>(net, &mut x, &mut y);
+    generic::<1>(net, level, &mut x, &mut y);
     [libm::expm1f(x[0]), libm::expm1f(x[1]), libm::expm1f(x[2])]
 }
 
@@ -600,6 +602,104 @@ mod avx512 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use alloc::vec;
+    use alloc::vec::Vec;
+
+    /// xorshift, values in [-0.5, 0.5).
+    struct Rng(u64);
+    impl Rng {
+        fn next(&mut self) -> f32 {
+            self.0 ^= self.0 << 13;
+            self.0 ^= self.0 >> 7;
+            self.0 ^= self.0 << 17;
+            (self.0 >> 40) as f32 / (1u64 << 24) as f32 - 0.5
+        }
+        /// A multiple of `1 / scale` in `[-0.5, 0.5) · range`.
+        fn dyadic(&mut self, range: f32, scale: f32) -> f32 {
+            libm::roundf(self.next() * range) / scale
+        }
+    }
+
+    /// A network of the given widths: weights dyadic (multiples of 1/64) and inputs dyadic, so that
+    /// the first layer's pre-activations are exact; the bias of every third output of the first layer
+    /// is chosen to make its pre-activation at `zero_at` exactly 0.
+    fn network(widths: &[usize], rng: &mut Rng, zero_at: &[f32; TINY_INPUTS]) -> (Vec<TinyLayer>, Vec<f32>) {
+        let mut layers = Vec::new();
+        let mut params = Vec::new();
+        let mut x: Vec<f64> = zero_at.iter().map(|v| *v as f64).collect();
+        for (l, w) in widths.windows(2).enumerate() {
+            let (n_in, n_out) = (w[0], w[1]);
+            let padded = n_out.div_ceil(8) * 8;
+            let offset = params.len();
+            params.resize(offset + (n_in + 1) * padded, 0.0);
+            let relu = l + 2 < widths.len();
+            let mut y = vec![0.0f64; n_out];
+            for (o, y) in y.iter_mut().enumerate() {
+                let mut s = 0.0f64;
+                for (i, xi) in x.iter().enumerate() {
+                    let v = rng.dyadic(64.0, 64.0);
+                    params[offset + i * padded + o] = v;
+                    s += v as f64 * xi;
+                }
+                let b = if l == 0 && o % 3 == 1 { -s as f32 } else { rng.dyadic(16.0, 64.0) };
+                assert!(b as f64 == -s || !(l == 0 && o % 3 == 1), "the zero bias is exact");
+                params[offset + n_in * padded + o] = b;
+                *y = if relu { (s + b as f64).max(0.0) } else { s + b as f64 };
+            }
+            layers.push(TinyLayer { inputs: n_in, outputs: n_out, padded, offset, relu });
+            x = y;
+        }
+        (layers, params)
+    }
+
+    /// The network in f64, then `expm1`.
+    fn reference(layers: &[TinyLayer], params: &[f32], input: &[f32; TINY_INPUTS]) -> [f64; 3] {
+        let mut x: Vec<f64> = input.iter().map(|v| *v as f64).collect();
+        for l in layers {
+            x = (0..l.outputs)
+                .map(|o| {
+                    let mut s = params[l.offset + l.inputs * l.padded + o] as f64;
+                    for (i, xi) in x.iter().enumerate() {
+                        s += xi * params[l.offset + i * l.padded + o] as f64;
+                    }
+                    if l.relu { s.max(0.0) } else { s }
+                })
+                .collect();
+        }
+        [libm::expm1(x[0]), libm::expm1(x[1]), libm::expm1(x[2])]
+    }
+
+    /// At every level the host runs: one query matches an f64 reference, the clamped output is
+    /// `sanitize` of it bit for bit, and a packet gives each query the bits of one query.
+    #[test]
+    fn tiny_networks_match_a_scalar_reference_and_packets_match_single_queries() {
+        let mut rng = Rng(0x2545f4914f6cdd1d);
+        for widths in [&[6, 21, 21, 3][..], &[6, 3], &[6, 8, 3], &[6, 64, 17, 40, 3], &[6, 2, 3], &[6, 33, 3]] {
+            // Dyadic inputs: the first one makes some pre-activations exactly zero.
+            let inputs: Vec<[f32; TINY_INPUTS]> =
+                (0..TINY_PACKET * 3).map(|_| core::array::from_fn(|_| rng.dyadic(64.0, 32.0))).collect();
+            let (layers, params) = network(widths, &mut rng, &inputs[0]);
+            let net = TinyNet { layers: &layers, params: &params };
+            for level in Level::usable() {
+                for chunk in inputs.chunks(TINY_PACKET) {
+                    let x: [[f32; TINY_PACKET]; TINY_INPUTS] = core::array::from_fn(|f| core::array::from_fn(|q| chunk[q][f]));
+                    let mut packet = [[f32::NAN; TINY_PACKET]; 3];
+                    net.packet_at(level, &x, &mut packet);
+                    for (q, input) in chunk.iter().enumerate() {
+                        let got = net.single::<false>(level, input);
+                        let clamped = net.single::<true>(level, input);
+                        assert_eq!(clamped.map(f32::to_bits), crate::math::sanitize(got).map(f32::to_bits));
+                        let want = reference(&layers, &params, input);
+                        for c in 0..3 {
+                            assert_eq!(got[c].to_bits(), packet[c][q].to_bits(), "{level:?} {widths:?}: single vs packet");
+                            let tol = 1e-5 * want[c].abs().max(0.05);
+                            assert!((got[c] as f64 - want[c]).abs() <= tol, "{level:?} {widths:?} q {q} c {c}: {} vs {}", got[c], want[c]);
+                        }
+                    }
+                }
+            }
+        }
+    }
 
     #[test]
     fn vector_expm1_is_within_two_ulp_of_libm() {
