@@ -37,6 +37,8 @@ pub(crate) fn trainer(e: trainer::Error) -> PyErr {
             io(if missing { ErrorKind::NotFound } else { ErrorKind::Other }, e.to_string())
         }
         trainer::Error::Invalid(m) => PyValueError::new_err(m),
+        trainer::Error::Intrinsic(trainer::intrinsic::Error::Io { .. }) => io(ErrorKind::Other, e.to_string()),
+        trainer::Error::Intrinsic(_) => PyValueError::new_err(e.to_string()),
         trainer::Error::Interrupted => pyo3::exceptions::PyKeyboardInterrupt::new_err(e.to_string()),
         trainer::Error::Candle(_) | trainer::Error::NonFinite { .. } => PyRuntimeError::new_err(e.to_string()),
     }

@@ -109,8 +109,8 @@ pub(crate) fn synth(
         a.light_intensity = light_intensity.unwrap_or(a.light_intensity);
         (a.target_median, a.force_shadows, a.quiet) = (target_median, force_shadows, quiet);
         // The checks name the keyword arguments, not the command line's flags.
-        a.check_as(&|key| key.to_string()).map_err(error::core)?;
-        interruptible(py, progress.as_ref(), || trainer::dataset::synth::synthesize(&a))?.map_err(error::core)?;
+        a.check_as(&|key| key.to_string()).map_err(error::trainer)?;
+        interruptible(py, progress.as_ref(), || trainer::dataset::synth::synthesize(&a))?.map_err(error::trainer)?;
         Ok(a.out)
     })
 }

@@ -10,8 +10,10 @@ pub enum Error {
     Candle(candle_core::Error),
     /// Reading or writing a file.
     Io { path: PathBuf, message: String },
-    /// The core rejected a model or file.
+    /// The core rejected a model, file or value (data sets report their files' problems this way).
     Core(nbrdf::Error),
+    /// The intrinsic encoding of a mesh could not be computed, cached or read.
+    Intrinsic(crate::intrinsic::Error),
     /// The loss or a gradient stopped being finite; the weights were not updated with it.
     NonFinite {
         /// Training step (0-based) whose loss or gradient was NaN or infinite.
@@ -33,6 +35,7 @@ impl fmt::Display for Error {
             Error::Candle(e) => write!(f, "tensor operation failed: {e}"),
             Error::Io { path, message } => write!(f, "{}: {message}", path.display()),
             Error::Core(e) => write!(f, "{e}"),
+            Error::Intrinsic(e) => write!(f, "intrinsic encoding of the mesh: {e}"),
             Error::NonFinite { step, what, last_good } => {
                 write!(f, "the {what} became NaN or infinite at step {step}; training stopped")?;
                 match last_good {
@@ -54,6 +57,12 @@ impl From<candle_core::Error> for Error {
     }
 }
 
+impl From<crate::intrinsic::Error> for Error {
+    fn from(e: crate::intrinsic::Error) -> Self {
+        Error::Intrinsic(e)
+    }
+}
+
 impl From<nbrdf::Error> for Error {
     fn from(e: nbrdf::Error) -> Self {
         Error::Core(e)
@@ -61,6 +70,16 @@ impl From<nbrdf::Error> for Error {
 }
 
 impl Error {
+    /// The same error with `what` (a file and field, a flag) in front, as [`nbrdf::Error::context`]
+    /// does for the core's errors.
+    pub fn context(self, what: impl fmt::Display) -> Self {
+        match self {
+            Error::Core(e) => Error::Core(e.context(what)),
+            Error::Invalid(m) => Error::Invalid(format!("{what}: {m}")),
+            other => other,
+        }
+    }
+
     /// An I/O error on `path`.
     pub fn io(path: impl Into<PathBuf>, e: impl fmt::Display) -> Self {
         Error::Io { path: path.into(), message: e.to_string() }

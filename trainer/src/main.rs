@@ -148,9 +148,9 @@ fn run(cli: Cli) -> trainer::Result<()> {
     match command {
         Command::Study(args) => study(args)?,
         Command::Synth(args) => {
-            trainer::dataset::synth::run(&args).map_err(trainer::Error::Core)?;
+            trainer::dataset::synth::run(&args)?;
         }
-        Command::Inspect(args) => trainer::dataset::inspect(&args).map_err(trainer::Error::Core)?,
+        Command::Inspect(args) => trainer::dataset::inspect(&args)?,
         Command::Fit(args) => {
             let (outputs, log) = commands::fit::run_args(&args, true)?;
             let last = log.loss.last().map(|l| l.1).unwrap_or(f32::NAN);

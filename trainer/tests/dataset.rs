@@ -124,7 +124,7 @@ fn bad_descriptions_and_files_fail_clearly() {
     restore();
 
     edit_json(&dir, |v| v["version"] = 9.into());
-    assert!(matches!(Dataset::open(&dir), Err(Error::UnsupportedVersion { found: 9, .. })));
+    assert!(matches!(Dataset::open(&dir), Err(trainer::Error::Core(Error::UnsupportedVersion { found: 9, .. }))));
     restore();
 
     edit_json(&dir, |v| v["mesh"] = serde_json::json!({"kind": "builtin", "id": "teapot"}));
@@ -140,9 +140,9 @@ fn bad_descriptions_and_files_fail_clearly() {
     let e = samples(&ds, split, 1).unwrap_err().to_string();
     assert!(e.contains("000.exr"), "{e}");
     std::fs::remove_file(&exr).unwrap();
-    assert!(matches!(samples(&ds, split, 1), Err(Error::Io { .. })));
+    assert!(matches!(samples(&ds, split, 1), Err(trainer::Error::Core(Error::Io { .. }))));
 
-    assert!(matches!(Dataset::open(&dir.join("nowhere")), Err(Error::Io { .. })));
+    assert!(matches!(Dataset::open(&dir.join("nowhere")), Err(trainer::Error::Core(Error::Io { .. }))));
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
@@ -314,7 +314,7 @@ fn diligent_replica_reads_into_samples() {
     // Broken copies fail with the file named.
     assert!(diligent::open(&root, "teddy").unwrap_err().to_string().contains("unknown object"));
     std::fs::write(obj.join("view_02/light_intensities.txt"), "1 1 1\n").unwrap();
-    assert!(matches!(diligent::open(&root, "bear"), Err(Error::SizeMismatch { expected: 2, found: 1, .. })));
+    assert!(matches!(diligent::open(&root, "bear"), Err(trainer::Error::Core(Error::SizeMismatch { expected: 2, found: 1, .. }))));
     std::fs::remove_file(obj.join("view_01/002.png")).unwrap();
     let e = diligent::open(&root, "bear").unwrap_err().to_string();
     assert!(e.contains("002.png"), "{e}");

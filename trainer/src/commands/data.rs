@@ -118,8 +118,7 @@ pub fn load(args: &DataArgs, position: PositionEncoding, cache_dir: &Path) -> Re
             let k = k as usize;
             let mesh = &ds.geometry.mesh;
             let positions: Vec<[f32; 3]> = mesh.positions.iter().map(|p| p.to_array()).collect();
-            let enc = IntrinsicEncoding::load_or_compute(cache_dir, &positions, &mesh.triangles, k)
-                .map_err(|e| Error::Invalid(format!("intrinsic encoding of the data set's mesh: {e}")))?;
+            let enc = IntrinsicEncoding::load_or_compute(cache_dir, &positions, &mesh.triangles, k)?;
             let table = enc.scaled_to_unit_range();
             let mut values = vec![0.0f32; s.len() * k];
             for (i, out) in values.chunks_exact_mut(k).enumerate() {

@@ -35,9 +35,9 @@ pub struct Calibration {
 }
 
 /// The object folder: `root/mvpmsData/<object>PNG` or `root/<object>PNG`.
-pub fn object_dir(root: &Path, object: &str) -> Result<PathBuf, Error> {
+pub fn object_dir(root: &Path, object: &str) -> crate::Result<PathBuf> {
     if !OBJECTS.contains(&object) {
-        return Err(err("DiLiGenT-MV object", format!("unknown object '{object}' (known: {})", OBJECTS.join(", "))));
+        return Err(crate::Error::from(err("DiLiGenT-MV object", format!("unknown object '{object}' (known: {})", OBJECTS.join(", ")))));
     }
     let name = format!("{object}PNG");
     for dir in [root.join("mvpmsData").join(&name), root.join(&name)] {
@@ -45,28 +45,28 @@ pub fn object_dir(root: &Path, object: &str) -> Result<PathBuf, Error> {
             return Ok(dir);
         }
     }
-    Err(Error::io(root.join("mvpmsData").join(&name), &std::io::Error::from(std::io::ErrorKind::NotFound)))
+    Err(crate::Error::from(Error::io(root.join("mvpmsData").join(&name), &std::io::Error::from(std::io::ErrorKind::NotFound))))
 }
 
-fn mat_array(mat: &matfile::MatFile, path: &Path, name: &str, rows: usize, cols: usize) -> Result<Vec<f32>, Error> {
+fn mat_array(mat: &matfile::MatFile, path: &Path, name: &str, rows: usize, cols: usize) -> crate::Result<Vec<f32>> {
     let what = || path.display().to_string();
     let a = mat.find_by_name(name).ok_or_else(|| Error::Parse { what: what(), message: format!("no variable {name}") })?;
     if a.size() != &vec![rows, cols] {
-        return Err(Error::Parse { what: what(), message: format!("{name} is {:?}, expected {rows}x{cols}", a.size()) });
+        return Err(crate::Error::from(Error::Parse { what: what(), message: format!("{name} is {:?}, expected {rows}x{cols}", a.size()) }));
     }
     let v: Vec<f32> = match a.data() {
         matfile::NumericData::Double { real, .. } => real.iter().map(|&x| x as f32).collect(),
         matfile::NumericData::Single { real, .. } => real.clone(),
-        _ => return Err(Error::Parse { what: what(), message: format!("{name} is not a floating-point array") }),
+        _ => return Err(crate::Error::from(Error::Parse { what: what(), message: format!("{name} is not a floating-point array") })),
     };
     if let Some(i) = v.iter().position(|x| !x.is_finite()) {
-        return Err(Error::NonFinite { what: "Calib_Results.mat entry", index: i });
+        return Err(crate::Error::from(Error::NonFinite { what: "Calib_Results.mat entry", index: i }));
     }
     Ok(v)
 }
 
 /// Reads `KK`, `Rc_i`, `Tc_i` for `i = 1..=views` (MATLAB stores matrices column-major, as glam does).
-pub fn read_calibration(path: &Path, views: usize) -> Result<Calibration, Error> {
+pub fn read_calibration(path: &Path, views: usize) -> crate::Result<Calibration> {
     let file = std::fs::File::open(path).map_err(|e| Error::io(path, &e))?;
     let mat = matfile::MatFile::parse(std::io::BufReader::new(file))
         .map_err(|e| Error::Parse { what: path.display().to_string(), message: e.to_string() })?;
@@ -81,7 +81,7 @@ pub fn read_calibration(path: &Path, views: usize) -> Result<Calibration, Error>
 }
 
 /// Reads a whitespace-separated table of `cols` numbers per non-empty line.
-pub fn read_table(path: &Path, cols: usize) -> Result<Vec<Vec<f32>>, Error> {
+pub fn read_table(path: &Path, cols: usize) -> crate::Result<Vec<Vec<f32>>> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, &e))?;
     let mut rows = Vec::new();
     for (ln, line) in text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty()) {
@@ -91,10 +91,10 @@ pub fn read_table(path: &Path, cols: usize) -> Result<Vec<Vec<f32>>, Error> {
             .collect::<Result<_, _>>()
             .map_err(|e| Error::Parse { what: path.display().to_string(), message: format!("line {}: {e}", ln + 1) })?;
         if row.len() != cols || !row.iter().all(|x| x.is_finite()) {
-            return Err(Error::Parse {
+            return Err(crate::Error::from(Error::Parse {
                 what: path.display().to_string(),
                 message: format!("line {}: expected {cols} finite numbers, found {}", ln + 1, row.len()),
-            });
+            }));
         }
         rows.push(row);
     }
@@ -116,14 +116,14 @@ pub fn light_to_world(r: Mat3, l_cam: Vec3) -> Vec3 {
 }
 
 /// Opens one object of a DiLiGenT-MV copy.
-pub fn open(root: &Path, object: &str) -> Result<Dataset, Error> {
+pub fn open(root: &Path, object: &str) -> crate::Result<Dataset> {
     let dir = object_dir(root, object)?;
     let mut view_dirs: Vec<PathBuf> = (1..)
         .map(|i| dir.join(format!("view_{i:02}")))
         .take_while(|d| d.is_dir())
         .collect();
     if view_dirs.is_empty() {
-        return Err(err("DiLiGenT-MV", format!("{} has no view_01 folder", dir.display())));
+        return Err(crate::Error::from(err("DiLiGenT-MV", format!("{} has no view_01 folder", dir.display()))));
     }
     view_dirs.shrink_to_fit();
     let calib = read_calibration(&dir.join("Calib_Results.mat"), view_dirs.len())?;
@@ -136,20 +136,20 @@ pub fn open(root: &Path, object: &str) -> Result<Dataset, Error> {
         let dirs = read_table(&vd.join("light_directions.txt"), 3)?;
         let ints = read_table(&vd.join("light_intensities.txt"), 3)?;
         if dirs.len() != ints.len() {
-            return Err(Error::SizeMismatch {
+            return Err(crate::Error::from(Error::SizeMismatch {
                 what: "DiLiGenT-MV light_intensities.txt lines (vs light_directions.txt)",
                 expected: dirs.len(),
                 found: ints.len(),
-            });
+            }));
         }
         let mut images = Vec::with_capacity(dirs.len());
         for (li, (d, c)) in dirs.iter().zip(&ints).enumerate() {
             let path = vd.join(format!("{:03}.png", li + 1));
             if !path.is_file() {
-                return Err(Error::io(&path, &std::io::Error::from(std::io::ErrorKind::NotFound)));
+                return Err(crate::Error::from(Error::io(&path, &std::io::Error::from(std::io::ErrorKind::NotFound))));
             }
             if !c.iter().all(|x| *x > 0.0) {
-                return Err(err("DiLiGenT-MV light intensity", format!("{} line {}: must be positive", vd.display(), li + 1)));
+                return Err(crate::Error::from(err("DiLiGenT-MV light intensity", format!("{} line {}: must be positive", vd.display(), li + 1))));
             }
             let direction = light_to_world(calib.r[vi], Vec3::new(d[0], d[1], d[2]));
             let light = DirectionalLight::new(direction, [1.0; 3])

@@ -47,7 +47,7 @@ impl MaterialSpec {
     /// assert!(matches!(MaterialSpec::parse("x/chrome.json").unwrap(), MaterialSpec::NbrdfJson { .. }));
     /// assert!(MaterialSpec::parse("felt").is_err());
     /// ```
-    pub fn parse(s: &str) -> Result<Self, Error> {
+    pub fn parse(s: &str) -> crate::Result<Self> {
         if let Some(rest) = s.strip_prefix("lambert:") {
             let v: Vec<f32> = rest
                 .split(',')
@@ -57,10 +57,10 @@ impl MaterialSpec {
             let albedo = match v[..] {
                 [a] => [a; 3],
                 [r, g, b] => [r, g, b],
-                _ => return Err(err("material", format!("lambert takes 1 or 3 albedo values, got {}", v.len()))),
+                _ => return Err(crate::Error::from(err("material", format!("lambert takes 1 or 3 albedo values, got {}", v.len())))),
             };
             if !albedo.iter().all(|a| (0.0..=1.0).contains(a)) {
-                return Err(err("material", "lambert albedo must lie in [0, 1]"));
+                return Err(crate::Error::from(err("material", "lambert albedo must lie in [0, 1]")));
             }
             return Ok(MaterialSpec::Lambert { albedo });
         }
@@ -72,19 +72,19 @@ impl MaterialSpec {
         match path.extension().and_then(|e| e.to_str()) {
             Some("binary") => Ok(MaterialSpec::Merl { path }),
             Some("json") => Ok(MaterialSpec::NbrdfJson { path }),
-            _ => Err(err(
+            _ => Err(crate::Error::from(err(
                 "material",
                 format!(
                     "unknown material '{s}': expected lambert:R,G,B, a built-in ({}), a MERL .binary or an NBRDF .json file",
                     Builtin::ALL.map(|b| b.id()).join(", ")
                 ),
-            )),
+            ))),
         }
     }
 
     /// The spec with file paths made absolute (for `dataset.json`, so that it does not depend on the
     /// working directory of whoever reads it).
-    pub fn canonical(&self) -> Result<Self, Error> {
+    pub fn canonical(&self) -> crate::Result<Self> {
         let abs = |p: &PathBuf| std::fs::canonicalize(p).map_err(|e| Error::io(p, &e));
         Ok(match self {
             MaterialSpec::Merl { path } => MaterialSpec::Merl { path: abs(path)? },
@@ -94,7 +94,7 @@ impl MaterialSpec {
     }
 
     /// Loads what the spec refers to; relative paths are resolved against `base`.
-    pub fn load(&self, base: &Path) -> Result<Material, Error> {
+    pub fn load(&self, base: &Path) -> crate::Result<Material> {
         let resolve = |p: &PathBuf| if p.is_absolute() { p.clone() } else { base.join(p) };
         Ok(match self {
             MaterialSpec::Lambert { albedo } => Material::Lambert { albedo: *albedo },

@@ -70,9 +70,9 @@ impl ImageRef {
     }
 
     /// Reads the radiance (linear RGB).
-    pub fn load(&self) -> Result<RgbImage, Error> {
+    pub fn load(&self) -> crate::Result<RgbImage> {
         match &self.source {
-            ImageSource::Exr(p) => nbrdf_scene::image::read_exr(p),
+            ImageSource::Exr(p) => Ok(nbrdf_scene::image::read_exr(p)?),
             ImageSource::DiligentPng { path, intensity } => {
                 let mut img = nbrdf_scene::image::read_png(path)?;
                 for px in &mut img.data {
@@ -124,7 +124,7 @@ pub fn mesh_spec(arg: &str) -> spec::MeshSpec {
 
 /// Loads the mesh of a spec (relative paths against `base`) and normalises file meshes into the unit
 /// sphere.
-pub fn load_mesh(spec: &spec::MeshSpec, base: &Path) -> Result<(Mesh, nbrdf_scene::scene::Normalization), Error> {
+pub fn load_mesh(spec: &spec::MeshSpec, base: &Path) -> crate::Result<(Mesh, nbrdf_scene::scene::Normalization)> {
     match spec {
         spec::MeshSpec::Builtin { id } => {
             let m = BuiltinMesh::from_id(id).ok_or_else(|| {
@@ -143,7 +143,7 @@ pub fn load_mesh(spec: &spec::MeshSpec, base: &Path) -> Result<(Mesh, nbrdf_scen
 impl Dataset {
     /// Opens a semi-synthetic data set written by `synth`: reads and checks `dataset.json`, the mesh
     /// and every view's mask; radiance images are read later by [`samples()`].
-    pub fn open(dir: &Path) -> Result<Self, Error> {
+    pub fn open(dir: &Path) -> crate::Result<Self> {
         let file = spec::DatasetFile::read(dir)?;
         let description = dir.join("dataset.json");
         let (mesh, _) = load_mesh(&file.mesh, dir)?;
@@ -154,10 +154,10 @@ impl Dataset {
             let camera = v.camera(file.width, file.height).map_err(|e| e.context(at("K/R/t (camera)")))?;
             let (w, h, mask) = nbrdf_scene::image::read_mask(dir.join(&v.mask))?;
             if (w, h) != (file.width, file.height) {
-                return Err(err(
+                return Err(crate::Error::from(err(
                     "data set mask",
                     format!("view {i}: {} is {w}x{h}, the description says {}x{}", v.mask.display(), file.width, file.height),
-                ));
+                )));
             }
             let images = v
                 .images
@@ -170,7 +170,7 @@ impl Dataset {
                         brdf: Some(dir.join(&im.brdf)),
                     })
                 })
-                .collect::<Result<_, Error>>()?;
+                .collect::<crate::Result<_>>()?;
             views.push(View { camera, split: v.split, mask, images });
         }
         Ok(Dataset { geometry, views, description: Some(file), dir: Some(dir.to_path_buf()), truth: Default::default() })
@@ -179,7 +179,7 @@ impl Dataset {
     /// The ground-truth material of a semi-synthetic data set, which renders its noise-free (clean)
     /// reference images; `None` for captured data, which has only its images.
     /// Loaded once; a failed load is reported and tried again on the next call.
-    pub fn ground_truth(&self) -> Result<Option<&material::Material>, Error> {
+    pub fn ground_truth(&self) -> crate::Result<Option<&material::Material>> {
         if let Some(truth) = self.truth.get() {
             return Ok(truth.as_ref());
         }
@@ -214,19 +214,19 @@ pub struct DataArgs {
 
 impl DataArgs {
     /// Loads the chosen data set.
-    pub fn open(&self) -> Result<Dataset, Error> {
+    pub fn open(&self) -> crate::Result<Dataset> {
         match (&self.dataset, &self.diligent) {
             (Some(d), _) => Dataset::open(d),
             (None, Some(root)) => diligent::open(root, &self.object),
-            (None, None) => Err(err("data set", "give --dataset DIR or --diligent PATH")),
+            (None, None) => Err(crate::Error::from(err("data set", "give --dataset DIR or --diligent PATH"))),
         }
     }
 }
 
 /// `trainer inspect`: loads a data set and prints its size and the samples of its training split.
-pub fn inspect(args: &DataArgs) -> Result<(), Error> {
+pub fn inspect(args: &DataArgs) -> crate::Result<()> {
     if args.pixel_stride == 0 {
-        return Err(err("--pixel-stride 0", "at least 1 (1 uses every masked pixel)"));
+        return Err(crate::Error::from(err("--pixel-stride 0", "at least 1 (1 uses every masked pixel)")));
     }
     let ds = args.open()?;
     let train = ds.views.iter().filter(|v| v.split == Split::Train).count();

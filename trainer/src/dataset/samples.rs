@@ -84,7 +84,7 @@ impl Samples {
 /// horizon. Radiance is kept as read, NaN and infinity included (the consumer decides, and counts, what
 /// it drops). `pixel_stride` keeps every n-th pixel (by pixel index). Order: views, then images, then
 /// pixels, independent of threading.
-pub fn samples(ds: &Dataset, split: Split, pixel_stride: usize) -> Result<Samples, Error> {
+pub fn samples(ds: &Dataset, split: Split, pixel_stride: usize) -> crate::Result<Samples> {
     let stride = pixel_stride.max(1);
     let geometry = &ds.geometry;
     let mut out = Samples::default();
@@ -92,20 +92,20 @@ pub fn samples(ds: &Dataset, split: Split, pixel_stride: usize) -> Result<Sample
         let cam = &view.camera;
         let n = cam.width as usize * cam.height as usize;
         if view.mask.len() != n {
-            return Err(Error::SizeMismatch { what: "view mask pixel count", expected: n, found: view.mask.len() });
+            return Err(crate::Error::from(Error::SizeMismatch { what: "view mask pixel count", expected: n, found: view.mask.len() }));
         }
         let gbuffer = GBuffer::cast(geometry, cam);
         let masked: Vec<usize> = (0..n).step_by(stride).filter(|&p| view.mask[p]).collect();
         let missed = masked.iter().filter(|&&p| gbuffer.samples[p].is_none()).count();
         out.coverage.push(Coverage { view: vi as u32, masked: masked.len(), missed });
-        let per_image: Vec<Result<Samples, Error>> = view
+        let per_image: Vec<crate::Result<Samples>> = view
             .images
             .par_iter()
             .enumerate()
             .map(|(ii, im)| {
                 let img = im.load()?;
                 if (img.width, img.height) != (cam.width, cam.height) {
-                    return Err(err(
+                    return Err(crate::Error::from(err(
                         "data set image",
                         format!(
                             "view {vi} image {ii} ({}): {}x{} pixels, the camera has {}x{}",
@@ -115,7 +115,7 @@ pub fn samples(ds: &Dataset, split: Split, pixel_stride: usize) -> Result<Sample
                             cam.width,
                             cam.height
                         ),
-                    ));
+                    )));
                 }
                 let mut s = Samples::default();
                 let l = im.light.direction;

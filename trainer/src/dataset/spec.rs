@@ -164,28 +164,29 @@ pub(crate) fn from_rows(r: [[f32; 3]; 3]) -> glam::Mat3 {
 
 impl ViewSpec {
     /// The camera of this view.
-    pub fn camera(&self, width: u32, height: u32) -> Result<Camera, Error> {
-        Camera::new(width, height, from_rows(self.k), from_rows(self.r), Vec3::from(self.t))
+    pub fn camera(&self, width: u32, height: u32) -> crate::Result<Camera> {
+        Ok(Camera::new(width, height, from_rows(self.k), from_rows(self.r), Vec3::from(self.t))?)
     }
 }
 
 impl LightSpec {
     /// The light (direction normalised; a zero direction is an error).
-    pub fn light(&self) -> Result<DirectionalLight, Error> {
+    pub fn light(&self) -> crate::Result<DirectionalLight> {
         if !self.intensity.iter().all(|c| c.is_finite() && *c >= 0.0) {
             let message = "must be finite and non-negative".to_string();
-            return Err(Error::Context { what: format!("intensity {:?}", self.intensity), message });
+            return Err(crate::Error::from(Error::Context { what: format!("intensity {:?}", self.intensity), message }));
         }
-        DirectionalLight::new(Vec3::from(self.direction), self.intensity).ok_or_else(|| Error::Context {
+        let light = DirectionalLight::new(Vec3::from(self.direction), self.intensity).ok_or_else(|| Error::Context {
             what: format!("direction {:?}", self.direction),
             message: "zero or non-finite".into(),
-        })
+        })?;
+        Ok(light)
     }
 }
 
 impl DatasetFile {
     /// Reads and validates `dir/dataset.json`.
-    pub fn read(dir: &Path) -> Result<Self, Error> {
+    pub fn read(dir: &Path) -> crate::Result<Self> {
         let path = dir.join("dataset.json");
         let bytes = nbrdf::io::read_at_most(&path, crate::json::MAX_JSON_BYTES)?;
         let text = String::from_utf8(bytes).map_err(|e| {
@@ -194,39 +195,41 @@ impl DatasetFile {
         let file: DatasetFile = serde_json::from_str(&text)
             .map_err(|e| Error::Parse { what: path.display().to_string(), message: e.to_string() })?;
         file.validate().map_err(|e| match e {
-            Error::Parse { what, message } => Error::Parse { what: format!("{} ({what})", path.display()), message },
+            crate::Error::Core(Error::Parse { what, message }) => {
+                crate::Error::Core(Error::Parse { what: format!("{} ({what})", path.display()), message })
+            }
             other => other,
         })?;
         Ok(file)
     }
 
     /// Checks format, version and that the declared counts match the lists.
-    pub fn validate(&self) -> Result<(), Error> {
+    pub fn validate(&self) -> crate::Result<()> {
         if self.format != FORMAT {
-            return Err(err("format", format!("expected \"{FORMAT}\", found \"{}\"", self.format)));
+            return Err(crate::Error::from(err("format", format!("expected \"{FORMAT}\", found \"{}\"", self.format))));
         }
         if self.version != VERSION {
-            return Err(Error::UnsupportedVersion { what: "nbrdf data set", found: self.version, supported: VERSION });
+            return Err(crate::Error::from(Error::UnsupportedVersion { what: "nbrdf data set", found: self.version, supported: VERSION }));
         }
         if self.width == 0 || self.height == 0 {
-            return Err(err("image size", "width and height must be positive"));
+            return Err(crate::Error::from(err("image size", "width and height must be positive")));
         }
         if !(self.noise_sigma.is_finite() && self.noise_sigma >= 0.0) {
-            return Err(err("noise_sigma", "must be finite and non-negative"));
+            return Err(crate::Error::from(err("noise_sigma", "must be finite and non-negative")));
         }
         let c = &self.counts;
         let count_err = |what: &str, expected: usize, found: usize| {
             err("counts", format!("{what}: declared {expected}, found {found}"))
         };
         if self.views.len() != c.views {
-            return Err(count_err("views", c.views, self.views.len()));
+            return Err(crate::Error::from(count_err("views", c.views, self.views.len())));
         }
         let train = self.views.iter().filter(|v| v.split == Split::Train).count();
         if train != c.train_views {
-            return Err(count_err("train_views", c.train_views, train));
+            return Err(crate::Error::from(count_err("train_views", c.train_views, train)));
         }
         if self.views.len() - train != c.test_views {
-            return Err(count_err("test_views", c.test_views, self.views.len() - train));
+            return Err(crate::Error::from(count_err("test_views", c.test_views, self.views.len() - train)));
         }
         for (i, v) in self.views.iter().enumerate() {
             let expected = match v.split {
@@ -234,16 +237,16 @@ impl DatasetFile {
                 Split::Test => c.test_lights,
             };
             if v.images.len() != expected {
-                return Err(count_err(&format!("images of view {i} ({:?})", v.split), expected, v.images.len()));
+                return Err(crate::Error::from(count_err(&format!("images of view {i} ({:?})", v.split), expected, v.images.len())));
             }
         }
         Ok(())
     }
 
     /// Writes `dir/dataset.json` atomically.
-    pub fn write(&self, dir: &Path) -> Result<(), Error> {
+    pub fn write(&self, dir: &Path) -> crate::Result<()> {
         let text = serde_json::to_string_pretty(self)
             .map_err(|e| Error::Parse { what: "data set description".into(), message: e.to_string() })?;
-        nbrdf::io::write_atomic(&dir.join("dataset.json"), text.as_bytes())
+        Ok(nbrdf::io::write_atomic(&dir.join("dataset.json"), text.as_bytes())?)
     }
 }

@@ -94,73 +94,73 @@ impl SynthArgs {
     }
 
     /// Checks every size and number before any work, with the flags named as on the command line.
-    pub fn check(&self) -> Result<(), Error> {
+    pub fn check(&self) -> crate::Result<()> {
         self.check_as(&|key| format!("--{}", key.replace('_', "-")))
     }
 
     /// [`check`](Self::check) with the fields named by `name` (a flag for the command line, a config
     /// file and key for the study): each error says the field, its value and what is allowed.
-    pub fn check_as(&self, name: &dyn Fn(&str) -> String) -> Result<(), Error> {
+    pub fn check_as(&self, name: &dyn Fn(&str) -> String) -> crate::Result<()> {
         let bad = |key: &str, value: &dyn std::fmt::Display, allowed: String| Error::Context {
             what: format!("{} {value}", name(key)),
             message: allowed,
         };
         if self.size == 0 || self.size > MAX_SIZE {
-            return Err(bad("size", &self.size, format!("allowed 1..={MAX_SIZE} pixels per side")));
+            return Err(crate::Error::from(bad("size", &self.size, format!("allowed 1..={MAX_SIZE} pixels per side"))));
         }
         // Sizes are checked before anything is allocated or written: an absurd count is an error
         // naming the field, never an allocation abort hours in.
         for (key, v) in [("views", self.views), ("train_lights", self.train_lights), ("test_lights", self.test_lights)] {
             if v > MAX_COUNT {
-                return Err(bad(key, &v, format!("at most {MAX_COUNT}")));
+                return Err(crate::Error::from(bad(key, &v, format!("at most {MAX_COUNT}"))));
             }
         }
         if self.views == 0 {
-            return Err(bad("views", &0, "need at least one view".into()));
+            return Err(crate::Error::from(bad("views", &0, "need at least one view".into())));
         }
         if self.train_views > self.views {
-            return Err(bad("train_views", &self.train_views, format!("at most the {} views", self.views)));
+            return Err(crate::Error::from(bad("train_views", &self.train_views, format!("at most the {} views", self.views))));
         }
         // A data set without training images fits nothing; test views without lights score nothing.
         if self.train_views == 0 {
-            return Err(bad("train_views", &0, format!("allowed 1..={} (the views)", self.views)));
+            return Err(crate::Error::from(bad("train_views", &0, format!("allowed 1..={} (the views)", self.views))));
         }
         if self.train_lights == 0 {
-            return Err(bad("train_lights", &0, format!("allowed 1..={MAX_COUNT}: a training view needs an image")));
+            return Err(crate::Error::from(bad("train_lights", &0, format!("allowed 1..={MAX_COUNT}: a training view needs an image"))));
         }
         let test_views = self.views - self.train_views;
         if test_views > 0 && self.test_lights == 0 {
-            return Err(bad(
+            return Err(crate::Error::from(bad(
                 "test_lights",
                 &0,
                 format!("allowed 1..={MAX_COUNT} with {test_views} test views (give as many training views as views for none)"),
-            ));
+            )));
         }
         let images = self.train_views * self.train_lights + test_views * self.test_lights;
         if images > MAX_IMAGES {
-            return Err(Error::Context {
+            return Err(crate::Error::from(Error::Context {
                 what: format!("{images} images (training views × {} + test views × {})", name("train_lights"), name("test_lights")),
                 message: format!("at most {MAX_IMAGES} images"),
-            });
+            }));
         }
         let bytes = images as f64 * (self.size as f64).powi(2) * BYTES_PER_PIXEL;
         if bytes > MAX_BYTES {
-            return Err(Error::Context {
+            return Err(crate::Error::from(Error::Context {
                 what: format!("{images} images of {size}×{size} pixels ({})", name("size"), size = self.size),
                 message: format!("~{:.0} GB bytes on disk (12 per pixel), at most {:.0} GB", bytes / 1e9, MAX_BYTES / 1e9),
-            });
+            }));
         }
         if !(self.sigma.is_finite() && self.sigma >= 0.0) {
-            return Err(bad("sigma", &self.sigma, "must be finite and non-negative".into()));
+            return Err(crate::Error::from(bad("sigma", &self.sigma, "must be finite and non-negative".into())));
         }
         if !(self.fov > 0.0 && self.fov < 180.0) {
-            return Err(bad("fov", &self.fov, "must lie in (0, 180) degrees".into()));
+            return Err(crate::Error::from(bad("fov", &self.fov, "must lie in (0, 180) degrees".into())));
         }
         if !(self.light_intensity.is_finite() && self.light_intensity > 0.0) {
-            return Err(bad("light_intensity", &self.light_intensity, "must be finite and positive".into()));
+            return Err(crate::Error::from(bad("light_intensity", &self.light_intensity, "must be finite and positive".into())));
         }
         if let Some(m) = self.target_median.filter(|m| !(m.is_finite() && *m > 0.0 && *m <= 100.0)) {
-            return Err(bad("target_median", &m, "must lie in (0, 100]".into()));
+            return Err(crate::Error::from(bad("target_median", &m, "must lie in (0, 100]".into())));
         }
         Ok(())
     }
@@ -246,7 +246,7 @@ fn calibrate_intensity(
     probes: &[(Camera, Vec<DirectionalLight>)],
     material: &super::material::Material,
     target: f32,
-) -> Result<f32, Error> {
+) -> crate::Result<f32> {
     let options = RenderOptions { noise_sigma: 0.0, ..RenderOptions::default() };
     let mut lit: Vec<[f32; 3]> = Vec::new();
     for (camera, lights) in probes {
@@ -258,10 +258,10 @@ fn calibrate_intensity(
         );
     }
     if lit.is_empty() {
-        return Err(Error::Context {
+        return Err(crate::Error::from(Error::Context {
             what: "--target-median".into(),
             message: "no object pixel receives light (a black material, or the mesh is not in view)".into(),
-        });
+        }));
     }
     // Meter the body: the lit pixels' median luminance maps to the target.
     let median = ExposureSpec::median(&mut lit.iter().map(|c| luminance(*c)).collect::<Vec<_>>());
@@ -282,7 +282,7 @@ fn returns_light(img: &LightImage, p: usize) -> bool {
 const STATS_PER_IMAGE: usize = 4096;
 
 /// Renders and writes the data set; returns its description and one render report per view.
-pub fn synthesize(args: &SynthArgs) -> Result<(DatasetFile, Vec<RenderReport>), Error> {
+pub fn synthesize(args: &SynthArgs) -> crate::Result<(DatasetFile, Vec<RenderReport>)> {
     args.check()?;
     let cwd = std::env::current_dir().map_err(|e| Error::io(".", &e))?;
     let mut mesh_spec = mesh_spec(&args.mesh);
@@ -338,7 +338,7 @@ pub fn synthesize(args: &SynthArgs) -> Result<(DatasetFile, Vec<RenderReport>), 
                     let i = k * n / count;
                     Ok((camera_of(dirs[i], PROBE_SIZE.min(args.size))?, lights_of(i, dirs[i], 1.0)))
                 })
-                .collect::<Result<Vec<_>, Error>>()?;
+                .collect::<crate::Result<Vec<_>>>()?;
             calibrate_intensity(&geometry, &probes, &material, target)?
         }
     };
@@ -444,7 +444,7 @@ fn holds_only_a_data_set(dir: &Path) -> bool {
 }
 
 /// `trainer synth`: renders, then prints where it went and what was simulated.
-pub fn run(args: &SynthArgs) -> Result<DatasetFile, Error> {
+pub fn run(args: &SynthArgs) -> crate::Result<DatasetFile> {
     let (file, reports) = synthesize(args)?;
     let shadow_rays: usize = reports.iter().map(|r| r.shadow_rays()).sum();
     let images: usize = file.views.iter().map(|v| v.images.len()).sum();

@@ -139,12 +139,12 @@ fn masked_psnr(reference: &RgbImage, test: &RgbImage, mask: &[bool]) -> f64 {
 /// The best score any model can reach on the test split of `ds`: its clean reference scored
 /// against the captured images (every image metric), or `None` for data without a ground truth.
 pub fn ceiling(ds: &Dataset, lpips: &std::result::Result<Lpips, String>) -> Result<Option<ImageMetrics>> {
-    let Some(truth) = ds.ground_truth().map_err(Error::Core)? else { return Ok(None) };
+    let Some(truth) = ds.ground_truth()? else { return Ok(None) };
     let mut scores = Vec::new();
     for view in ds.views.iter().filter(|v| v.split == Split::Test) {
         let clean = render_truth(truth, ds, view, &lights_of(view))?;
         for (im, clean) in view.images.iter().zip(&clean) {
-            let captured = im.load().map_err(Error::Core)?;
+            let captured = im.load()?;
             scores.push(PreparedReference::new(&captured, Some(&view.mask), lpips).evaluate(clean));
         }
     }
@@ -158,10 +158,10 @@ pub fn evaluate(
     lpips: &std::result::Result<Lpips, String>,
     config: &super::StudyConfig,
 ) -> Result<Evaluation> {
-    let held = ModelBuf::from_bytes_as_is(&nbrdf::io::read(model_path).map_err(Error::Core)?).map_err(Error::Core)?;
+    let held = ModelBuf::from_bytes_as_is(&nbrdf::io::read(model_path)?)?;
     let model = held.model();
     let eval = |p: &Prepared, wi: Vec3, wo: Vec3| model.eval(p, wi, wo);
-    let ground_truth = ds.ground_truth().map_err(Error::Core)?;
+    let ground_truth = ds.ground_truth()?;
     let mut image_metrics = Vec::new();
     let mut captured_psnr = Vec::new();
     let (mut pred_brdf, mut ref_brdf, mut keep) = (Vec::<Rgb>::new(), Vec::<Rgb>::new(), Vec::new());
@@ -170,8 +170,8 @@ pub fn evaluate(
         let rendered = render_with(&model, ds, view, &lights_of(view));
         let clean = ground_truth.map(|t| render_truth(t, ds, view, &lights_of(view))).transpose()?;
         for (j, (im, out)) in view.images.iter().zip(&rendered.images).enumerate() {
-            let reference = im.load().map_err(Error::Core)?;
-            let test = RgbImage::from_data(cam.width, cam.height, out.radiance.clone()).map_err(Error::Core)?;
+            let reference = im.load()?;
+            let test = RgbImage::from_data(cam.width, cam.height, out.radiance.clone())?;
             match &clean {
                 Some(clean) => {
                     image_metrics.push(PreparedReference::new(&clean[j], Some(&view.mask), lpips).evaluate(&test));
@@ -180,7 +180,7 @@ pub fn evaluate(
                 None => image_metrics.push(PreparedReference::new(&reference, Some(&view.mask), lpips).evaluate(&test)),
             }
             let Some(brdf_path) = &im.brdf else { continue };
-            let truth = read_exr(brdf_path).map_err(Error::Core)?;
+            let truth = read_exr(brdf_path)?;
             for (p, g) in rendered.gbuffer.samples.iter().enumerate() {
                 let (true, true, Some(g)) = (view.mask[p], out.lit[p], g) else { continue };
                 let frame = g.frame();
@@ -198,7 +198,7 @@ pub fn evaluate(
     }
 
     // Points and directions of the test split for the BRDF-space metrics.
-    let s = samples(ds, Split::Test, 1).map_err(Error::Core)?;
+    let s = samples(ds, Split::Test, 1)?;
     let recip_idx = energy::pick(s.len(), config.reciprocity_pairs, config.seed ^ 0x5eed);
     let energy_idx = energy::pick(s.len(), config.energy_pairs, config.seed ^ 0xe4e7);
     let input = |i: usize| {
@@ -337,12 +337,12 @@ pub struct TestViews<'a> {
 impl<'a> TestViews<'a> {
     /// Loads the references of every test view of `ds`: the clean ones where it has a ground truth.
     pub fn load(ds: &'a Dataset) -> Result<TestViews<'a>> {
-        let truth = ds.ground_truth().map_err(Error::Core)?;
+        let truth = ds.ground_truth()?;
         let mut views: Vec<(usize, Vec<RgbImage>)> = Vec::new();
         for (i, view) in ds.views.iter().enumerate().filter(|(_, v)| v.split == Split::Test) {
             let refs = match truth {
                 Some(t) => render_truth(t, ds, view, &lights_of(view))?,
-                None => view.images.iter().map(|im| im.load()).collect::<std::result::Result<Vec<_>, _>>().map_err(Error::Core)?,
+                None => view.images.iter().map(|im| im.load()).collect::<std::result::Result<Vec<_>, _>>()?,
             };
             views.push((i, refs.iter().map(crate::metrics::to_srgb).collect()));
         }
@@ -354,14 +354,14 @@ impl<'a> TestViews<'a> {
 
     /// Mean test-image PSNR (dB) of the model file `bytes`.
     pub fn psnr(&self, bytes: &[u8]) -> Result<f64> {
-        let buf = ModelBuf::from_bytes(bytes).map_err(Error::Core)?;
+        let buf = ModelBuf::from_bytes(bytes)?;
         let model = buf.model();
         let (mut sum, mut n) = (0.0, 0usize);
         for (i, refs) in &self.views {
             let view = &self.ds.views[*i];
             let rendered = render_with(&model, self.ds, view, &lights_of(view));
             for (reference, out) in refs.iter().zip(&rendered.images) {
-                let test = RgbImage::from_data(view.camera.width, view.camera.height, out.radiance.clone()).map_err(Error::Core)?;
+                let test = RgbImage::from_data(view.camera.width, view.camera.height, out.radiance.clone())?;
                 sum += crate::metrics::psnr::psnr(reference, &crate::metrics::to_srgb(&test), Some(&view.mask));
                 n += 1;
             }
@@ -371,7 +371,7 @@ impl<'a> TestViews<'a> {
 
     /// [`TestViews::psnr`] of a training model, its per-vertex `position_table` travelling with it.
     pub fn psnr_of(&self, model: &crate::models::Model, position_table: Option<&[f32]>) -> Result<f64> {
-        let bytes = nbrdf::file::encode(&model.config.header(), &model.weights()?, position_table).map_err(Error::Core)?;
+        let bytes = nbrdf::file::encode(&model.config.header(), &model.weights()?, position_table)?;
         self.psnr(&bytes)
     }
 }
@@ -379,7 +379,7 @@ impl<'a> TestViews<'a> {
 /// The first image of the first test view: reference (clean where the data set has a ground truth), the model's rendering (Eq. 9, as in
 /// [`evaluate`]) and the object mask.
 pub fn first_test_image(ds: &Dataset, model_path: &std::path::Path) -> Result<(RgbImage, RgbImage, Vec<bool>)> {
-    let buf = ModelBuf::load(model_path).map_err(Error::Core)?;
+    let buf = ModelBuf::load(model_path)?;
     let model = buf.model();
     let view = ds
         .views
@@ -388,20 +388,20 @@ pub fn first_test_image(ds: &Dataset, model_path: &std::path::Path) -> Result<(R
         .ok_or_else(|| Error::Invalid("the data set has no test images".into()))?;
     let im = &view.images[0];
     let rendered = render_with(&model, ds, view, &[im.light]);
-    let reference = match ds.ground_truth().map_err(Error::Core)? {
+    let reference = match ds.ground_truth()? {
         Some(truth) => render_truth(truth, ds, view, &[im.light])?.swap_remove(0),
-        None => im.load().map_err(Error::Core)?,
+        None => im.load()?,
     };
     let test = RgbImage::from_data(view.camera.width, view.camera.height, rendered.images[0].radiance.clone())
-        .map_err(Error::Core)?;
+        ?;
     Ok((reference, test, view.mask.clone()))
 }
 
 /// The bytes of `buf` re-encoded with f16 network weights ([`nbrdf::Model::to_f16`]), for the
 /// f32-versus-f16 comparison without retraining; checked to keep the header apart from the precision.
 pub fn to_f16(buf: &ModelBuf) -> Result<Vec<u8>> {
-    let out = buf.model().to_f16().map_err(Error::Core)?;
-    let check = ModelBuf::from_bytes(&out).map_err(Error::Core)?;
+    let out = buf.model().to_f16()?;
+    let check = ModelBuf::from_bytes(&out)?;
     let header = buf.header();
     if check.header().n_vertices != header.n_vertices || check.header().nets() != header.nets() {
         return Err(Error::Invalid("f16 re-encoding changed the model header".into()));

@@ -198,9 +198,9 @@ pub fn run(config: &StudyConfig, out: &Path, shard: Option<Shard>, progress: boo
         let dir = scene_dir(out, config, scene);
         if !dir.join("dataset.json").exists() {
             bar.doing(format!("{}: synthesizing", scene.id()));
-            bar.aside(|| crate::dataset::synth::synthesize(&config.synth_args(scene, &dir))).map_err(Error::Core)?;
+            bar.aside(|| crate::dataset::synth::synthesize(&config.synth_args(scene, &dir)))?;
         }
-        let ds = Dataset::open(&dir).map_err(Error::Core)?;
+        let ds = Dataset::open(&dir)?;
         let args = DataArgs { dataset: Some(dir.clone()), diligent: None, object: String::new(), pixel_stride: config.pixel_stride };
         let mut training: Option<data::TrainingData> = None;
         let mut test_views: Option<evaluate::TestViews> = None;
@@ -318,7 +318,7 @@ pub fn comparisons(config: &StudyConfig, roots: &[PathBuf], out: &Path, results:
                 continue;
             };
             if ds.is_none() {
-                ds = Some(Dataset::open(&dir).map_err(Error::Core)?);
+                ds = Some(Dataset::open(&dir)?);
             }
             let (reference, rendering, mask) = evaluate::first_test_image(ds.as_ref().expect("just opened"), &model_path)?;
             figs.push(figures::write_comparison(out, &id, &r.model, &reference, &rendering, &mask)?);
