@@ -56,9 +56,7 @@ impl Default for TrainOptions {
             lr_final: 1e-4,
             seed: 0,
             adam: AdamParams::default(),
-            // A hundredth of the weights first chosen (1e-2, 1e-3): those outweighed the data term
-            // (a tone-mapped MSE near 1e-4 at 40 dB) and cost the enhanced Additive Separate model
-            // 5-9 dB against its plain twin; at these it matches the fit without regularisers
+            // Small beside the data term once a fit is good, which larger weights outweighed
             // (docs/study.md, "The enhanced split").
             lambda_diffuse: 1e-4,
             lambda_specular: 1e-5,

@@ -386,7 +386,7 @@ impl NbrdfNetwork {
 }
 
 /// The network input `[h, d]` of a direction pair computed from the vectors without trigonometry (the
-/// angles and `half_diff_vectors` cost about 100 ns of libm calls per pair), equal to
+/// angles and `half_diff_vectors` cost libm calls per pair), equal to
 /// `half_diff_vectors(rusinkiewicz_angles(wi, wo))` up to float rounding.
 ///
 /// With the unnormalised half vector `h = wi + wo`, `q = h_x² + h_y²`, `r = √q` and `|h|`: the half
