@@ -160,6 +160,18 @@ impl ParametricKind {
         }
     }
 
+    /// The shortest of its names, as the study's tables and the trainer's logs print it: the paper's
+    /// abbreviation where it has one.
+    ///
+    /// ```
+    /// use nbrdf::parametric::ParametricKind;
+    /// assert_eq!(ParametricKind::Phong.short_name(), "rp");
+    /// assert_eq!(ParametricKind::FresnelMicrofacet.short_name(), "fmbrdf");
+    /// ```
+    pub fn short_name(self) -> &'static str {
+        self.aliases().iter().copied().fold(self.id(), |best, a| if a.len() < best.len() { a } else { best })
+    }
+
     /// The kind named `name`: its [`id`](Self::id) or one of its [`aliases`](Self::aliases). The one
     /// name table of the crate, the trainer and the bindings.
     ///

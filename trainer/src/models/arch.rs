@@ -98,14 +98,11 @@ impl Config {
     }
 }
 
-/// The short name of a kind in logs and the study tables (the paper's abbreviations `rp`, `ts`).
-pub const fn kind_name(kind: Kind) -> &'static str {
+/// The short name of a kind in logs and the study tables (the paper's abbreviations `rp`, `ts`,
+/// from the core's name table).
+pub fn kind_name(kind: Kind) -> &'static str {
     match kind {
-        Kind::Parametric(ParametricKind::Lambert) => "lambert",
-        Kind::Parametric(ParametricKind::Phong) => "rp",
-        Kind::Parametric(ParametricKind::TorranceSparrow) => "ts",
-        Kind::Parametric(ParametricKind::FresnelMicrofacet) => "fmbrdf",
-        Kind::Parametric(ParametricKind::Disney) => "disney",
+        Kind::Parametric(k) => k.short_name(),
         Kind::SingleMlp => "single-mlp",
         Kind::AdditiveSeparate => "additive-separate",
         Kind::AdditiveShared => "additive-shared",
