@@ -18,7 +18,7 @@
 //!
 //! # Differentiable parameters
 //! The terms that take a material parameter (roughness, F0, η) are written once, generic over
-//! [`Real`] in that parameter (`*_generic`), so the parametric models' gradients
+//! `Real` (`real.rs`) in that parameter (`*_generic`), so the parametric models' gradients
 //! ([`Parametric::eval_grad`](crate::parametric::Parametric::eval_grad)) differentiate the very
 //! formula they evaluate; the `f32` functions are that formula at `f32`, the same bits.
 

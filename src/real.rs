@@ -11,21 +11,8 @@
 //! Writing a formula generically: constants on the left of a non-commuting operator go through
 //! [`Real::from_f32`] (`T::from_f32(1.0) - x`, not `1.0 - x`), and a commuting one is written with the
 //! `Real` on the left (`x * 0.5`, the same bits as `0.5 * x` because IEEE addition and multiplication
-//! commute exactly).
-//!
-//! ```
-//! use nbrdf::real::Real;
-//! use nbrdf::parametric::dual::Dual;
-//! // One formula, two instantiations: the value, and the value with its derivative.
-//! fn lobe<T: Real>(n: T, cos: f32) -> T {
-//!     (n + 2.0) * T::powf_base(cos, n)
-//! }
-//! let n = 10.0f32;
-//! let d = lobe(Dual::<1>::variable(n, 0), 0.9);
-//! assert_eq!(d.v, lobe(n, 0.9)); // the same bits
-//! let exact = 0.9f32.powf(n) * (1.0 + (n + 2.0) * 0.9f32.ln());
-//! assert!((d.d[0] - exact).abs() < 1e-5 * exact.abs());
-//! ```
+//! commute exactly). The test `one_formula_gives_the_value_and_its_exact_derivative` shows a formula
+//! at both.
 
 use core::ops::{Add, Div, Mul, Neg, Sub};
 
@@ -137,4 +124,23 @@ pub fn lerp<T: Real>(a: T, b: T, t: T) -> T {
 #[inline]
 pub fn safe_sqrt<T: Real>(x: T) -> T {
     x.max(T::from_f32(0.0)).sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// One formula, two instantiations: the value, and the value with its derivative.
+    #[test]
+    fn one_formula_gives_the_value_and_its_exact_derivative() {
+        use crate::parametric::dual::Dual;
+        fn lobe<T: Real>(n: T, cos: f32) -> T {
+            (n + 2.0) * T::powf_base(cos, n)
+        }
+        let n = 10.0f32;
+        let d = lobe(Dual::<1>::variable(n, 0), 0.9);
+        assert_eq!(d.v, lobe(n, 0.9)); // the same bits
+        let exact = libm::powf(0.9, n) * (1.0 + (n + 2.0) * libm::logf(0.9));
+        assert!((d.d[0] - exact).abs() < 1e-5 * exact.abs());
+    }
 }

@@ -40,7 +40,7 @@ pub fn sigmoid(x: f32) -> f32 {
 }
 
 /// [`sigmoid`] and its slope `σ'(x) = σ(x) σ(-x) = e^-|x| / (1 + e^-|x|)²`, from one exponential: the
-/// activation's forward-mode derivative ([`crate::parametric::dual`]). The value is [`sigmoid`]'s bit for
+/// activation's forward-mode derivative (the parametric models' dual numbers). The value is [`sigmoid`]'s bit for
 /// bit (the same exponential `e^-|x|` and the same branch), and the slope is accurate at both tails,
 /// unlike `σ (1 - σ)`, which is 0 once `σ` rounds to 1.
 ///

@@ -5,16 +5,6 @@
 //! [`Dual<N>`] implements [`Real`], so a parametric formula written once over `Real` yields both its value
 //! (at `f32`) and, at `Dual<N>`, the same value bit for bit (every value is computed by the `f32`
 //! operation the `f32` instantiation uses) plus its exact gradient. Fixed size, no allocation, `no_std`.
-//!
-//! ```
-//! use nbrdf::parametric::dual::Dual;
-//! use nbrdf::real::Real;
-//! // f(x, y) = x y + e^x at (2, 3): ∂f/∂x = y + e^x, ∂f/∂y = x.
-//! let (x, y) = (Dual::<2>::variable(2.0, 0), Dual::<2>::variable(3.0, 1));
-//! let f = x * y + x.exp();
-//! assert_eq!(f.v, 2.0 * 3.0 + libm::expf(2.0));
-//! assert_eq!(f.d, [3.0 + libm::expf(2.0), 2.0]);
-//! ```
 
 use core::ops::{Add, Div, Mul, Neg, Sub};
 
@@ -234,6 +224,15 @@ impl<const N: usize> Real for Dual<N> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// f(x, y) = x y + e^x at (2, 3): ∂f/∂x = y + e^x, ∂f/∂y = x.
+    #[test]
+    fn the_chain_rule_through_a_product_and_an_exponential() {
+        let (x, y) = (Dual::<2>::variable(2.0, 0), Dual::<2>::variable(3.0, 1));
+        let f = x * y + x.exp();
+        assert_eq!(f.v, 2.0 * 3.0 + libm::expf(2.0));
+        assert_eq!(f.d, [3.0 + libm::expf(2.0), 2.0]);
+    }
 
     /// Central difference of `f` at `x` in f64 of an f32 function.
     fn fd(f: impl Fn(f32) -> f32, x: f32, h: f32) -> f64 {

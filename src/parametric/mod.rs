@@ -24,8 +24,8 @@
 //!
 //! # Gradients
 //! Each model's activations and formula are written once, generic over the scalar
-//! [`Real`](crate::real::Real), and instantiated twice: at `f32` for [`Parametric::from_raw`] and
-//! [`Parametric::eval`], and at the dual number [`dual::Dual`] for [`Parametric::eval_grad`], which
+//! `Real` (`real.rs`), and instantiated twice: at `f32` for [`Parametric::from_raw`] and
+//! [`Parametric::eval`], and at the dual number (`dual.rs`) for [`Parametric::eval_grad`], which
 //! returns the same value and its exact derivatives in the raw outputs and object parameters
 //! (forward-mode automatic differentiation). A trainer's backward pass calls it; there is no second,
 //! hand-differentiated copy of any formula.

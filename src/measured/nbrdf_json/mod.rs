@@ -16,7 +16,7 @@
 //! [`MAX_LAYERS`] are accepted, so evaluation runs in fixed stack arrays without allocating.
 //! The networks are not reciprocal (they see `φd`, not `φd mod π`), as in the original.
 //!
-//! Evaluation runs the whole network in one call of the tiny-network kernel (`tiny.rs`: [`TinyNet`],
+//! Evaluation runs the whole network in one call of the tiny-network kernel (`tiny.rs`: `TinyNet`,
 //! AVX-512 where the CPU has it, the generic dense-layer kernels of [`crate::kernels`] elsewhere).
 
 mod tiny;
@@ -332,7 +332,7 @@ impl NbrdfNetwork {
 
     /// [`eval`](Self::eval) for many direction pairs: `out[i] = eval(wi[i], wo[i])` for the common
     /// length of the slices, bit for bit. The pairs go through the input transform and the network in
-    /// packets of [`TINY_PACKET`] (one pair per vector lane). No allocation.
+    /// packets of 16 (one pair per vector lane). No allocation.
     pub fn eval_many(&self, wi: &[Vec3], wo: &[Vec3], out: &mut [Rgb]) {
         let n = out.len().min(wi.len()).min(wo.len());
         let net = self.tiny_net();
