@@ -35,4 +35,6 @@ set -e
 tests=(--lib --test kernels --test model_file --test angles)
 cargo test -p nbrdf --target aarch64-unknown-linux-gnu "${tests[@]}"
 NBRDF_KERNEL=portable cargo test -p nbrdf --target aarch64-unknown-linux-gnu "${tests[@]}"
+# The lane types both the core and the trainer are written over, NEON's included.
+cargo test -p nbrdf-lanes --target aarch64-unknown-linux-gnu --lib
 echo "aarch64 check ran: the core's tests at the neon and portable levels under qemu"

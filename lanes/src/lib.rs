@@ -75,3 +75,63 @@ pub unsafe trait Lanes {
     /// `v` where `m > 0`, else `+0` (NaN in `m` is not `> 0`): the ReLU's derivative applied to `v`.
     fn keep_positive(m: Self::V, v: Self::V) -> Self::V;
 }
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::*;
+
+    /// The contract every level keeps, whatever its instructions: ReLU gives +0 (not -0, not NaN) for
+    /// zeros and NaN, the mask keeps `v` only where `m > 0`, and multiply-add and sum are exact on
+    /// small integers. Inlined into each level's `#[target_feature]` caller, as the kernels are.
+    #[inline(always)]
+    fn contract<L: Lanes>(level: &str) {
+        let n = L::N;
+        let x: std::vec::Vec<f32> = (0..n).map(|i| [f32::NAN, -0.0, 0.0, -2.0, 3.0, f32::INFINITY, -f32::INFINITY, 1.5][i % 8]).collect();
+        let mut out = std::vec![7.0f32; n];
+        // SAFETY: `x` and `out` hold N values; the caller runs this only where the level is present.
+        let v = unsafe { L::load(x.as_ptr()) };
+        unsafe { L::store(out.as_mut_ptr(), L::relu(v)) };
+        for (i, (o, x)) in out.iter().zip(&x).enumerate() {
+            let want = if *x > 0.0 { *x } else { 0.0 };
+            assert_eq!(o.to_bits(), want.to_bits(), "{level} relu lane {i} of {x}");
+        }
+        unsafe { L::store(out.as_mut_ptr(), L::keep_positive(v, L::splat(5.0))) };
+        for (o, x) in out.iter().zip(&x) {
+            assert_eq!(o.to_bits(), if *x > 0.0 { 5.0f32 } else { 0.0 }.to_bits(), "{level} keep_positive of {x}");
+        }
+        unsafe { L::store(out.as_mut_ptr(), L::add(L::mul_add(L::splat(3.0), L::splat(4.0), L::splat(1.0)), L::zero())) };
+        assert!(out.iter().all(|o| *o == 13.0), "{level} mul_add");
+    }
+
+    #[test]
+    fn every_level_the_host_has_keeps_the_lane_contract() {
+        contract::<Scalar<4>>("portable 4");
+        contract::<Scalar<8>>("portable 8");
+        #[cfg(target_arch = "x86_64")]
+        {
+            #[target_feature(enable = "avx2,fma")]
+            fn avx2() {
+                contract::<Avx2>("avx2");
+            }
+            #[target_feature(enable = "avx512f,fma")]
+            fn avx512() {
+                contract::<Avx512>("avx512");
+            }
+            if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
+                // SAFETY: the CPU has AVX2 and FMA.
+                unsafe { avx2() };
+            } else {
+                std::println!("SKIPPED: the avx2 lane contract (this CPU has no AVX2 and FMA)");
+            }
+            if std::is_x86_feature_detected!("avx512f") && std::is_x86_feature_detected!("fma") {
+                // SAFETY: the CPU has AVX-512 F and FMA.
+                unsafe { avx512() };
+            } else {
+                std::println!("SKIPPED: the avx512 lane contract (this CPU has no AVX-512 F)");
+            }
+        }
+        #[cfg(target_arch = "aarch64")]
+        contract::<Neon>("neon");
+    }
+}
