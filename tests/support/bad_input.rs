@@ -1,5 +1,6 @@
 //! What the bad-input tests of the core and of nbrdf-scene share (included by both with `#[path]`):
-//! an error matcher, a scratch folder, a folder made unwritable and a folder's listing.
+//! an error matcher, a scratch folder, a folder made unwritable, a folder's listing and the check that
+//! failed writes leave a folder as it was.
 
 #![allow(dead_code)]
 
@@ -91,3 +92,25 @@ pub fn listing(dir: &Path) -> Vec<String> {
     v
 }
 
+
+/// A write to try, for [`failed_writes_keep_the_old_files`].
+pub type WriteCase<'a> = Box<dyn Fn() -> Result<(), nbrdf::Error> + 'a>;
+
+/// With `dir` made unwritable, each of `writes` fails with `Error::Io`, and afterwards every file of
+/// `names` still holds `old` and no file was added. Says so and checks nothing where no folder can be
+/// made unwritable here.
+pub fn failed_writes_keep_the_old_files(dir: &Path, names: &[&str], old: &[u8], writes: &[(&str, WriteCase)]) {
+    let before = listing(dir);
+    let Some(guard) = ReadOnly::new(dir) else {
+        eprintln!("skipping the read-only directory case: cannot make a directory unwritable here");
+        return;
+    };
+    for (case, write) in writes {
+        assert_err!(case, write(), nbrdf::Error::Io { .. });
+    }
+    drop(guard);
+    for n in names {
+        assert_eq!(std::fs::read(dir.join(n)).unwrap(), old, "{n} changed by a failed write");
+    }
+    assert_eq!(listing(dir), before, "a failed write left a file behind");
+}
