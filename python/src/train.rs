@@ -12,7 +12,7 @@ use pyo3::types::PyDict;
 
 use nbrdf_scene::image::RgbImage;
 use trainer::commands::fit::FitArgs;
-use trainer::commands::{parse_kind, parse_position, parse_reciprocity};
+use trainer::names::{parse_kind, parse_position, parse_reciprocity};
 use trainer::dataset::synth::SynthArgs;
 use trainer::metrics::{brdf_rmse::cube_root_rmse, ImageMetrics, Lpips, MaybeMetric};
 

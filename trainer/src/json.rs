@@ -30,5 +30,14 @@ pub fn parse<T: DeserializeOwned>(path: &Path, what: &str, bytes: &[u8]) -> Resu
     if let Err(e) = std::str::from_utf8(bytes) {
         return Err(Error::Invalid(format!("{}: not a {what}: not UTF-8 (invalid byte at offset {})", path.display(), e.valid_up_to())));
     }
-    serde_json::from_slice(bytes).map_err(|e| Error::Invalid(format!("{}: not a {what}: {e}", path.display())))
+    // The path of the value that is wrong (`models[3].reciprocity`) goes before serde's message.
+    let mut de = serde_json::Deserializer::from_slice(bytes);
+    let value = serde_path_to_error::deserialize(&mut de).map_err(|e| {
+        let at = e.path().to_string();
+        let inner = e.into_inner();
+        let key = if at == "." { String::new() } else { format!("\"{at}\": ") };
+        Error::Invalid(format!("{}: not a {what}: {key}{inner}", path.display()))
+    })?;
+    de.end().map_err(|e| Error::Invalid(format!("{}: not a {what}: {e}", path.display())))?;
+    Ok(value)
 }

@@ -10,6 +10,7 @@
 //! - [`train`]: the fitting loop with checkpoints.
 //! - [`intrinsic`]: Laplace–Beltrami eigenfunctions for the intrinsic position encoding.
 //! - [`metrics`]: PSNR, DSSIM, LPIPS, HDR-FLIP, BRDF-space RMSE, reciprocity and energy (Sec. 6).
+//! - [`names`]: the names of model kinds, reciprocity strategies and position inputs (CLI, configs, Python).
 //! - [`commands`]: the bodies of the `fit`, `models` and `bench-step` subcommands.
 //! - [`staging`]: outputs written whole or not at all (staged folders and files, stale leftovers).
 //! - [`study`]: the comparison of Sec. 6 (fit and evaluate every variant, write the report).
@@ -24,6 +25,7 @@ pub mod intrinsic;
 pub mod json;
 pub mod metrics;
 pub mod models;
+pub mod names;
 pub mod observations;
 pub mod progress;
 pub mod staging;

@@ -50,8 +50,8 @@ enum Command {
     },
     /// List every model variant with its parameter count
     Models {
-        #[arg(long, default_value = "intrinsic:32")]
-        position: String,
+        #[arg(long, default_value = "intrinsic:32", value_parser = trainer::names::position_arg)]
+        position: trainer::models::PositionEncoding,
     },
     /// Milliseconds per training step (forward + backward + Adam) of each architecture
     BenchStep {
@@ -59,8 +59,8 @@ enum Command {
         batch: usize,
         #[arg(long, default_value_t = 5)]
         steps: usize,
-        #[arg(long, default_value = "intrinsic:32")]
-        position: String,
+        #[arg(long, default_value = "intrinsic:32", value_parser = trainer::names::position_arg)]
+        position: trainer::models::PositionEncoding,
         /// Also write the timings as JSON here
         #[arg(long)]
         json: Option<PathBuf>,
@@ -167,11 +167,10 @@ fn run(cli: Cli) -> trainer::Result<()> {
         #[cfg(feature = "shader")]
         Command::ExportShader { model, lang, out, weights } => commands::export_shader::run(&model, &lang, &out, weights.as_deref())?,
         Command::Models { position } => {
-            print!("{}", commands::models::table(commands::parse_position(&position)?));
+            print!("{}", commands::models::table(position));
         }
         Command::BenchStep { batch, steps, position, json, torch, torch_script, rounds, only } => {
             use commands::bench_step as bench;
-            let position = commands::parse_position(&position)?;
             let mut configs = bench::default_configs(position);
             if !only.is_empty() {
                 // A name that matches nothing is a typo, not a request for an empty table.

@@ -284,6 +284,8 @@ fn study_blames_the_config_file_and_key_and_a_shard_never_takes_over_another_stu
     let median = config("median.json", &|v| v["target_median"] = (-1.0).into());
     let lambda = config("lambda.json", &|v| v["lambda_diffuse"] = (-1.0).into());
     let samples = config("samples.json", &|v| v["energy_samples"] = 0.into());
+    let typo = config("typo.json", &|v| v["models"][0]["modle"] = "rp".into());
+    let strategy = config("strategy.json", &|v| v["models"][12]["reciprocity"] = "sideways".into());
     let layers = config("layers.json", &|v| v["models"][0] = serde_json::json!({ "model": "single-mlp", "enhanced": false, "direction_layers": 255 }));
     // A device that never ends, under a config's name.
     let endless = d.join("endless.json");
@@ -326,6 +328,8 @@ fn study_blames_the_config_file_and_key_and_a_shard_never_takes_over_another_stu
         blame(&median, "target_median", "-1"),
         blame(&lambda, "lambda_diffuse", "-1"),
         blame(&samples, "energy_samples", "0"),
+        Case { args: study(&typo, &fresh, None), names: vec![s(&typo), "models[0]".into(), "unknown field `modle`".into()], keep: fresh.clone() },
+        Case { args: study(&strategy, &fresh, None), names: vec![s(&strategy), "\"models[12].reciprocity\"".into(), "\"sideways\"".into(), "none, swap or exact".into()], keep: fresh.clone() },
         Case { args: study(&layers, &fresh, None), names: vec![s(&layers), "models[0]".into(), "\"direction_layers\" 255".into(), "1..=6".into()], keep: fresh.clone() },
         Case { args: study(&endless, &fresh, None), names: vec![s(&endless), "bytes".into()], keep: fresh.clone() },
         Case { args: study(&utf8, &fresh, None), names: vec![s(&utf8), "UTF-8".into()], keep: fresh.clone() },

@@ -6,14 +6,19 @@
 
 use trainer::study::{self, ModelSpec, SceneConfig, StudyConfig};
 
+/// The model kind of a name, as a config names it.
+fn kind(name: &str) -> trainer::models::Kind {
+    trainer::names::parse_kind(name).unwrap()
+}
+
 fn tiny() -> StudyConfig {
     StudyConfig {
         scenes: vec![SceneConfig { mesh: "sphere".into(), material: "two-lobe-metal".into() }],
         models: vec![
-            ModelSpec::new("rp"),
-            ModelSpec::new("single-mlp"),
-            ModelSpec { direction_layers: Some(3), ..ModelSpec::new("single-mlp") },
-            ModelSpec { reciprocity: Some("none".into()), ..ModelSpec::new("single-mlp") },
+            ModelSpec::new(kind("rp")),
+            ModelSpec::new(kind("single-mlp")),
+            ModelSpec { direction_layers: Some(3), ..ModelSpec::new(kind("single-mlp")) },
+            ModelSpec { reciprocity: Some(trainer::models::Reciprocity::None), ..ModelSpec::new(kind("single-mlp")) },
         ],
         size: 40,
         views: 3,
@@ -272,7 +277,7 @@ fn sharded_by_the_slurm_script_and_merged_equals_one_unsharded_run() {
     use std::os::unix::fs::PermissionsExt;
     use std::process::Command;
     let dir = tempfile::tempdir().unwrap();
-    let config = StudyConfig { models: vec![ModelSpec::new("rp"), ModelSpec::new("single-mlp")], ..tiny() };
+    let config = StudyConfig { models: vec![ModelSpec::new(kind("rp")), ModelSpec::new(kind("single-mlp"))], ..tiny() };
     let config_path = dir.path().join("config.json");
     std::fs::write(&config_path, serde_json::to_vec_pretty(&config).unwrap()).unwrap();
     let trainer = env!("CARGO_BIN_EXE_trainer");

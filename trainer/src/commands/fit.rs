@@ -17,16 +17,16 @@ use crate::{Error, Result};
 #[derive(clap::Args, Clone, Debug)]
 pub struct ModelArgs {
     /// rp, ts, fmbrdf, disney, lambert, single-mlp, additive-separate, additive-shared
-    #[arg(long, value_parser = super::kind_arg)]
+    #[arg(long, value_parser = crate::names::kind_arg)]
     pub model: Kind,
     /// Reciprocity strategy of the purely neural models (Sec. 4.3): none, swap or exact
-    #[arg(long, default_value = "exact", value_parser = super::reciprocity_arg)]
+    #[arg(long, default_value = "exact", value_parser = crate::names::reciprocity_arg)]
     pub reciprocity: Reciprocity,
     /// The enhanced additive split of Eq. 8
     #[arg(long)]
     pub enhanced: bool,
     /// Position input: uniform, intrinsic:K (K eigenfunctions) or extrinsic:F (PE of xyz, F octaves)
-    #[arg(long, default_value = "intrinsic:32", value_parser = super::position_arg)]
+    #[arg(long, default_value = "intrinsic:32", value_parser = crate::names::position_arg)]
     pub position: PositionEncoding,
     /// Octaves of the angles' positional encoding
     #[arg(long, default_value_t = crate::models::arch::DEFAULT_ANGLE_FREQUENCIES)]
@@ -106,7 +106,7 @@ impl FitArgs {
     /// }
     /// // The typed request and the parsed command line agree on every default.
     /// let parsed = Cli::parse_from(["fit", "--model", "ts"]).args;
-    /// let built = FitArgs::new(trainer::commands::parse_kind("ts").unwrap());
+    /// let built = FitArgs::new(trainer::names::parse_kind("ts").unwrap());
     /// assert_eq!(format!("{parsed:?}"), format!("{built:?}"));
     /// ```
     pub fn new(model: Kind) -> Self {
@@ -269,11 +269,7 @@ pub fn resume_point(outputs: &Outputs, config: &Config, steps: usize) -> Result<
 /// The flags in which the checkpoint's variant `was` differs from the asked one `is`, with both values:
 /// two variants of one name differ in what the name leaves out (position input, angle octaves).
 fn differences(was: &Config, is: &Config) -> String {
-    let position = |p: PositionEncoding| match p {
-        PositionEncoding::Uniform => "uniform".to_string(),
-        PositionEncoding::Intrinsic { k } => format!("intrinsic:{k}"),
-        PositionEncoding::Extrinsic { frequencies } => format!("extrinsic:{frequencies}"),
-    };
+    let position = crate::names::position_name;
     let layers = |n: Option<u8>| n.map_or("the default".to_string(), |n| n.to_string());
     let mut d = Vec::new();
     if was.kind != is.kind {

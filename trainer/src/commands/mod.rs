@@ -12,39 +12,6 @@ pub mod models;
 use crate::models::{Config, Kind, PositionEncoding, Reciprocity};
 use crate::{Error, Result};
 
-/// Parses `none|swap|exact`.
-pub fn parse_reciprocity(s: &str) -> Result<Reciprocity> {
-    match s {
-        "none" => Ok(Reciprocity::None),
-        "swap" => Ok(Reciprocity::Swap),
-        "exact" => Ok(Reciprocity::Exact),
-        _ => Err(Error::Invalid(format!("unknown reciprocity strategy {s:?}; expected none, swap or exact"))),
-    }
-}
-
-/// Parses `uniform`, `intrinsic:K` or `extrinsic:F`.
-pub fn parse_position(s: &str) -> Result<PositionEncoding> {
-    let bad = || Error::Invalid(format!("unknown position encoding {s:?}; expected uniform, intrinsic:K or extrinsic:F"));
-    // A number out of range is named as such, with what is allowed (not as an unknown encoding).
-    let number = |v: &str, what: &str, max: u64| -> Result<u64> {
-        let n: u64 = v.parse().map_err(|_| bad())?;
-        if n == 0 && what == "eigenfunctions" || n > max {
-            return Err(Error::Invalid(format!("position encoding {s:?}: {n} {what}; allowed 1..={max}")));
-        }
-        Ok(n)
-    };
-    match s.split_once(':') {
-        None if s == "uniform" => Ok(PositionEncoding::Uniform),
-        Some(("intrinsic", k)) => {
-            Ok(PositionEncoding::Intrinsic { k: number(k, "eigenfunctions", nbrdf::file::MAX_INTRINSIC as u64)? as u16 })
-        }
-        Some(("extrinsic", f)) => Ok(PositionEncoding::Extrinsic {
-            frequencies: number(f, "frequencies", nbrdf::file::MAX_FREQUENCIES as u64)? as u8,
-        }),
-        _ => Err(bad()),
-    }
-}
-
 /// The direction layer counts (Tab. 2) a kind takes: the Single MLP splits its six hidden layers into
 /// a position trunk and a head of `1..=6` (6: the paper's single network), the additive models give
 /// their specular part `1..=16` layers (the model file's most hidden layers of a network).
@@ -67,32 +34,6 @@ pub fn check_direction_layers(kind: Kind, model: &str, n: Option<u8>, name: &str
         }
         Some(_) => Ok(()),
     }
-}
-
-/// The model kind named `name` (the core's name table for the parametric ones, with its aliases).
-pub fn parse_kind(name: &str) -> Result<Kind> {
-    crate::models::arch::parse_kind(name).ok_or_else(|| {
-        Error::Invalid(format!(
-            "unknown model {name:?}; expected one of rp, ts, fmbrdf, disney, lambert, single-mlp, \
-             additive-separate, additive-shared"
-        ))
-    })
-}
-
-/// [`parse_kind`], [`parse_reciprocity`] and [`parse_position`] as clap's value parsers: the command
-/// line holds the typed values, checked as it is parsed.
-pub(crate) fn kind_arg(s: &str) -> std::result::Result<Kind, String> {
-    parse_kind(s).map_err(|e| e.to_string())
-}
-
-/// See [`kind_arg`].
-pub(crate) fn reciprocity_arg(s: &str) -> std::result::Result<Reciprocity, String> {
-    parse_reciprocity(s).map_err(|e| e.to_string())
-}
-
-/// See [`kind_arg`].
-pub(crate) fn position_arg(s: &str) -> std::result::Result<PositionEncoding, String> {
-    parse_position(s).map_err(|e| e.to_string())
 }
 
 /// The model configuration of a typed request: checks what the kinds allow (`--enhanced` for the
@@ -120,16 +61,4 @@ pub fn config(
     c.angle_frequencies = angle_frequencies;
     c.direction_layers = direction_layers;
     Ok(c)
-}
-
-/// [`config`] from the names a study config holds.
-pub fn parse_config(
-    model: &str,
-    reciprocity: &str,
-    enhanced: bool,
-    position: &str,
-    angle_frequencies: u8,
-    direction_layers: Option<u8>,
-) -> Result<Config> {
-    config(parse_kind(model)?, parse_reciprocity(reciprocity)?, enhanced, parse_position(position)?, angle_frequencies, direction_layers)
 }

@@ -84,12 +84,9 @@ impl Config {
         if self.has_xi() {
             s.push_str("+enhanced");
         }
-        if !matches!(self.kind, Kind::Parametric(_)) {
-            match self.reciprocity {
-                Reciprocity::None => {}
-                Reciprocity::Swap => s.push_str("+swap"),
-                Reciprocity::Exact => s.push_str("+exact"),
-            }
+        if !matches!(self.kind, Kind::Parametric(_)) && self.reciprocity != Reciprocity::None {
+            s.push('+');
+            s.push_str(reciprocity_name(self.reciprocity));
         }
         if let Some(n) = self.direction_layers {
             s.push_str(&format!("+nol{n}"));
@@ -106,6 +103,15 @@ pub fn kind_name(kind: Kind) -> &'static str {
         Kind::SingleMlp => "single-mlp",
         Kind::AdditiveSeparate => "additive-separate",
         Kind::AdditiveShared => "additive-shared",
+    }
+}
+
+/// The name of a reciprocity strategy on the command line, in configs and in variant names.
+pub fn reciprocity_name(r: Reciprocity) -> &'static str {
+    match r {
+        Reciprocity::None => "none",
+        Reciprocity::Swap => "swap",
+        Reciprocity::Exact => "exact",
     }
 }
 

@@ -7,7 +7,7 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use super::{jobs, Shard, StudyConfig};
-use crate::commands::{fit, parse_position, parse_reciprocity};
+use crate::commands::fit;
 use crate::{Error, Result};
 
 /// Most test pairs of the reciprocity RMSE and of the energy analysis, and most samples per energy
@@ -25,8 +25,6 @@ pub fn validate(config: &StudyConfig, source: &str) -> Result<()> {
     if let Some(scene) = config.scenes.first() {
         config.synth_args(scene, Path::new("unused")).check_as(&|k| key(k)).map_err(|e| Error::Invalid(e.to_string()))?;
     }
-    parse_position(&config.position).map_err(|e| Error::Invalid(format!("{}: {e}", key("position"))))?;
-    parse_reciprocity(&config.reciprocity).map_err(|e| Error::Invalid(format!("{}: {e}", key("reciprocity"))))?;
     if config.steps == 0 || config.steps > fit::MAX_STEPS {
         return bad("steps", &config.steps, &format!("allowed 1..={}", fit::MAX_STEPS));
     }

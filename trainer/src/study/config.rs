@@ -7,13 +7,14 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use crate::commands::parse_config;
 use crate::dataset::synth::SynthArgs;
-use crate::models::Config;
+use crate::models::{Config, Kind, ParametricKind, PositionEncoding, Reciprocity};
+use crate::names::{self, kind_name, position_name, reciprocity_name};
 use crate::{Error, Result};
 
 /// One object of the study: a mesh and its ground-truth material (the `synth` arguments).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct SceneConfig {
     /// Built-in mesh id or OBJ/PLY path.
     pub mesh: String,
@@ -40,13 +41,16 @@ impl SceneConfig {
     }
 }
 
-/// One model variant: `model` as `trainer fit --model` takes it, `enhanced` for Eq. 8.
+/// One model variant: `model` as `trainer fit --model` names it, `enhanced` for Eq. 8.
 ///
-/// The optional fields are left out of the JSON when unset, so that configs (and the job hashes, which
-/// hash the spec's JSON) written before they existed keep their meaning and their cached results.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+/// The JSON holds the names (`"rp"`, `"exact"`) and writes back the canonical one, which is what the
+/// job hashes hash: an alias (`"phong"`) reads as the same job. The optional fields are left out of the
+/// JSON when unset, so that configs written before they existed keep their meaning and cached results.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct ModelSpec {
-    pub model: String,
+    #[serde(with = "names::kind")]
+    pub model: Kind,
     #[serde(default)]
     pub enhanced: bool,
     /// Tab. 2 ablation: layers the directions pass through (neural models only).
@@ -54,8 +58,8 @@ pub struct ModelSpec {
     pub direction_layers: Option<u8>,
     /// Tab. 3: this variant's reciprocity strategy (`none`, `swap`, `exact`; purely neural models
     /// only), overriding the study's [`StudyConfig::reciprocity`].
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub reciprocity: Option<String>,
+    #[serde(default, with = "names::reciprocity::option", skip_serializing_if = "Option::is_none")]
+    pub reciprocity: Option<Reciprocity>,
     /// Indices into [`StudyConfig::scenes`] this variant runs on; all scenes when unset. Lets the
     /// ablation rows of Tabs. 2 and 3 run on fewer objects than Tab. 1 (the report says on which).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -64,8 +68,13 @@ pub struct ModelSpec {
 
 impl ModelSpec {
     /// A variant with every option at its default.
-    pub fn new(model: &str) -> Self {
-        ModelSpec { model: model.into(), ..ModelSpec::default() }
+    pub fn new(model: Kind) -> Self {
+        ModelSpec { model, enhanced: false, direction_layers: None, reciprocity: None, scenes: None }
+    }
+
+    /// Whether the variant is a parametric model (no reciprocity strategy, no direction layers).
+    pub fn is_parametric(&self) -> bool {
+        matches!(self.model, Kind::Parametric(_))
     }
 
     /// Whether this variant runs on scene `i`.
@@ -74,9 +83,10 @@ impl ModelSpec {
     }
 }
 
-/// Whether `model` names a parametric model (no reciprocity strategy, no direction layers).
+/// Whether `model` names a parametric model (the first part of a variant name such as `rp` or
+/// `single-mlp+exact`).
 pub fn is_parametric(model: &str) -> bool {
-    nbrdf::parametric::ParametricKind::from_name(model).is_some()
+    ParametricKind::from_name(model).is_some()
 }
 
 /// Every variant of the paper's Tabs. 1–3: the nine of Tab. 1 (the study's reciprocity strategy for the
@@ -85,24 +95,25 @@ pub fn is_parametric(model: &str) -> bool {
 /// layers; paper Tab. 2 and appendix) and the `none` and `swap` strategies of the three purely neural
 /// architectures (Tab. 3).
 pub fn paper_variants(ablation_scenes: Option<Vec<usize>>) -> Vec<ModelSpec> {
-    let m = |model: &str, enhanced| ModelSpec { enhanced, ..ModelSpec::new(model) };
+    use Kind::*;
+    let m = |model, enhanced| ModelSpec { enhanced, ..ModelSpec::new(model) };
     let mut v = vec![
-        m("rp", false),
-        m("ts", false),
-        m("fmbrdf", false),
-        m("disney", false),
-        m("single-mlp", false),
-        m("additive-separate", false),
-        m("additive-shared", false),
-        m("additive-separate", true),
-        m("additive-shared", true),
+        m(Parametric(ParametricKind::Phong), false),
+        m(Parametric(ParametricKind::TorranceSparrow), false),
+        m(Parametric(ParametricKind::FresnelMicrofacet), false),
+        m(Parametric(ParametricKind::Disney), false),
+        m(SingleMlp, false),
+        m(AdditiveSeparate, false),
+        m(AdditiveShared, false),
+        m(AdditiveSeparate, true),
+        m(AdditiveShared, true),
     ];
-    for (model, nol) in [("single-mlp", 3), ("additive-separate", 2), ("additive-shared", 4)] {
+    for (model, nol) in [(SingleMlp, 3), (AdditiveSeparate, 2), (AdditiveShared, 4)] {
         v.push(ModelSpec { direction_layers: Some(nol), scenes: ablation_scenes.clone(), ..ModelSpec::new(model) });
     }
-    for strategy in ["none", "swap"] {
-        for model in ["single-mlp", "additive-separate", "additive-shared"] {
-            v.push(ModelSpec { reciprocity: Some(strategy.into()), scenes: ablation_scenes.clone(), ..ModelSpec::new(model) });
+    for strategy in [Reciprocity::None, Reciprocity::Swap] {
+        for model in [SingleMlp, AdditiveSeparate, AdditiveShared] {
+            v.push(ModelSpec { reciprocity: Some(strategy), scenes: ablation_scenes.clone(), ..ModelSpec::new(model) });
         }
     }
     v
@@ -110,13 +121,16 @@ pub fn paper_variants(ablation_scenes: Option<Vec<usize>>) -> Vec<ModelSpec> {
 
 /// The whole study.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct StudyConfig {
     pub scenes: Vec<SceneConfig>,
     pub models: Vec<ModelSpec>,
     /// Position input of every model: `uniform`, `intrinsic:K` or `extrinsic:F`.
-    pub position: String,
+    #[serde(with = "names::position")]
+    pub position: PositionEncoding,
     /// Reciprocity strategy of the purely neural models (`none`, `swap`, `exact`).
-    pub reciprocity: String,
+    #[serde(with = "names::reciprocity")]
+    pub reciprocity: Reciprocity,
     /// Image side in pixels.
     pub size: u32,
     pub views: usize,
@@ -164,8 +178,8 @@ impl StudyConfig {
                 SceneConfig { mesh: "torus".into(), material: "clear-coat".into() },
             ],
             models: paper_variants(Some(vec![1])),
-            position: "intrinsic:32".into(),
-            reciprocity: "exact".into(),
+            position: PositionEncoding::Intrinsic { k: 32 },
+            reciprocity: Reciprocity::Exact,
             size: 64,
             views: 6,
             train_views: 4,
@@ -202,33 +216,29 @@ impl StudyConfig {
     /// The trainer configuration of a model spec; an error names a bad spec (unknown model, a
     /// reciprocity strategy on a parametric model, a scene index out of range).
     pub fn model_config(&self, m: &ModelSpec) -> Result<Config> {
-        let parametric = is_parametric(&m.model);
-        if parametric && m.reciprocity.is_some() {
+        let name = kind_name(m.model);
+        if m.is_parametric() && m.reciprocity.is_some() {
             return Err(Error::Invalid(format!(
-                "study model {:?}: a reciprocity strategy applies to the purely neural models only",
-                m.model
+                "study model {name:?}: a reciprocity strategy applies to the purely neural models only"
             )));
         }
         if let Some(bad) = m.scenes.iter().flatten().find(|&&i| i >= self.scenes.len()) {
             return Err(Error::Invalid(format!(
-                "study model {:?}: scene index {bad} out of range (the config has {} scenes)",
-                m.model,
+                "study model {name:?}: scene index {bad} out of range (the config has {} scenes)",
                 self.scenes.len()
             )));
         }
         if m.scenes.as_ref().is_some_and(|s| s.is_empty()) {
-            return Err(Error::Invalid(format!("study model {:?}: an empty scene list runs nothing", m.model)));
+            return Err(Error::Invalid(format!("study model {name:?}: an empty scene list runs nothing")));
         }
-        let reciprocity = if parametric { "none" } else { m.reciprocity.as_deref().unwrap_or(&self.reciprocity) };
-        if let Some(kind) = crate::models::arch::parse_kind(&m.model) {
-            let key = format!("study model {:?}: \"direction_layers\"", m.model);
-            crate::commands::check_direction_layers(kind, &m.model, m.direction_layers, &key)?;
-        }
-        parse_config(
-            &m.model,
+        let key = format!("study model {name:?}: \"direction_layers\"");
+        crate::commands::check_direction_layers(m.model, name, m.direction_layers, &key)?;
+        let reciprocity = if m.is_parametric() { Reciprocity::None } else { m.reciprocity.unwrap_or(self.reciprocity) };
+        crate::commands::config(
+            m.model,
             reciprocity,
             m.enhanced,
-            &self.position,
+            self.position,
             crate::models::arch::DEFAULT_ANGLE_FREQUENCIES,
             m.direction_layers,
         )
@@ -266,8 +276,9 @@ impl StudyConfig {
         let key = (
             self.scene_hash(scene),
             m,
-            &self.position,
-            &self.reciprocity,
+            // Their names, as the JSON holds them: hashes written before the fields were typed hold.
+            position_name(self.position),
+            reciprocity_name(self.reciprocity),
             (self.steps, self.batch, self.lr, self.lr_final, self.pixel_stride),
             (self.reciprocity_pairs, self.energy_pairs, self.energy_samples),
         );
@@ -324,7 +335,7 @@ mod tests {
         names.sort();
         names.dedup();
         assert_eq!(names.len(), 18);
-        assert!(c.position.starts_with("intrinsic:"));
+        assert!(matches!(c.position, PositionEncoding::Intrinsic { .. }));
         let mut ids: Vec<String> = c.scenes.iter().map(SceneConfig::id).collect();
         ids.sort();
         ids.dedup();
@@ -391,11 +402,46 @@ mod spec_tests {
     fn bad_specs_are_named() {
         let c = StudyConfig::default_small();
         let err = |m: ModelSpec| c.model_config(&m).unwrap_err().to_string();
-        assert!(err(ModelSpec { reciprocity: Some("swap".into()), ..ModelSpec::new("rp") }).contains("purely neural"));
-        assert!(err(ModelSpec { scenes: Some(vec![2]), ..ModelSpec::new("ts") }).contains("out of range"));
-        assert!(err(ModelSpec { scenes: Some(vec![]), ..ModelSpec::new("ts") }).contains("empty"));
-        assert!(c.model_config(&ModelSpec { reciprocity: Some("sideways".into()), ..ModelSpec::new("single-mlp") }).is_err());
-        // Unset optional fields stay out of the JSON, so older job hashes are unchanged.
-        assert_eq!(serde_json::to_string(&ModelSpec::new("rp")).unwrap(), r#"{"model":"rp","enhanced":false}"#);
+        let spec = |json: &str| serde_json::from_str::<ModelSpec>(json);
+        let rp = spec(r#"{"model":"rp"}"#).unwrap();
+        assert!(err(ModelSpec { reciprocity: Some(Reciprocity::Swap), ..rp.clone() }).contains("purely neural"));
+        assert!(err(ModelSpec { scenes: Some(vec![2]), ..rp.clone() }).contains("out of range"));
+        assert!(err(ModelSpec { scenes: Some(vec![]), ..rp.clone() }).contains("empty"));
+        assert!(err(ModelSpec { direction_layers: Some(2), ..rp.clone() }).contains("\"direction_layers\""));
+        // A bad name is refused as the JSON is read, naming the name and what is allowed.
+        let sideways = spec(r#"{"model":"single-mlp","reciprocity":"sideways"}"#).unwrap_err().to_string();
+        assert!(sideways.contains("\"sideways\"; expected none, swap or exact"), "{sideways}");
+        assert!(spec(r#"{"model":"mlp"}"#).unwrap_err().to_string().contains("unknown model \"mlp\""));
+        // Unset optional fields stay out of the JSON, and an alias is written as the canonical name:
+        // the job hashes hash this text.
+        assert_eq!(serde_json::to_string(&spec(r#"{"model":"phong"}"#).unwrap()).unwrap(), r#"{"model":"rp","enhanced":false}"#);
+    }
+
+    /// The typed config hashes its jobs as the string config did: every job of the checked-in results
+    /// keeps its hash, so their cached folders and `study merge` still match.
+    #[test]
+    fn checked_in_results_keep_their_job_hashes() {
+        #[derive(Deserialize)]
+        struct Job {
+            scene: String,
+            model: String,
+            hash: String,
+        }
+        #[derive(Deserialize)]
+        struct Results {
+            config: StudyConfig,
+            jobs: Vec<Job>,
+        }
+        let root = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../docs/results"));
+        let runs = ["merl", "protocol", "protocol/spot", "protocol/seed1", "protocol/dark", "protocol/long", "protocol/tab2"];
+        for run in runs {
+            let r: Results = crate::json::read(&root.join(run).join("results.json"), "study results").unwrap();
+            assert!(!r.jobs.is_empty(), "{run}");
+            for job in &r.jobs {
+                let scene = r.config.scenes.iter().find(|s| s.id() == job.scene).unwrap();
+                let spec = r.config.models.iter().find(|m| r.config.model_config(m).unwrap().name() == job.model).unwrap();
+                assert_eq!(r.config.job_hash(scene, spec), job.hash, "{run}: {} / {}", job.scene, job.model);
+            }
+        }
     }
 }

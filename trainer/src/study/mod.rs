@@ -242,7 +242,7 @@ pub fn run(config: &StudyConfig, out: &Path, shard: Option<Shard>, progress: boo
             let model_path = fit::Outputs::in_dir(&jdir, &model_config).model;
             let eval = evaluate::evaluate(&ds, &model_path, &lpips, config)?;
             let size_bytes = std::fs::metadata(&model_path).map_err(|e| Error::io(&model_path, e))?.len();
-            let (eval_f16, size_bytes_f16) = if config::is_parametric(&spec.model) {
+            let (eval_f16, size_bytes_f16) = if spec.is_parametric() {
                 (None, None)
             } else {
                 let buf = nbrdf::ModelBuf::load(&model_path).map_err(Error::Core)?;
@@ -336,7 +336,7 @@ fn read_result(path: &Path) -> Option<JobResult> {
 fn finished_models_load(jdir: &Path, model_config: &crate::models::Config, spec: &ModelSpec) -> Result<()> {
     let model_path = fit::Outputs::in_dir(jdir, model_config).model;
     nbrdf::ModelBuf::load(&model_path).map_err(|e| Error::Core(e.context(model_path.display())))?;
-    if !config::is_parametric(&spec.model) {
+    if !spec.is_parametric() {
         let path16 = model_path.with_extension("f16.nbrdf");
         nbrdf::ModelBuf::load(&path16).map_err(|e| Error::Core(e.context(path16.display())))?;
     }

@@ -9,6 +9,7 @@ use std::path::Path;
 use serde::Serialize;
 
 use super::config::is_parametric;
+use crate::names::{position_name, reciprocity_name};
 use super::figures::{self, Comparison, CostPoint};
 use super::{Evaluation, JobResult, StudyConfig};
 use crate::{Error, Result};
@@ -161,7 +162,7 @@ pub fn role(name: &str) -> Role {
 /// reciprocity strategy.
 pub fn in_tab1(name: &str, config: &StudyConfig) -> bool {
     let r = role(name);
-    r.nol_base.is_none() && r.reciprocity.is_none_or(|s| s == config.reciprocity)
+    r.nol_base.is_none() && r.reciprocity.is_none_or(|s| s == reciprocity_name(config.reciprocity))
 }
 
 /// The Tab. 1 scores of one job, as the paper scales them (RMSE∛, DSSIM, LPIPS, FLIP ×100).
@@ -247,7 +248,7 @@ fn signed(v: f64, digits: usize) -> String {
 /// the study's own reciprocity strategy (every Tab. 1 row has it) left out.
 fn short_label(name: &str, config: &StudyConfig) -> String {
     name.split('+')
-        .filter(|p| *p != config.reciprocity)
+        .filter(|p| *p != reciprocity_name(config.reciprocity))
         .map(|p| match p {
             "additive-separate" => "add-sep",
             "additive-shared" => "add-shared",
@@ -421,7 +422,7 @@ pub fn markdown(
         config.train_lights,
         config.test_lights,
         config.sigma,
-        config.position,
+        position_name(config.position),
         config.steps,
         config.batch,
         config.reciprocity_pairs,
@@ -448,7 +449,7 @@ pub fn markdown(
         md,
         "Purely neural models with the `{}` reciprocity strategy. RMSE ∛, DSSIM, LPIPS and FLIP ×100, as in the paper. \
          ↑ higher is better, ↓ lower.\n",
-        config.reciprocity
+        reciprocity_name(config.reciprocity)
     );
     let _ = writeln!(md, "| model | objects | RMSE ∛ ↓ | PSNR ↑ | DSSIM ↓ | LPIPS ↓ | FLIP ↓ |");
     let _ = writeln!(md, "|---|---:|---:|---:|---:|---:|---:|");
