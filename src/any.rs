@@ -550,13 +550,14 @@ impl<'a> AnyBrdf<'a> {
         match &self.source {
             Source::Parametric(p) => format!("parametric {}, sampled by own lobes", p.kind().name()),
             Source::Builtin(b) => format!("built-in {}, sampled by own lobes", b.id()),
-            Source::Merl(t) => format!("MERL table, sampled by {}", proxy(t.proxy())),
-            Source::NbrdfJson(n) => format!("NBRDF-json {}, sampled by {}", n.name(), proxy(n.proxy())),
+            Source::Merl(t) => format!("MERL table, sampled per view around {}", proxy(t.proxy())),
+            Source::NbrdfJson(n) => format!("NBRDF-json {}, sampled per view around {}", n.name(), proxy(n.proxy())),
             Source::Model(_) | Source::Borrowed(_) => {
                 let m = self.as_model().expect("a model");
                 match m.header().kind {
                     ModelKind::Parametric(k) => format!(".nbrdf {} network, sampled by own lobes at each point", k.name()),
                     k => match self.proxy() {
+                        Some(p) if m.header().view_proxy.is_some() => format!(".nbrdf {k:?}, sampled per view around {}", proxy(&p)),
                         Some(p) => format!(".nbrdf {k:?}, sampled by {}", proxy(&p)),
                         None => format!(".nbrdf {k:?}, sampled by cosine (no proxy in the file)"),
                     },

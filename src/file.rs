@@ -6,7 +6,7 @@
 //! | 0..8 | magic `b"NBRDFMDL"` |
 //! | 8..12 | format version, `u32` LE |
 //! | 12..16 | header length `H`, `u32` LE |
-//! | 16..16+H | [`ModelHeader`], postcard-encoded; it may end before its trailing optional fields (the sampling proxy, then the mesh hash), which then read as `None`; zero padding to a multiple of 4 |
+//! | 16..16+H | [`ModelHeader`], postcard-encoded; it may end before its trailing optional fields (the sampling proxy, the mesh hash, then the per-view sampling table), which then read as `None`; zero padding to a multiple of 4 |
 //! | … | network weights in file order (`docs/models.md`), `f32` or `f16` LE per [`Precision`]; zero padding to a multiple of 4 |
 //! | … | object parameters, `f32` LE ([`ModelHeader::n_object`]) |
 //! | … | optional per-vertex position table, `f32` LE, `n_vertices × k` row-major (intrinsic encoding) |
@@ -182,6 +182,13 @@ pub struct ModelHeader {
     /// header ends before it; only the vertex count is then checked). A renderer refuses the table on
     /// a mesh of another hash.
     pub mesh_hash: Option<u64>,
+    /// The sampling mixtures per view angle of a neural model ([`crate::sampling::ViewProxy`], fitted at
+    /// export with [`crate::sampling::fit_view_proxy`]); sampling uses it where present and [`proxy`]
+    /// otherwise. Files written before it existed end before it; readers that predate it ignore it and
+    /// sample with `proxy`, which every export still carries.
+    ///
+    /// [`proxy`]: ModelHeader::proxy
+    pub view_proxy: Option<crate::sampling::ViewProxy>,
 }
 
 impl ModelHeader {
@@ -245,6 +252,7 @@ impl ModelHeader {
             n_vertices: 0,
             proxy: None,
             mesh_hash: None,
+            view_proxy: None,
         }
     }
 
@@ -261,6 +269,12 @@ impl ModelHeader {
     /// ```
     pub fn with_proxy(mut self, proxy: crate::sampling::Proxy) -> Self {
         self.proxy = Some(proxy);
+        self
+    }
+
+    /// The same header carrying the per-view sampling table `view` (see [`ModelHeader::view_proxy`]).
+    pub fn with_view_proxy(mut self, view: crate::sampling::ViewProxy) -> Self {
+        self.view_proxy = Some(view);
         self
     }
 
@@ -387,6 +401,9 @@ impl ModelHeader {
             });
         }
         if let Some(p) = &self.proxy {
+            p.validate()?;
+        }
+        if let Some(p) = &self.view_proxy {
             p.validate()?;
         }
         if self.n_nets as usize > MAX_NETS || self.n_nets == 0 {
@@ -522,8 +539,8 @@ pub(crate) fn parse(bytes: &[u8]) -> Result<(ModelHeader, Sections), Error> {
 const MAX_LEGACY_HEADER: usize = 256;
 
 /// Optional fields at the end of the header, in order, each added after version 1 was released:
-/// `proxy`, then `mesh_hash`.
-const TRAILING_OPTIONS: usize = 2;
+/// `proxy`, `mesh_hash`, then `view_proxy`.
+const TRAILING_OPTIONS: usize = 3;
 
 /// Decodes the postcard header. A header may end before any of its trailing optional fields (files
 /// written before the field existed, and [`encode`], which leaves a trailing `None` out so that such
@@ -539,7 +556,12 @@ fn decode_header(bytes: &[u8]) -> Result<ModelHeader, Error> {
             for missing in 1..=TRAILING_OPTIONS {
                 match postcard::from_bytes::<ModelHeader>(&buf[..bytes.len() + missing]) {
                     // Only the appended fields may be filled in, and only with `None`.
-                    Ok(h) if h.mesh_hash.is_none() && (missing < 2 || h.proxy.is_none()) => return Ok(h),
+                    Ok(h) if h.view_proxy.is_none()
+                        && (missing < 2 || h.mesh_hash.is_none())
+                        && (missing < 3 || h.proxy.is_none()) =>
+                    {
+                        return Ok(h)
+                    }
                     Err(postcard::Error::DeserializeUnexpectedEnd) => continue,
                     _ => return Err(bad),
                 }
@@ -548,6 +570,21 @@ fn decode_header(bytes: &[u8]) -> Result<ModelHeader, Error> {
         }
         Err(_) => Err(bad),
     }
+}
+
+/// The postcard header without its trailing `None`s, so that it ends as it did before those fields
+/// existed (see `decode_header`): files without them stay byte-identical to older exports.
+#[cfg(feature = "alloc")]
+fn encode_header(header: &ModelHeader) -> Result<alloc::vec::Vec<u8>, Error> {
+    let mut bytes = postcard::to_allocvec(header)
+        .map_err(|_| Error::InvalidValue { what: "model header", reason: "cannot be encoded" })?;
+    if header.view_proxy.is_none() {
+        bytes.pop();
+        if header.mesh_hash.is_none() {
+            bytes.pop();
+        }
+    }
+    Ok(bytes)
 }
 
 /// NaN or infinite weights would poison every evaluation; reject them at load.
@@ -621,12 +658,7 @@ pub fn encode(
         return Err(Error::NonFinite { what: "exported weights", index: i });
     }
     let (net_w, object) = weights.split_at(header.n_network_weights());
-    let mut header_bytes = postcard::to_allocvec(&header)
-        .map_err(|_| Error::InvalidValue { what: "model header", reason: "cannot be encoded" })?;
-    // Without a mesh hash the header ends as it did before the field existed (see `decode_header`).
-    if header.mesh_hash.is_none() {
-        header_bytes.pop();
-    }
+    let header_bytes = encode_header(&header)?;
     let mut out = Vec::with_capacity(16 + header_bytes.len() + weights.len() * 4 + 8);
     out.extend_from_slice(&MAGIC);
     out.extend_from_slice(&VERSION.to_le_bytes());
@@ -674,8 +706,7 @@ pub fn record_mesh(bytes: &[u8], hash: u64) -> Result<alloc::vec::Vec<u8>, Error
     let (mut header, sections) = parse(bytes)?;
     header.mesh_hash = Some(hash);
     header.validate()?;
-    let header_bytes = postcard::to_allocvec(&header)
-        .map_err(|_| Error::InvalidValue { what: "model header", reason: "cannot be encoded" })?;
+    let header_bytes = encode_header(&header)?;
     let body = &bytes[sections.weights.0..sections.table.1];
     let mut out = Vec::with_capacity(16 + header_bytes.len() + 3 + body.len() + 4);
     out.extend_from_slice(&MAGIC);

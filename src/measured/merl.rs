@@ -30,7 +30,7 @@ use alloc::vec::Vec;
 use crate::angles::{from_rusinkiewicz, theta_map, upper_hemisphere_pair, Rusinkiewicz};
 use crate::brdf::{Brdf, BsdfSample};
 use crate::math::sanitize;
-use crate::sampling::{fit_proxy, Proxy};
+use crate::sampling::{fit_proxy, fit_view_proxy_around, Proxy, ViewProxy};
 use crate::{Error, Rgb, Vec3, BLACK};
 
 /// Number of `θh` bins (header field 0).
@@ -82,6 +82,8 @@ pub struct MerlTable {
     raw: Vec<f64>,
     /// The sampling proxy fitted to the table at construction (a function of `raw`).
     proxy: Proxy,
+    /// The per-view sampling table fitted around `proxy` at construction; what sampling uses.
+    view: ViewProxy,
 }
 
 impl core::fmt::Debug for MerlTable {
@@ -98,8 +100,9 @@ impl core::fmt::Debug for MerlTable {
 impl MerlTable {
     /// The table over `raw` with its proxy fitted (what every constructor returns).
     fn with_proxy(raw: Vec<f64>) -> Self {
-        let mut table = MerlTable { raw, proxy: Proxy::COSINE };
+        let mut table = MerlTable { raw, proxy: Proxy::COSINE, view: ViewProxy::default() };
         table.proxy = fit_proxy(|wi, wo| table.eval(wi, wo));
+        table.view = fit_view_proxy_around(|wi, wo| table.eval(wi, wo), &table.proxy);
         table
     }
 
@@ -107,6 +110,12 @@ impl MerlTable {
     /// construction.
     pub fn proxy(&self) -> &Proxy {
         &self.proxy
+    }
+
+    /// The per-view sampling table [`Brdf::sample`] draws from ([`fit_view_proxy_around`] the
+    /// [`proxy`](Self::proxy)); exported shaders sample the single proxy.
+    pub fn view_proxy(&self) -> &ViewProxy {
+        &self.view
     }
 
     /// Parses a `.binary` file (module docs for the format).
@@ -527,12 +536,12 @@ impl Brdf for MerlTable {
 
     #[inline]
     fn sample(&self, wo: Vec3, u: [f32; 3]) -> Option<BsdfSample> {
-        self.proxy.sample(wo, u, |wi, wo| MerlTable::eval(self, wi, wo))
+        self.view.sample(wo, u, |wi, wo| MerlTable::eval(self, wi, wo))
     }
 
     #[inline]
     fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
-        self.proxy.pdf(wi, wo)
+        self.view.pdf(wi, wo)
     }
 
     #[inline]

@@ -1,6 +1,7 @@
 //! Importance sampling of a loaded [`Model`]: a parametric model samples its own lobes with the
-//! parameters its network predicted at the point; a neural model samples the [`Proxy`] stored in its
-//! file header (pure cosine sampling if the file has none) and evaluates the network for the weight.
+//! parameters its network predicted at the point; a neural model samples the [`ViewProxy`] stored in
+//! its file header, or the single [`Proxy`] of files written before it (pure cosine sampling if the
+//! file has neither), and evaluates the network for the weight.
 //! Either way the pdf is the density actually sampled, so `weight = f cos θi / pdf` is unbiased.
 //! [`ModelAt`] is the model at one prepared point: a [`Brdf`] like every other BRDF of the crate.
 //!
@@ -10,7 +11,7 @@
 use super::{Model, Prepared};
 use crate::brdf::{Brdf, BsdfSample};
 use crate::file::{ModelKind, Reciprocity};
-use crate::sampling::{fit_proxy, Proxy};
+use crate::sampling::{fit_proxy, fit_view_proxy_around, Proxy, ViewProxy};
 use crate::{Error, Rgb, Vec3};
 
 impl<'a> Model<'a> {
@@ -63,17 +64,20 @@ impl<'a> Model<'a> {
     /// ```
     #[inline]
     pub fn sample(&self, prepared: &Prepared, wo: Vec3, u: [f32; 3]) -> Option<BsdfSample> {
-        match prepared.parameters() {
-            Some(params) if prepared.valid => params.sample(wo, u),
-            _ => self.proxy().sample(wo, u, |wi, wo| self.eval(prepared, wi, wo)),
+        let brdf = |wi, wo| self.eval(prepared, wi, wo);
+        match (prepared.parameters(), &self.header().view_proxy) {
+            (Some(params), _) if prepared.valid => params.sample(wo, u),
+            (_, Some(view)) => view.sample(wo, u, brdf),
+            _ => self.proxy().sample(wo, u, brdf),
         }
     }
 
     /// Density of [`Model::sample`] at `wi` per unit solid angle.
     #[inline]
     pub fn pdf(&self, prepared: &Prepared, wi: Vec3, wo: Vec3) -> f32 {
-        match prepared.parameters() {
-            Some(params) if prepared.valid => params.pdf(wi, wo),
+        match (prepared.parameters(), &self.header().view_proxy) {
+            (Some(params), _) if prepared.valid => params.pdf(wi, wo),
+            (_, Some(view)) => view.pdf(wi, wo),
             _ => self.proxy().pdf(wi, wo),
         }
     }
@@ -86,15 +90,29 @@ impl<'a> Model<'a> {
         if points.is_empty() {
             return Proxy::COSINE;
         }
+        fit_proxy(|wi, wo| self.mean_over(points, wi, wo))
+    }
+
+    /// Fits the per-view sampling table to this model averaged over the given prepared points around
+    /// its all-view proxy `global` ([`Model::fit_proxy`] of the same points): what the trainer stores
+    /// beside it ([`ModelHeader::with_view_proxy`](crate::file::ModelHeader::with_view_proxy)). No points
+    /// gives cosine sampling at every view.
+    pub fn fit_view_proxy(&self, points: &[Prepared], global: &Proxy) -> ViewProxy {
+        if points.is_empty() {
+            return ViewProxy::default();
+        }
+        fit_view_proxy_around(|wi, wo| self.mean_over(points, wi, wo), global)
+    }
+
+    /// The model's mean value over `points`.
+    fn mean_over(&self, points: &[Prepared], wi: Vec3, wo: Vec3) -> Rgb {
         let n = points.len() as f32;
-        fit_proxy(|wi, wo| {
-            let mut f: Rgb = [0.0; 3];
-            for p in points {
-                let v = self.eval(p, wi, wo);
-                (0..3).for_each(|c| f[c] += v[c] / n);
-            }
-            f
-        })
+        let mut f: Rgb = [0.0; 3];
+        for p in points {
+            let v = self.eval(p, wi, wo);
+            (0..3).for_each(|c| f[c] += v[c] / n);
+        }
+        f
     }
 }
 

@@ -28,12 +28,12 @@ const N_D: usize = 8;
 /// φd samples, uniform in [0, π) (reciprocity and isotropy cover the rest).
 const N_P: usize = 4;
 /// Candidate GGX roughnesses, logarithmic from `ALPHA_LO` to 1.
-const N_A: usize = 20;
+pub(super) const N_A: usize = 20;
 const ALPHA_LO: f32 = 0.004;
 
 /// The candidate α of grid index `k`.
 #[inline]
-fn alpha_of(k: usize) -> f32 {
+pub(super) fn alpha_of(k: usize) -> f32 {
     ALPHA_LO * libm::powf(1.0 / ALPHA_LO, k as f32 / (N_A - 1) as f32)
 }
 

@@ -26,15 +26,18 @@
 //! | built-in `velvet` | cosine (diffuse and sheen) + Phong lobe `cos^n` about `wo` (retro-reflection) |
 //!
 //! Models without a closed form to sample (neural models, MERL tables, NBRDF-json networks) sample an
-//! analytic [`Proxy`] fitted to them ([`proxy`], [`fit_proxy`]) and evaluate the model itself for the
-//! weight ([`Model::sample`](crate::Model::sample) for the neural models, [`measured`](crate::measured)
+//! analytic mixture fitted to them and evaluate the model itself for the weight: a [`ViewProxy`] (one
+//! mixture per view angle, [`view`]) where they have one, else the single [`Proxy`] ([`proxy`],
+//! [`fit_proxy`]) that model files written before the view table carry ([`Model::sample`](crate::Model::sample) for the neural models, [`measured`](crate::measured)
 //! for the measured ones); the pdf is the proxy's, so the estimator stays unbiased.
 
 pub mod fit;
 pub mod proxy;
+pub mod view;
 
 pub use fit::fit_proxy;
 pub use proxy::{GgxLobe, Proxy};
+pub use view::{fit_view_proxy, fit_view_proxy_around, ViewProxy, VIEW_NODES};
 
 pub use crate::brdf::BsdfSample;
 use crate::{Rgb, Vec3};

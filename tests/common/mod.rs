@@ -15,7 +15,7 @@ use std::f64::consts::PI;
 pub const N_THETA: usize = 16;
 pub const N_PHI: usize = 32;
 /// Quadrature points per bin and axis.
-pub const SUB: usize = 16;
+pub const SUB: usize = 32;
 
 /// A 64-bit LCG (Knuth's MMIX constants): fixed seeds, so the statistical tests never fail flakily.
 pub struct Rng(pub u64);

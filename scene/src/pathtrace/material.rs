@@ -137,7 +137,7 @@ impl Material {
         match self.sampling {
             Sampling::Native => what,
             Sampling::Cosine => {
-                let what = what.split(", sampled by").next().unwrap_or(&what);
+                let what = what.split(", sampled").next().unwrap_or(&what);
                 std::format!("{what}, sampled by cosine (forced)")
             }
         }

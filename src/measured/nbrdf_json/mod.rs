@@ -31,7 +31,7 @@ use serde::Deserialize;
 use crate::angles::{half_diff_vectors, unit};
 use crate::brdf::{Brdf, BsdfSample};
 use crate::math::{load_pair, sanitize};
-use crate::sampling::{fit_proxy, Proxy};
+use crate::sampling::{fit_proxy, fit_view_proxy_around, Proxy, ViewProxy};
 use crate::{Error, Rgb, Vec3, BLACK};
 
 /// Widest layer accepted: the size of the evaluator's stack buffers (the published networks are 21
@@ -93,6 +93,8 @@ pub struct NbrdfNetwork {
     tiny: Vec<TinyLayer>,
     /// The sampling proxy fitted to the network at construction.
     proxy: Proxy,
+    /// The per-view sampling table fitted around `proxy` at construction; what sampling uses.
+    view: ViewProxy,
 }
 
 /// The file as serde sees it; everything is validated afterwards so that each fault gets its own error.
@@ -288,14 +290,21 @@ impl NbrdfNetwork {
             });
         }
         let tiny = layers.iter().map(|l| l.tiny).collect();
-        let mut net = NbrdfNetwork { name: doc.name, layers, evaluator, tiny, proxy: Proxy::COSINE };
+        let mut net = NbrdfNetwork { name: doc.name, layers, evaluator, tiny, proxy: Proxy::COSINE, view: ViewProxy::default() };
         net.proxy = fit_proxy(|wi, wo| net.eval(wi, wo));
+        net.view = fit_view_proxy_around(|wi, wo| net.eval(wi, wo), &net.proxy);
         Ok(net)
     }
 
     /// The proxy [`Brdf::sample`] draws from: [`fit_proxy`] on the network, fitted once at load.
     pub fn proxy(&self) -> &Proxy {
         &self.proxy
+    }
+
+    /// The per-view sampling table [`Brdf::sample`] draws from ([`fit_view_proxy_around`] the
+    /// [`proxy`](Self::proxy)); exported shaders sample the single proxy.
+    pub fn view_proxy(&self) -> &ViewProxy {
+        &self.view
     }
 
     /// The material name of the file (`""` where it has none).
@@ -435,12 +444,12 @@ impl Brdf for NbrdfNetwork {
 
     #[inline]
     fn sample(&self, wo: Vec3, u: [f32; 3]) -> Option<BsdfSample> {
-        self.proxy.sample(wo, u, |wi, wo| NbrdfNetwork::eval(self, wi, wo))
+        self.view.sample(wo, u, |wi, wo| NbrdfNetwork::eval(self, wi, wo))
     }
 
     #[inline]
     fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
-        self.proxy.pdf(wi, wo)
+        self.view.pdf(wi, wo)
     }
 
     #[inline]

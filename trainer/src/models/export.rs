@@ -44,7 +44,8 @@ pub fn encode(model: &Model, position_table: Option<&[f32]>) -> Result<Vec<u8>> 
     };
     let prepared = points.iter().map(|p| core.prepare(p)).collect::<core::result::Result<Vec<_>, _>>()?;
     let proxy = core.fit_proxy(&prepared);
-    Ok(nbrdf::file::encode(&header.with_proxy(proxy), &weights, position_table)?)
+    let view = core.fit_view_proxy(&prepared, &proxy);
+    Ok(nbrdf::file::encode(&header.with_proxy(proxy).with_view_proxy(view), &weights, position_table)?)
 }
 
 /// Writes `model` to `path` atomically.

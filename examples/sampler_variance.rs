@@ -1,0 +1,134 @@
+//! How well the samplers of measured materials follow them: for every NBRDF-json fit of a MERL material
+//! in `$NBRDF_DATA/nbrdf-merl` (default `../shared/data`), the variance of the one-sample albedo
+//! estimate `f cos θi / pdf` at five view angles, at **equal time** (variance × seconds per sample,
+//! sampling and evaluation counted), for three samplers: cosine-weighted, the single fitted proxy
+//! (`fit_proxy`, what model files carried before the view table) and the view-conditioned proxy
+//! (`fit_view_proxy`). The table is of the luminance estimate (what the samplers are fitted to); the
+//! summary also gives the green channel alone. Prints one row per material and view, then the medians
+//! and worst cases that docs/speed.md reports.
+//!
+//! Run: `cargo run --release --example sampler_variance [-- SAMPLES [MATERIAL-FILTER]]` (default 65536
+//! samples per cell); single-threaded, so run it on a quiet host.
+
+use std::time::Instant;
+
+use nbrdf::measured::NbrdfNetwork;
+use nbrdf::sampling::{fit_view_proxy, Proxy, ViewProxy};
+use nbrdf::{BsdfSample, Vec3};
+
+const VIEWS: [f32; 5] = [0.1, 0.5, 0.9, 1.2, 1.4];
+
+/// PCG32 (O'Neill 2014): a reproducible stream of uniforms in [0, 1).
+struct Pcg(u64);
+
+impl Pcg {
+    fn next(&mut self) -> f32 {
+        let old = self.0;
+        self.0 = old.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        let x = (((old >> 18) ^ old) >> 27) as u32;
+        let r = x.rotate_right((old >> 59) as u32);
+        (r >> 8) as f32 / (1u32 << 24) as f32
+    }
+}
+
+/// Mean and variance of the luminance weight, variance of the green weight, and seconds per sample,
+/// over `n` samples.
+fn estimate(n: usize, seed: u64, mut sample: impl FnMut([f32; 3]) -> Option<BsdfSample>) -> (f64, f64, f64, f64) {
+    let mut rng = Pcg(seed.wrapping_mul(0x9e3779b97f4a7c15) | 1);
+    let (mut sum, mut sum2, mut green, mut green2) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
+    let start = Instant::now();
+    for _ in 0..n {
+        let u = [rng.next(), rng.next(), rng.next()];
+        let w = sample(u).map_or([0.0; 3], |s| s.weight);
+        let y = 0.2126 * w[0] as f64 + 0.7152 * w[1] as f64 + 0.0722 * w[2] as f64;
+        sum += y;
+        sum2 += y * y;
+        green += w[1] as f64;
+        green2 += (w[1] as f64) * (w[1] as f64);
+    }
+    let secs = start.elapsed().as_secs_f64() / n as f64;
+    let (mean, g) = (sum / n as f64, green / n as f64);
+    (mean, (sum2 / n as f64 - mean * mean).max(0.0), (green2 / n as f64 - g * g).max(0.0), secs)
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let n: usize = args.get(1).and_then(|s| s.parse().ok()).unwrap_or(1 << 16);
+    let filter = args.get(2).cloned().unwrap_or_default();
+    let root = std::env::var("NBRDF_DATA").unwrap_or_else(|_| "../shared/data".into());
+    let dir = std::path::Path::new(&root).join("nbrdf-merl");
+    let Ok(entries) = std::fs::read_dir(&dir) else {
+        eprintln!("skipped: no {} (set NBRDF_DATA to the shared data folder)", dir.display());
+        return;
+    };
+    let mut files: Vec<_> = entries.flatten().map(|e| e.path()).filter(|p| p.extension().is_some_and(|e| e == "json")).collect();
+    files.sort();
+    files.retain(|p| p.to_string_lossy().contains(&filter));
+    println!("kernel level {:?}, {n} samples per cell", nbrdf::kernels::level());
+    println!("| material | θo | albedo (lum.) | var·t cosine | var·t proxy | var·t view | view / proxy | view / cosine |");
+    println!("|---|---:|---:|---:|---:|---:|---:|---:|");
+    let (mut vs_proxy, mut vs_cos, mut fit_ms) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut green_vs_proxy, mut green_vs_cos) = (Vec::new(), Vec::new());
+    for (m, path) in files.iter().enumerate() {
+        let net = match NbrdfNetwork::load(path) {
+            Ok(n) => n,
+            Err(e) => {
+                eprintln!("{}: {e}", path.display());
+                continue;
+            }
+        };
+        let name = path.file_stem().unwrap().to_string_lossy();
+        let eval = |wi, wo| net.eval(wi, wo);
+        let start = Instant::now();
+        let view: ViewProxy = fit_view_proxy(eval);
+        fit_ms.push(start.elapsed().as_secs_f64() * 1e3);
+        let proxy = *net.proxy();
+        for (v, &theta) in VIEWS.iter().enumerate() {
+            let wo = Vec3::new(theta.sin(), 0.0, theta.cos());
+            let seed = (m * 16 + v) as u64;
+            let (mean, var_c, green_c, t_c) = estimate(n, seed, |u| Proxy::COSINE.sample(wo, u, eval));
+            let (_, var_p, green_p, t_p) = estimate(n, seed, |u| proxy.sample(wo, u, eval));
+            let (_, var_v, green_v, t_v) = estimate(n, seed, |u| view.sample(wo, u, eval));
+            let (c, p, w) = (var_c * t_c, var_p * t_p, var_v * t_v);
+            if std::env::var_os("VERBOSE").is_some() {
+                eprintln!("{name} {theta}: var {var_c:.3e} {var_p:.3e} {var_v:.3e}, ns {:.0} {:.0} {:.0}", t_c * 1e9, t_p * 1e9, t_v * 1e9);
+            }
+            // A view where every sampler's variance is 0 (a black material) compares as equal.
+            let ratio = |a: f64, b: f64| if b > 0.0 { a / b } else { 1.0 };
+            vs_proxy.push(ratio(w, p));
+            vs_cos.push(ratio(w, c));
+            green_vs_proxy.push(ratio(green_v * t_v, green_p * t_p));
+            green_vs_cos.push(ratio(green_v * t_v, green_c * t_c));
+            println!(
+                "| {name} | {theta} | {mean:.4} | {c:.3e} | {p:.3e} | {w:.3e} | {:.3} | {:.3} |",
+                ratio(w, p),
+                ratio(w, c)
+            );
+        }
+    }
+    if vs_proxy.is_empty() {
+        return;
+    }
+    let worst = |v: &[f64]| v.iter().copied().fold(0.0f64, f64::max);
+    println!();
+    println!("cells: {} ({} materials × {} views)", vs_proxy.len(), vs_proxy.len() / VIEWS.len(), VIEWS.len());
+    println!("view / proxy at equal time: median {:.3}, worst {:.3}", median(&mut vs_proxy.clone()), worst(&vs_proxy));
+    println!(
+        "view / cosine at equal time: median {:.3}, worst {:.3}, cells over 2: {}",
+        median(&mut vs_cos.clone()),
+        worst(&vs_cos),
+        vs_cos.iter().filter(|&&r| r > 2.0).count()
+    );
+    println!(
+        "green channel alone: view / proxy median {:.3}, worst {:.3}; view / cosine worst {:.3}",
+        median(&mut green_vs_proxy.clone()),
+        worst(&green_vs_proxy),
+        worst(&green_vs_cos)
+    );
+    println!("fit_view_proxy: median {:.1} ms per material", median(&mut fit_ms));
+}
