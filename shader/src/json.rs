@@ -2,7 +2,7 @@
 //! network, `expm1` clamped, and sampling through a proxy.
 
 use nbrdf::measured::nbrdf_json::{Activation, NbrdfNetwork};
-use nbrdf::sampling::Proxy;
+use nbrdf::sampling::{Proxy, ViewProxy};
 use serde::Deserialize;
 
 use crate::model::emit_proxy_sampling;
@@ -44,8 +44,8 @@ pub(crate) fn network(net: &NbrdfNetwork, json: &[u8], source: &str) -> Result<N
     Ok(Network { n_in: widths[0], layers })
 }
 
-/// The shader body of a network, sampling through `proxy`.
-pub(crate) fn body(net: &Network, proxy: &Proxy, storage: Storage) -> Body {
+/// The shader body of a network, sampling through `view` where given, else through `proxy`.
+pub(crate) fn body(net: &Network, proxy: &Proxy, view: Option<&ViewProxy>, storage: Storage) -> Body {
     let mut code = String::new();
     let mut buffer = Vec::new();
     let start = match storage {
@@ -60,6 +60,6 @@ pub(crate) fn body(net: &Network, proxy: &Proxy, storage: Storage) -> Body {
          \x20   let y = nbrdf_net0(x.x);\n\
          \x20   return vec3<f32>(nbrdf_expm1_clamped(y[0]), nbrdf_expm1_clamped(y[1]), nbrdf_expm1_clamped(y[2]));\n}\n\n",
     );
-    emit_proxy_sampling(&mut code, proxy, "", "");
+    emit_proxy_sampling(&mut code, proxy, view, "", "");
     Body { code, buffer, position_len: 0, macs: net.macs(), parametric: false, json: true }
 }

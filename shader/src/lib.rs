@@ -148,10 +148,14 @@ pub fn export_json(source: &str, bytes: &[u8], options: &Options) -> Result<Shad
     let net = NbrdfNetwork::from_json_bytes(bytes).map_err(|error| Error::Model { source: source.to_string(), error })?;
     let network = json::network(&net, bytes, source)?;
     let storage = storage_for(network.n_weights(), options);
-    let proxy = options.json_proxy.unwrap_or_else(|| *net.proxy());
+    // A proxy given in the options replaces the network's own sampling (its per-view table too).
+    let (proxy, view) = match options.json_proxy {
+        Some(p) => (p, None),
+        None => (*net.proxy(), Some(*net.view_proxy())),
+    };
     let widths: Vec<String> = net.widths().iter().map(usize::to_string).collect();
     let description = format!("{source}: NBRDF-json network {} ({})", net.name(), widths.join("-"));
-    assemble(description, json::body(&network, &proxy, storage), storage)
+    assemble(description, json::body(&network, &proxy, view.as_ref(), storage), storage)
 }
 
 fn assemble(description: String, body: Body, storage: Storage) -> Result<Shader, Error> {

@@ -5,7 +5,7 @@ use std::fmt::Write;
 
 use nbrdf::file::{ModelKind, PositionEncoding, Reciprocity};
 use nbrdf::parametric::ParametricKind;
-use nbrdf::sampling::Proxy;
+use nbrdf::sampling::{Proxy, ViewProxy};
 use nbrdf::{Model, Weights};
 
 use crate::network::{self, lit, Network, Storage};
@@ -192,7 +192,7 @@ pub(crate) fn body(model: &Model<'_>, storage: Storage) -> Body {
                  \x20   if (!frame.ok) {{\n        return vec3<f32>(0.0);\n    }}\n\
                  \x20   {angles}\n{pos_let}{rgb}}}\n\n"
             );
-            emit_proxy_sampling(&mut code, &model.proxy(), &param, arg);
+            emit_proxy_sampling(&mut code, &model.proxy(), model.header().view_proxy.as_ref(), &param, arg);
         }
     }
     Body { code, buffer, position_len: k, macs, parametric: matches!(h.kind, ModelKind::Parametric(_)), json: false }
@@ -217,27 +217,61 @@ fn combine(enhanced: bool) -> String {
 }
 
 /// `nbrdf_pdf` and `nbrdf_sample` through the sampling proxy stored in the file (cosine without one),
-/// evaluating the model for the weight (core `Model::sample`).
-pub(crate) fn emit_proxy_sampling(code: &mut String, proxy: &Proxy, param: &str, arg: &str) {
-    let [l0, l1] = proxy.lobes;
+/// or through its per-view table where it has one, evaluating the model for the weight (core
+/// `Model::sample`, `ViewProxy::sample`).
+pub(crate) fn emit_proxy_sampling(code: &mut String, proxy: &Proxy, view: Option<&ViewProxy>, param: &str, arg: &str) {
+    let Some(view) = view else {
+        let [l0, l1] = proxy.lobes;
+        let _ = write!(
+            code,
+            "// The sampling proxy: cosine, and GGX visible-normal lobes of roughness NBRDF_PROXY_ALPHA.\n\
+             const NBRDF_PROXY_P: vec3<f32> = vec3<f32>({}, {}, {});\n\
+             const NBRDF_PROXY_ALPHA: vec2<f32> = vec2<f32>({}, {});\n\n\
+             fn nbrdf_pdf(wi: vec3<f32>, wo: vec3<f32>{param}) -> f32 {{\n\
+             \x20   return nbrdf_proxy_pdf(NBRDF_PROXY_P, NBRDF_PROXY_ALPHA, wo, wi);\n}}\n\n\
+             fn nbrdf_sample(wo_in: vec3<f32>, u: vec3<f32>{param}) -> NbrdfSample {{\n\
+             \x20   let wo = nbrdf_valid_wo(wo_in);\n\
+             \x20   if (wo.w <= 0.0) {{\n        return nbrdf_no_sample();\n    }}\n\
+             \x20   let wi = nbrdf_proxy_sample_wi(NBRDF_PROXY_P, NBRDF_PROXY_ALPHA, u, wo.xyz);\n\
+             \x20   if (wi.w <= 0.0) {{\n        return nbrdf_no_sample();\n    }}\n\
+             \x20   let pdf = nbrdf_proxy_pdf(NBRDF_PROXY_P, NBRDF_PROXY_ALPHA, wo.xyz, wi.xyz);\n\
+             \x20   return nbrdf_finish(wi.xyz, pdf, nbrdf_eval(wi.xyz, wo.xyz{arg}));\n}}\n\n",
+            lit(proxy.diffuse),
+            lit(l0.weight),
+            lit(l1.weight),
+            lit(l0.alpha),
+            lit(l1.alpha),
+        );
+        return;
+    };
+    let n = view.nodes.len();
+    let p: Vec<String> =
+        view.nodes.iter().map(|q| format!("vec3<f32>({}, {}, {})", lit(q.diffuse), lit(q.lobes[0].weight), lit(q.lobes[1].weight))).collect();
+    let a: Vec<String> = view.nodes.iter().map(|q| format!("vec2<f32>({}, {})", lit(q.lobes[0].alpha), lit(q.lobes[1].alpha))).collect();
     let _ = write!(
         code,
-        "// The sampling proxy: cosine, and GGX visible-normal lobes of roughness NBRDF_PROXY_ALPHA.\n\
-         const NBRDF_PROXY_P: vec3<f32> = vec3<f32>({}, {}, {});\n\
-         const NBRDF_PROXY_ALPHA: vec2<f32> = vec2<f32>({}, {});\n\n\
-         fn nbrdf_pdf(wi: vec3<f32>, wo: vec3<f32>{param}) -> f32 {{\n\
-         \x20   return nbrdf_proxy_pdf(NBRDF_PROXY_P, NBRDF_PROXY_ALPHA, wo, wi);\n}}\n\n\
+        "// The sampling table: per cell of cos θo, the selection probabilities of the cosine lobe and two\n\
+         // GGX visible-normal lobes, and those lobes' roughnesses (core `ViewProxy`).\n\
+         var<private> NBRDF_VIEW_P: array<vec3<f32>, {n}> = array<vec3<f32>, {n}>({});\n\
+         var<private> NBRDF_VIEW_ALPHA: array<vec2<f32>, {n}> = array<vec2<f32>, {n}>({});\n\n\
+         fn nbrdf_view_cell(cos_o: f32) -> u32 {{\n\
+         \x20   return min(u32((1.0 - cos_o) * {}), {}u);\n}}\n\n\
+         fn nbrdf_pdf(wi: vec3<f32>, wo_in: vec3<f32>{param}) -> f32 {{\n\
+         \x20   let wo = nbrdf_valid_wo(wo_in);\n\
+         \x20   if (wo.w <= 0.0) {{\n        return 0.0;\n    }}\n\
+         \x20   let c = nbrdf_view_cell(wo.z);\n\
+         \x20   return nbrdf_proxy_pdf(NBRDF_VIEW_P[c], NBRDF_VIEW_ALPHA[c], wo_in, wi);\n}}\n\n\
          fn nbrdf_sample(wo_in: vec3<f32>, u: vec3<f32>{param}) -> NbrdfSample {{\n\
          \x20   let wo = nbrdf_valid_wo(wo_in);\n\
          \x20   if (wo.w <= 0.0) {{\n        return nbrdf_no_sample();\n    }}\n\
-         \x20   let wi = nbrdf_proxy_sample_wi(NBRDF_PROXY_P, NBRDF_PROXY_ALPHA, u, wo.xyz);\n\
+         \x20   let c = nbrdf_view_cell(wo.z);\n\
+         \x20   let wi = nbrdf_proxy_sample_wi(NBRDF_VIEW_P[c], NBRDF_VIEW_ALPHA[c], u, wo.xyz);\n\
          \x20   if (wi.w <= 0.0) {{\n        return nbrdf_no_sample();\n    }}\n\
-         \x20   let pdf = nbrdf_proxy_pdf(NBRDF_PROXY_P, NBRDF_PROXY_ALPHA, wo.xyz, wi.xyz);\n\
+         \x20   let pdf = nbrdf_proxy_pdf(NBRDF_VIEW_P[c], NBRDF_VIEW_ALPHA[c], wo.xyz, wi.xyz);\n\
          \x20   return nbrdf_finish(wi.xyz, pdf, nbrdf_eval(wi.xyz, wo.xyz{arg}));\n}}\n\n",
-        lit(proxy.diffuse),
-        lit(l0.weight),
-        lit(l1.weight),
-        lit(l0.alpha),
-        lit(l1.alpha),
+        p.join(", "),
+        a.join(", "),
+        lit(n as f32),
+        n - 1,
     );
 }

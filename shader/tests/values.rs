@@ -17,7 +17,7 @@ mod on_gpu {
     use super::common::{self, Rng};
     use nbrdf::file::Reciprocity;
     use nbrdf::measured::nbrdf_json::NbrdfNetwork;
-    use nbrdf::{ModelBuf, Vec3};
+    use nbrdf::{Brdf, ModelBuf, Vec3};
     use nbrdf_shader::gpu::Gpu;
     use nbrdf_shader::{export, Options, Storage, DEFAULT_BUFFER, TEST_OUT_STRIDE};
 
@@ -328,6 +328,12 @@ mod on_gpu {
             let core = |q: &(Vec3, Vec3, [f32; 3], Vec<f32>)| (net.eval(q.0, q.1), proxy.pdf(q.0, q.1), proxy.sample(q.1, q.2, |wi, wo| net.eval(wi, wo)));
             check(&format!("NBRDF-json 6-21-21-3 ({storage:?})"), &compare(&gpu, &shader, &queries, &core, false, false));
         }
+        // Without a proxy in the options the network samples through its own per-view table.
+        let shader = export("random.json", &json, &Options::default()).unwrap();
+        let mut rng = Rng(12);
+        let queries: Vec<_> = pairs(&mut rng, 2100).into_iter().map(|(a, b)| (a, b, [rng.next(), rng.next(), rng.next()], vec![])).collect();
+        let core = |q: &(Vec3, Vec3, [f32; 3], Vec<f32>)| (net.eval(q.0, q.1), Brdf::pdf(&net, q.0, q.1), Brdf::sample(&net, q.1, q.2));
+        check("NBRDF-json 6-21-21-3, per-view table", &compare(&gpu, &shader, &queries, &core, false, false));
         // The paper's architecture itself (width 128): through the storage buffer.
         use nbrdf::file::{ModelHeader, ModelKind, PositionEncoding, Precision};
         let h = ModelHeader::paper(ModelKind::AdditiveShared, true, Reciprocity::Exact, PositionEncoding::Intrinsic { k: 8 }, 4);

@@ -37,7 +37,7 @@ use serde::{Deserialize, Serialize};
 
 use super::fit::{alpha_of, N_A};
 use super::proxy::{GgxLobe, Proxy};
-use super::{finish, lum, valid_wo, BsdfSample};
+use super::{lum, valid_wo, BsdfSample};
 use crate::math::INV_PI;
 use crate::warp::{ggx_vndf_pdf, half_of, reflect_about, sample_ggx_vndf, square_to_cosine_hemisphere};
 use crate::{Error, Rgb, Vec3};
@@ -78,30 +78,33 @@ impl ViewProxy {
         self.nodes.iter().try_for_each(Proxy::validate)
     }
 
+    /// The mixture of the view `wo`'s cell; `None` for a view that is not finite or not above the
+    /// horizon.
+    #[inline]
+    pub fn at(&self, wo: Vec3) -> Option<&Proxy> {
+        let wo = valid_wo(wo)?;
+        Some(&self.nodes[cell(wo.z)])
+    }
+
     /// A direction drawn for the view `wo` from the mixture of its cell.
     #[inline]
     pub fn sample_wi(&self, wo: Vec3, u: [f32; 3]) -> Option<Vec3> {
-        let wo = valid_wo(wo)?;
-        self.nodes[cell(wo.z)].sample_wi(wo, u)
+        self.at(wo)?.sample_wi(wo, u)
     }
 
     /// Density of [`ViewProxy::sample_wi`] per unit solid angle of `wi`: its cell's mixture's.
     #[inline]
     pub fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
-        let Some(wo) = valid_wo(wo) else { return 0.0 };
-        self.nodes[cell(wo.z)].pdf(wi, wo)
+        self.at(wo).map_or(0.0, |p| p.pdf(wi, wo))
     }
 
     /// Samples and evaluates `brdf(wi, wo)` for the weight `f cos θi / pdf`, with the pdf of
     /// [`ViewProxy::pdf`].
     #[inline]
     pub fn sample(&self, wo: Vec3, u: [f32; 3], brdf: impl FnOnce(Vec3, Vec3) -> Rgb) -> Option<BsdfSample> {
-        let wo = valid_wo(wo)?;
-        let wi = self.sample_wi(wo, u)?;
-        finish(wi, self.pdf(wi, wo), brdf(wi, wo))
+        self.at(wo)?.sample(wo, u, brdf)
     }
 }
-
 
 /// Fits a [`ViewProxy`] to `brdf(wi, wo)` (local frame, isotropic, 1/sr, linear RGB) from about
 /// 16 × 5400 evaluations (module docs; some 0.2 s for an NBRDF network on one core). Where the BRDF is
@@ -345,8 +348,9 @@ fn second_moment(pts: &Points, proxy: &Proxy) -> Option<f64> {
 }
 
 /// A view's own mixture must beat the all-view `global` one by this factor in the variance estimated
-/// on an independent point set to replace it: on peaked BRDFs that estimate is off by tens of percent.
-pub const MARGIN: f64 = 0.8;
+/// on the all-view proxy's own draws to replace it: on peaked BRDFs that estimate is off by tens
+/// of percent.
+pub const MARGIN: f64 = 0.7;
 
 /// The best mixture of the cosine lobe and at most two GGX lobes for the view `wo`, or `global` (the
 /// all-view proxy) unless that is clearly better.

@@ -4,7 +4,7 @@
 
 use nbrdf::file::{encode, ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity};
 use nbrdf::parametric::ParametricKind;
-use nbrdf::sampling::{GgxLobe, Proxy};
+use nbrdf::sampling::{GgxLobe, Proxy, ViewProxy};
 
 /// A 64-bit LCG (Knuth's MMIX constants): the same models on every run.
 pub struct Rng(pub u64);
@@ -75,7 +75,7 @@ pub fn model(name: &str, h: ModelHeader, precision: Precision, seed: u64) -> Tes
 /// Every model kind the exporter handles, small: the four parametric models (and Lambert), the Single
 /// MLP with and without a trunk (NOL), the additive models plain and enhanced; reciprocity None, Swap
 /// and Exact; uniform, intrinsic and extrinsic positions; f32 and f16 weights; with and without a
-/// sampling proxy.
+/// sampling proxy, some with a per-view sampling table.
 pub fn all_models() -> Vec<TestModel> {
     let positions = [
         PositionEncoding::Uniform,
@@ -83,6 +83,12 @@ pub fn all_models() -> Vec<TestModel> {
         PositionEncoding::Extrinsic { frequencies: 2 },
     ];
     let proxy = Proxy::new(0.3, [GgxLobe { weight: 0.5, alpha: 0.2 }, GgxLobe { weight: 0.2, alpha: 0.05 }]).unwrap();
+    // A per-view table whose cells differ, so that a shader reading the wrong cell shows.
+    let mut view = ViewProxy::default();
+    for (c, node) in view.nodes.iter_mut().enumerate() {
+        let t = c as f32 / 15.0;
+        *node = Proxy::new(0.1 + 0.8 * t, [GgxLobe { weight: 0.6 - 0.5 * t, alpha: 0.03 + 0.4 * t }, GgxLobe { weight: 0.3, alpha: 0.6 - 0.5 * t }]).unwrap();
+    }
     let mut out = Vec::new();
     let mut seed = 1;
     for (i, kind) in ParametricKind::ALL.into_iter().enumerate() {
@@ -108,6 +114,9 @@ pub fn all_models() -> Vec<TestModel> {
             }
             if (i + j) % 2 == 0 {
                 h = h.with_proxy(proxy);
+            }
+            if (i + j) % 4 == 0 {
+                h = h.with_view_proxy(view);
             }
             let precision = if (i + j) % 2 == 1 { Precision::F16 } else { Precision::F32 };
             let name = format!(
