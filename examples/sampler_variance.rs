@@ -7,14 +7,20 @@
 //! summary also gives the green channel alone. Prints one row per material and view, then the medians
 //! and worst cases that docs/speed.md reports.
 //!
-//! Run: `cargo run --release --example sampler_variance [-- SAMPLES [MATERIAL-FILTER]]` (default 65536
-//! samples per cell); single-threaded, so run it on a quiet host.
+//! With `--models DIR` it measures the purely neural `.nbrdf` files under `DIR` instead (a study's
+//! `jobs/` folder): each file's own proxy against the table fitted as the trainer now exports it.
+//!
+//! Run: `cargo run --release --example sampler_variance [-- SAMPLES [FILTER] [--models DIR]]` (default
+//! 65536 samples per cell); single-threaded, so run it on a quiet host.
 
 use std::time::Instant;
 
+use std::path::{Path, PathBuf};
+
+use nbrdf::file::ModelKind;
 use nbrdf::measured::NbrdfNetwork;
 use nbrdf::sampling::{fit_view_proxy, Proxy, ViewProxy};
-use nbrdf::{BsdfSample, Vec3};
+use nbrdf::{BsdfSample, ModelBuf, Rgb, Vec3};
 
 const VIEWS: [f32; 5] = [0.1, 0.5, 0.9, 1.2, 1.4];
 
@@ -56,103 +62,169 @@ fn median(v: &mut [f64]) -> f64 {
     v[v.len() / 2]
 }
 
+/// The ratios of every cell, for the summary.
+#[derive(Default)]
+struct Summary {
+    vs_proxy: Vec<f64>,
+    vs_cos: Vec<f64>,
+    green_vs_proxy: Vec<f64>,
+    green_vs_cos: Vec<f64>,
+    own_vs_proxy: Vec<f64>,
+    fit_ms: Vec<f64>,
+}
+
+/// The rows of one BRDF: each view's variance × time for the three samplers.
+fn measure(sum: &mut Summary, name: &str, m: usize, n: usize, eval: &dyn Fn(Vec3, Vec3) -> Rgb, proxy: Proxy, view: &ViewProxy) {
+    // Each sampler's time per sample is its mean over the material's views: one view's timing
+    // alone moves by ±10 % with the host, more than the samplers' cost differs.
+    let mut cells = Vec::new();
+    let mut time = [0.0f64; 3];
+    for (v, &theta) in VIEWS.iter().enumerate() {
+        let wo = Vec3::new(theta.sin(), 0.0, theta.cos());
+        let seed = (m * 16 + v) as u64;
+        let c = estimate(n, seed, |u| Proxy::COSINE.sample(wo, u, eval));
+        let p = estimate(n, seed, |u| proxy.sample(wo, u, eval));
+        let w = estimate(n, seed, |u| view.sample(wo, u, eval));
+        for (t, e) in time.iter_mut().zip([&c, &p, &w]) {
+            *t += e.3 / VIEWS.len() as f64;
+        }
+        cells.push((theta, wo, c, p, w));
+    }
+    // A view where every sampler's variance is 0 (a black material) compares as equal.
+    let ratio = |a: f64, b: f64| if b > 0.0 { a / b } else { 1.0 };
+    for (theta, wo, c, p, w) in cells {
+        let [tc, tp, tv] = time;
+        let (vc, vp, vv) = (c.1 * tc, p.1 * tp, w.1 * tv);
+        if std::env::var_os("VERBOSE").is_some() {
+            eprintln!("{name} {theta}: var {:.3e} {:.3e} {:.3e}, ns {:.0} {:.0} {:.0}", c.1, p.1, w.1, c.3 * 1e9, p.3 * 1e9, w.3 * 1e9);
+        }
+        sum.vs_proxy.push(ratio(vv, vp));
+        sum.vs_cos.push(ratio(vv, vc));
+        sum.green_vs_proxy.push(ratio(w.2 * tv, p.2 * tp));
+        sum.green_vs_cos.push(ratio(w.2 * tv, c.2 * tc));
+        // Whether the view's cell kept the all-view proxy (then only the cell lookup differs).
+        let own = view.at(wo).is_some_and(|cell| *cell != proxy);
+        if own {
+            sum.own_vs_proxy.push(ratio(vv, vp));
+        }
+        println!(
+            "| {name} | {theta} | {} | {:.4} | {vc:.3e} | {vp:.3e} | {vv:.3e} | {:.3} | {:.3} |",
+            if own { "own" } else { "kept" },
+            c.0,
+            ratio(vv, vp),
+            ratio(vv, vc)
+        );
+    }
+}
+
+/// The `.nbrdf` files under `dir` (f32 copies), recursively, sorted.
+fn model_files(dir: &Path, out: &mut Vec<PathBuf>) {
+    let Ok(entries) = std::fs::read_dir(dir) else { return };
+    for p in entries.flatten().map(|e| e.path()) {
+        if p.is_dir() {
+            model_files(&p, out);
+        } else if p.extension().is_some_and(|e| e == "nbrdf") && !p.to_string_lossy().ends_with(".f16.nbrdf") {
+            out.push(p);
+        }
+    }
+    out.sort();
+}
+
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     let n: usize = args.get(1).and_then(|s| s.parse().ok()).unwrap_or(1 << 16);
-    let filter = args.get(2).cloned().unwrap_or_default();
-    let root = std::env::var("NBRDF_DATA").unwrap_or_else(|_| "../shared/data".into());
-    let dir = std::path::Path::new(&root).join("nbrdf-merl");
-    let Ok(entries) = std::fs::read_dir(&dir) else {
-        eprintln!("skipped: no {} (set NBRDF_DATA to the shared data folder)", dir.display());
-        return;
-    };
-    let mut files: Vec<_> = entries.flatten().map(|e| e.path()).filter(|p| p.extension().is_some_and(|e| e == "json")).collect();
-    files.sort();
-    files.retain(|p| p.to_string_lossy().contains(&filter));
+    let filter = args.get(2).filter(|a| !a.starts_with("--")).cloned().unwrap_or_default();
+    let models = args.iter().position(|a| a == "--models").and_then(|i| args.get(i + 1)).map(PathBuf::from);
     println!("kernel level {:?}, {n} samples per cell", nbrdf::kernels::level());
-    println!("| material | θo | cell | albedo (lum.) | var·t cosine | var·t proxy | var·t view | view / proxy | view / cosine |");
+    println!("| BRDF | θo | cell | albedo (lum.) | var·t cosine | var·t proxy | var·t view | view / proxy | view / cosine |");
     println!("|---|---:|---|---:|---:|---:|---:|---:|---:|");
-    let (mut vs_proxy, mut vs_cos, mut fit_ms) = (Vec::new(), Vec::new(), Vec::new());
-    let (mut green_vs_proxy, mut green_vs_cos, mut own_vs_proxy) = (Vec::new(), Vec::new(), Vec::new());
-    for (m, path) in files.iter().enumerate() {
-        let net = match NbrdfNetwork::load(path) {
-            Ok(n) => n,
-            Err(e) => {
-                eprintln!("{}: {e}", path.display());
+    let mut sum = Summary::default();
+    if let Some(dir) = models {
+        // Fitted models: the file's own proxy, and the table fitted as the trainer now exports it (over
+        // eight rows of the position table); sampled at the first of those points.
+        let mut files = Vec::new();
+        model_files(&dir, &mut files);
+        files.retain(|p| p.to_string_lossy().contains(&filter));
+        for (m, path) in files.iter().enumerate() {
+            let buf = match ModelBuf::load(path) {
+                Ok(b) => b,
+                Err(e) => {
+                    eprintln!("{}: {e}", path.display());
+                    continue;
+                }
+            };
+            let model = buf.model();
+            let (Some(proxy), ModelKind::SingleMlp | ModelKind::AdditiveSeparate | ModelKind::AdditiveShared) =
+                (model.header().proxy, model.header().kind)
+            else {
                 continue;
-            }
-        };
-        let name = path.file_stem().unwrap().to_string_lossy();
-        let eval = |wi, wo| net.eval(wi, wo);
-        let start = Instant::now();
-        let view: ViewProxy = fit_view_proxy(eval);
-        fit_ms.push(start.elapsed().as_secs_f64() * 1e3);
-        let proxy = *net.proxy();
-        // Each sampler's time per sample is its mean over the material's views: one view's timing
-        // alone moves by ±10 % with the host, more than the samplers' cost differs.
-        let mut cells = Vec::new();
-        let mut time = [0.0f64; 3];
-        for (v, &theta) in VIEWS.iter().enumerate() {
-            let wo = Vec3::new(theta.sin(), 0.0, theta.cos());
-            let seed = (m * 16 + v) as u64;
-            let c = estimate(n, seed, |u| Proxy::COSINE.sample(wo, u, eval));
-            let p = estimate(n, seed, |u| proxy.sample(wo, u, eval));
-            let w = estimate(n, seed, |u| view.sample(wo, u, eval));
-            for (t, e) in time.iter_mut().zip([&c, &p, &w]) {
-                *t += e.3 / VIEWS.len() as f64;
-            }
-            cells.push((theta, wo, c, p, w));
+            };
+            let k = model.position_len();
+            let table = model.position_table();
+            let rows = if k == 0 { 0 } else { table.len() / k };
+            let points: Vec<_> = if rows == 0 {
+                vec![model.prepare(&[]).unwrap()]
+            } else {
+                (0..8).filter_map(|i| model.prepare(&table[(i * rows / 8) * k..][..k]).ok()).collect()
+            };
+            let start = Instant::now();
+            let view = model.fit_view_proxy(&points, &proxy);
+            sum.fit_ms.push(start.elapsed().as_secs_f64() * 1e3);
+            let at = points[0];
+            let eval = |wi, wo| model.eval(&at, wi, wo);
+            let name = path.strip_prefix(&dir).unwrap_or(path).with_extension("").to_string_lossy().into_owned();
+            measure(&mut sum, &name, m, n, &eval, proxy, &view);
         }
-        // A view where every sampler's variance is 0 (a black material) compares as equal.
-        let ratio = |a: f64, b: f64| if b > 0.0 { a / b } else { 1.0 };
-        for (theta, wo, c, p, w) in cells {
-            let [tc, tp, tv] = time;
-            let (vc, vp, vv) = (c.1 * tc, p.1 * tp, w.1 * tv);
-            if std::env::var_os("VERBOSE").is_some() {
-                eprintln!("{name} {theta}: var {:.3e} {:.3e} {:.3e}, ns {:.0} {:.0} {:.0}", c.1, p.1, w.1, c.3 * 1e9, p.3 * 1e9, w.3 * 1e9);
-            }
-            vs_proxy.push(ratio(vv, vp));
-            vs_cos.push(ratio(vv, vc));
-            green_vs_proxy.push(ratio(w.2 * tv, p.2 * tp));
-            green_vs_cos.push(ratio(w.2 * tv, c.2 * tc));
-            // Whether the view's cell kept the all-view proxy (then only the cell lookup differs).
-            let own = view.at(wo).is_some_and(|cell| *cell != proxy);
-            if own {
-                own_vs_proxy.push(ratio(vv, vp));
-            }
-            println!(
-                "| {name} | {theta} | {} | {:.4} | {vc:.3e} | {vp:.3e} | {vv:.3e} | {:.3} | {:.3} |",
-                if own { "own" } else { "kept" },
-                c.0,
-                ratio(vv, vp),
-                ratio(vv, vc)
-            );
+    } else {
+        let root = std::env::var("NBRDF_DATA").unwrap_or_else(|_| "../shared/data".into());
+        let dir = Path::new(&root).join("nbrdf-merl");
+        let Ok(entries) = std::fs::read_dir(&dir) else {
+            eprintln!("skipped: no {} (set NBRDF_DATA to the shared data folder)", dir.display());
+            return;
+        };
+        let mut files: Vec<_> = entries.flatten().map(|e| e.path()).filter(|p| p.extension().is_some_and(|e| e == "json")).collect();
+        files.sort();
+        files.retain(|p| p.to_string_lossy().contains(&filter));
+        for (m, path) in files.iter().enumerate() {
+            let net = match NbrdfNetwork::load(path) {
+                Ok(n) => n,
+                Err(e) => {
+                    eprintln!("{}: {e}", path.display());
+                    continue;
+                }
+            };
+            let name = path.file_stem().unwrap().to_string_lossy().into_owned();
+            let eval = |wi, wo| net.eval(wi, wo);
+            let start = Instant::now();
+            let view: ViewProxy = fit_view_proxy(eval);
+            sum.fit_ms.push(start.elapsed().as_secs_f64() * 1e3);
+            measure(&mut sum, &name, m, n, &eval, *net.proxy(), &view);
         }
     }
-    if vs_proxy.is_empty() {
+    if sum.vs_proxy.is_empty() {
         return;
     }
     let worst = |v: &[f64]| v.iter().copied().fold(0.0f64, f64::max);
     println!();
-    println!("cells: {} ({} materials × {} views)", vs_proxy.len(), vs_proxy.len() / VIEWS.len(), VIEWS.len());
-    println!("view / proxy at equal time: median {:.3}, worst {:.3}", median(&mut vs_proxy.clone()), worst(&vs_proxy));
+    println!("cells: {} ({} BRDFs × {} views)", sum.vs_proxy.len(), sum.vs_proxy.len() / VIEWS.len(), VIEWS.len());
+    println!("view / proxy at equal time: median {:.3}, worst {:.3}", median(&mut sum.vs_proxy.clone()), worst(&sum.vs_proxy));
     println!(
         "cells with their own mixture: {} (view / proxy median {:.3}, worst {:.3}); the rest keep the proxy",
-        own_vs_proxy.len(),
-        median(&mut own_vs_proxy.clone()),
-        worst(&own_vs_proxy)
+        sum.own_vs_proxy.len(),
+        median(&mut sum.own_vs_proxy.clone()),
+        worst(&sum.own_vs_proxy)
     );
     println!(
         "view / cosine at equal time: median {:.3}, worst {:.3}, cells over 2: {}",
-        median(&mut vs_cos.clone()),
-        worst(&vs_cos),
-        vs_cos.iter().filter(|&&r| r > 2.0).count()
+        median(&mut sum.vs_cos.clone()),
+        worst(&sum.vs_cos),
+        sum.vs_cos.iter().filter(|&&r| r > 2.0).count()
     );
     println!(
         "green channel alone: view / proxy median {:.3}, worst {:.3}; view / cosine worst {:.3}",
-        median(&mut green_vs_proxy.clone()),
-        worst(&green_vs_proxy),
-        worst(&green_vs_cos)
+        median(&mut sum.green_vs_proxy.clone()),
+        worst(&sum.green_vs_proxy),
+        worst(&sum.green_vs_cos)
     );
-    println!("fit_view_proxy: median {:.1} ms per material", median(&mut fit_ms));
+    println!("fit_view_proxy: median {:.1} ms per BRDF", median(&mut sum.fit_ms));
 }
