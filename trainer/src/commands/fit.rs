@@ -361,9 +361,10 @@ mod tests {
         let log = run(config, obs.clone(), &opts, &dir, None, false, None, None).unwrap();
         let out = Outputs::in_dir(&dir, &config);
         let model = nbrdf::ModelBuf::load(&out.model).unwrap();
-        // The architecture as configured, plus the sampling proxy fitted at export.
+        // The architecture as configured, plus the sampling proxy and its per-view table fitted at export.
         let mut header = *model.header();
         assert!(header.proxy.take().is_some());
+        assert!(header.view_proxy.take().is_some());
         assert_eq!(header, config.header());
         let written: train::TrainLog = serde_json::from_slice(&std::fs::read(&out.log).unwrap()).unwrap();
         assert_eq!(written.loss.len(), 2);
