@@ -15,7 +15,7 @@ use std::f64::consts::PI;
 pub const N_THETA: usize = 16;
 pub const N_PHI: usize = 32;
 /// Quadrature points per bin and axis.
-pub const SUB: usize = 32;
+pub const SUB: usize = 16;
 
 /// A 64-bit LCG (Knuth's MMIX constants): fixed seeds, so the statistical tests never fail flakily.
 pub struct Rng(pub u64);
@@ -44,16 +44,21 @@ pub fn bin_of(w: Vec3) -> usize {
 
 /// ∫ pdf over each bin (midpoint rule on SUB × SUB points in (cos θ, φ)); `pdf(wi)`.
 pub fn expected_mass(pdf: &dyn Fn(Vec3) -> f32) -> Vec<f64> {
+    expected_mass_at(pdf, SUB)
+}
+
+/// [`expected_mass`] on `sub × sub` points per bin: finer for the narrow lobes of fitted proxies.
+pub fn expected_mass_at(pdf: &dyn Fn(Vec3) -> f32, sub: usize) -> Vec<f64> {
     let mut mass = vec![0.0; N_THETA * N_PHI];
-    let dz = 1.0 / (N_THETA * SUB) as f64;
-    let dphi = 2.0 * PI / (N_PHI * SUB) as f64;
-    for i in 0..N_THETA * SUB {
+    let dz = 1.0 / (N_THETA * sub) as f64;
+    let dphi = 2.0 * PI / (N_PHI * sub) as f64;
+    for i in 0..N_THETA * sub {
         let z = (i as f64 + 0.5) * dz;
         let r = (1.0 - z * z).sqrt();
-        for j in 0..N_PHI * SUB {
+        for j in 0..N_PHI * sub {
             let phi = (j as f64 + 0.5) * dphi;
             let wi = Vec3::new((r * phi.cos()) as f32, (r * phi.sin()) as f32, z as f32);
-            mass[(i / SUB) * N_PHI + j / SUB] += pdf(wi) as f64 * dz * dphi;
+            mass[(i / sub) * N_PHI + j / sub] += pdf(wi) as f64 * dz * dphi;
         }
     }
     mass
@@ -89,6 +94,11 @@ pub struct Sampler<'a> {
 /// `f cos / pdf`, the pdf integrates to the share of samples produced, and the histogram passes a
 /// chi-square test. Returns (share produced, mean weight).
 pub fn check_sampler(name: &str, s: &Sampler<'_>, n: usize, seed: u64) -> (f64, [f64; 3]) {
+    check_sampler_at(name, s, n, seed, SUB)
+}
+
+/// [`check_sampler`] with the histogram's expected counts integrated on `sub × sub` points per bin.
+pub fn check_sampler_at(name: &str, s: &Sampler<'_>, n: usize, seed: u64, sub: usize) -> (f64, [f64; 3]) {
     let mut rng = Rng(seed);
     let mut counts = vec![0.0f64; N_THETA * N_PHI];
     let (mut produced, mut weight_sum) = (0usize, [0.0f64; 3]);
@@ -105,7 +115,7 @@ pub fn check_sampler(name: &str, s: &Sampler<'_>, n: usize, seed: u64) -> (f64, 
             weight_sum[c] += smp.weight[c] as f64;
         }
     }
-    let mass = expected_mass(s.pdf);
+    let mass = expected_mass_at(s.pdf, sub);
     let total: f64 = mass.iter().sum();
     let frac = produced as f64 / n as f64;
     let sigma = (frac * (1.0 - frac) / n as f64).sqrt().max(1.0 / n as f64);
