@@ -161,7 +161,7 @@ fn main() {
             };
             let k = model.position_len();
             let table = model.position_table();
-            let rows = if k == 0 { 0 } else { table.len() / k };
+            let rows = table.len().checked_div(k).unwrap_or(0);
             let points: Vec<_> = if rows == 0 {
                 vec![model.prepare(&[]).unwrap()]
             } else {
