@@ -19,7 +19,7 @@ use std::path::{Path, PathBuf};
 
 use nbrdf::file::ModelKind;
 use nbrdf::measured::NbrdfNetwork;
-use nbrdf::sampling::{fit_view_proxy, Proxy, ViewProxy};
+use nbrdf::sampling::{fit_view_proxy_around, Proxy, ViewProxy};
 use nbrdf::{BsdfSample, ModelBuf, Rgb, Vec3};
 
 const VIEWS: [f32; 5] = [0.1, 0.5, 0.9, 1.2, 1.4];
@@ -117,7 +117,7 @@ fn measure(sum: &mut Summary, name: &str, m: usize, n: usize, eval: &dyn Fn(Vec3
     }
 }
 
-/// The `.nbrdf` files under `dir` (f32 copies), recursively, sorted.
+/// The `.nbrdf` files under `dir` (f32 copies), recursively, in no particular order.
 fn model_files(dir: &Path, out: &mut Vec<PathBuf>) {
     let Ok(entries) = std::fs::read_dir(dir) else { return };
     for p in entries.flatten().map(|e| e.path()) {
@@ -127,7 +127,11 @@ fn model_files(dir: &Path, out: &mut Vec<PathBuf>) {
             out.push(p);
         }
     }
-    out.sort();
+}
+
+/// A loaded BRDF, or `None` after saying on stderr why `path` is skipped.
+fn loaded<T>(path: &Path, result: Result<T, nbrdf::Error>) -> Option<T> {
+    result.map_err(|e| eprintln!("{}: {e}", path.display())).ok()
 }
 
 fn main() {
@@ -144,15 +148,10 @@ fn main() {
         // eight rows of the position table); sampled at the first of those points.
         let mut files = Vec::new();
         model_files(&dir, &mut files);
+        files.sort();
         files.retain(|p| p.to_string_lossy().contains(&filter));
         for (m, path) in files.iter().enumerate() {
-            let buf = match ModelBuf::load(path) {
-                Ok(b) => b,
-                Err(e) => {
-                    eprintln!("{}: {e}", path.display());
-                    continue;
-                }
-            };
+            let Some(buf) = loaded(path, ModelBuf::load(path)) else { continue };
             let model = buf.model();
             let (Some(proxy), ModelKind::SingleMlp | ModelKind::AdditiveSeparate | ModelKind::AdditiveShared) =
                 (model.header().proxy, model.header().kind)
@@ -163,14 +162,17 @@ fn main() {
             let table = model.position_table();
             let rows = table.len().checked_div(k).unwrap_or(0);
             let points: Vec<_> = if rows == 0 {
-                vec![model.prepare(&[]).unwrap()]
+                model.prepare(&[]).ok().into_iter().collect()
             } else {
                 (0..8).filter_map(|i| model.prepare(&table[(i * rows / 8) * k..][..k]).ok()).collect()
+            };
+            let Some(&at) = points.first() else {
+                eprintln!("{}: no surface point to sample at", path.display());
+                continue;
             };
             let start = Instant::now();
             let view = model.fit_view_proxy(&points, &proxy);
             sum.fit_ms.push(start.elapsed().as_secs_f64() * 1e3);
-            let at = points[0];
             let eval = |wi, wo| model.eval(&at, wi, wo);
             let name = path.strip_prefix(&dir).unwrap_or(path).with_extension("").to_string_lossy().into_owned();
             measure(&mut sum, &name, m, n, &eval, proxy, &view);
@@ -186,17 +188,12 @@ fn main() {
         files.sort();
         files.retain(|p| p.to_string_lossy().contains(&filter));
         for (m, path) in files.iter().enumerate() {
-            let net = match NbrdfNetwork::load(path) {
-                Ok(n) => n,
-                Err(e) => {
-                    eprintln!("{}: {e}", path.display());
-                    continue;
-                }
-            };
+            let Some(net) = loaded(path, NbrdfNetwork::load(path)) else { continue };
             let name = path.file_stem().unwrap().to_string_lossy().into_owned();
             let eval = |wi, wo| net.eval(wi, wo);
             let start = Instant::now();
-            let view: ViewProxy = fit_view_proxy(eval);
+            // The table as the network's load fits it, around the proxy it already has.
+            let view: ViewProxy = fit_view_proxy_around(eval, net.proxy());
             sum.fit_ms.push(start.elapsed().as_secs_f64() * 1e3);
             measure(&mut sum, &name, m, n, &eval, *net.proxy(), &view);
         }

@@ -220,58 +220,65 @@ fn combine(enhanced: bool) -> String {
 /// or through its per-view table where it has one, evaluating the model for the weight (core
 /// `Model::sample`, `ViewProxy::sample`).
 pub(crate) fn emit_proxy_sampling(code: &mut String, proxy: &Proxy, view: Option<&ViewProxy>, param: &str, arg: &str) {
-    let Some(view) = view else {
-        let [l0, l1] = proxy.lobes;
-        let _ = write!(
-            code,
-            "// The sampling proxy: cosine, and GGX visible-normal lobes of roughness NBRDF_PROXY_ALPHA.\n\
-             const NBRDF_PROXY_P: vec3<f32> = vec3<f32>({}, {}, {});\n\
-             const NBRDF_PROXY_ALPHA: vec2<f32> = vec2<f32>({}, {});\n\n\
-             fn nbrdf_pdf(wi: vec3<f32>, wo: vec3<f32>{param}) -> f32 {{\n\
-             \x20   return nbrdf_proxy_pdf(NBRDF_PROXY_P, NBRDF_PROXY_ALPHA, wo, wi);\n}}\n\n\
-             fn nbrdf_sample(wo_in: vec3<f32>, u: vec3<f32>{param}) -> NbrdfSample {{\n\
-             \x20   let wo = nbrdf_valid_wo(wo_in);\n\
-             \x20   if (wo.w <= 0.0) {{\n        return nbrdf_no_sample();\n    }}\n\
-             \x20   let wi = nbrdf_proxy_sample_wi(NBRDF_PROXY_P, NBRDF_PROXY_ALPHA, u, wo.xyz);\n\
-             \x20   if (wi.w <= 0.0) {{\n        return nbrdf_no_sample();\n    }}\n\
-             \x20   let pdf = nbrdf_proxy_pdf(NBRDF_PROXY_P, NBRDF_PROXY_ALPHA, wo.xyz, wi.xyz);\n\
-             \x20   return nbrdf_finish(wi.xyz, pdf, nbrdf_eval(wi.xyz, wo.xyz{arg}));\n}}\n\n",
-            lit(proxy.diffuse),
-            lit(l0.weight),
-            lit(l1.weight),
-            lit(l0.alpha),
-            lit(l1.alpha),
-        );
-        return;
+    // The mixture's probabilities and roughnesses: constants, or the row of wo's cell (the table
+    // version first finds the cell, from the normalised view).
+    let (mix, pdf_cell, sample_cell) = match view {
+        None => {
+            let [l0, l1] = proxy.lobes;
+            let _ = write!(
+                code,
+                "// The sampling proxy: cosine, and GGX visible-normal lobes of roughness NBRDF_PROXY_ALPHA.\n\
+                 const NBRDF_PROXY_P: vec3<f32> = vec3<f32>({}, {}, {});\n\
+                 const NBRDF_PROXY_ALPHA: vec2<f32> = vec2<f32>({}, {});\n\n",
+                lit(proxy.diffuse),
+                lit(l0.weight),
+                lit(l1.weight),
+                lit(l0.alpha),
+                lit(l1.alpha),
+            );
+            ("NBRDF_PROXY_P, NBRDF_PROXY_ALPHA", "", "")
+        }
+        Some(view) => {
+            let n = view.nodes.len();
+            let p: Vec<String> = view
+                .nodes
+                .iter()
+                .map(|q| format!("vec3<f32>({}, {}, {})", lit(q.diffuse), lit(q.lobes[0].weight), lit(q.lobes[1].weight)))
+                .collect();
+            let a: Vec<String> =
+                view.nodes.iter().map(|q| format!("vec2<f32>({}, {})", lit(q.lobes[0].alpha), lit(q.lobes[1].alpha))).collect();
+            let _ = write!(
+                code,
+                "// The sampling table: per cell of cos θo, the selection probabilities of the cosine lobe and two\n\
+                 // GGX visible-normal lobes, and those lobes' roughnesses (core `ViewProxy`).\n\
+                 var<private> NBRDF_VIEW_P: array<vec3<f32>, {n}> = array<vec3<f32>, {n}>({});\n\
+                 var<private> NBRDF_VIEW_ALPHA: array<vec2<f32>, {n}> = array<vec2<f32>, {n}>({});\n\n\
+                 fn nbrdf_view_cell(cos_o: f32) -> u32 {{\n\
+                 \x20   return min(u32((1.0 - cos_o) * {}), {}u);\n}}\n\n",
+                p.join(", "),
+                a.join(", "),
+                lit(n as f32),
+                n - 1,
+            );
+            (
+                "NBRDF_VIEW_P[c], NBRDF_VIEW_ALPHA[c]",
+                "    let wo = nbrdf_valid_wo(wo_in);\n    if (wo.w <= 0.0) {\n        return 0.0;\n    }\n    let c = nbrdf_view_cell(wo.z);\n",
+                "    let c = nbrdf_view_cell(wo.z);\n",
+            )
+        }
     };
-    let n = view.nodes.len();
-    let p: Vec<String> =
-        view.nodes.iter().map(|q| format!("vec3<f32>({}, {}, {})", lit(q.diffuse), lit(q.lobes[0].weight), lit(q.lobes[1].weight))).collect();
-    let a: Vec<String> = view.nodes.iter().map(|q| format!("vec2<f32>({}, {})", lit(q.lobes[0].alpha), lit(q.lobes[1].alpha))).collect();
     let _ = write!(
         code,
-        "// The sampling table: per cell of cos θo, the selection probabilities of the cosine lobe and two\n\
-         // GGX visible-normal lobes, and those lobes' roughnesses (core `ViewProxy`).\n\
-         var<private> NBRDF_VIEW_P: array<vec3<f32>, {n}> = array<vec3<f32>, {n}>({});\n\
-         var<private> NBRDF_VIEW_ALPHA: array<vec2<f32>, {n}> = array<vec2<f32>, {n}>({});\n\n\
-         fn nbrdf_view_cell(cos_o: f32) -> u32 {{\n\
-         \x20   return min(u32((1.0 - cos_o) * {}), {}u);\n}}\n\n\
-         fn nbrdf_pdf(wi: vec3<f32>, wo_in: vec3<f32>{param}) -> f32 {{\n\
-         \x20   let wo = nbrdf_valid_wo(wo_in);\n\
-         \x20   if (wo.w <= 0.0) {{\n        return 0.0;\n    }}\n\
-         \x20   let c = nbrdf_view_cell(wo.z);\n\
-         \x20   return nbrdf_proxy_pdf(NBRDF_VIEW_P[c], NBRDF_VIEW_ALPHA[c], wo_in, wi);\n}}\n\n\
+        "fn nbrdf_pdf(wi: vec3<f32>, wo_in: vec3<f32>{param}) -> f32 {{\n\
+         {pdf_cell}\
+         \x20   return nbrdf_proxy_pdf({mix}, wo_in, wi);\n}}\n\n\
          fn nbrdf_sample(wo_in: vec3<f32>, u: vec3<f32>{param}) -> NbrdfSample {{\n\
          \x20   let wo = nbrdf_valid_wo(wo_in);\n\
          \x20   if (wo.w <= 0.0) {{\n        return nbrdf_no_sample();\n    }}\n\
-         \x20   let c = nbrdf_view_cell(wo.z);\n\
-         \x20   let wi = nbrdf_proxy_sample_wi(NBRDF_VIEW_P[c], NBRDF_VIEW_ALPHA[c], u, wo.xyz);\n\
+         {sample_cell}\
+         \x20   let wi = nbrdf_proxy_sample_wi({mix}, u, wo.xyz);\n\
          \x20   if (wi.w <= 0.0) {{\n        return nbrdf_no_sample();\n    }}\n\
-         \x20   let pdf = nbrdf_proxy_pdf(NBRDF_VIEW_P[c], NBRDF_VIEW_ALPHA[c], wo.xyz, wi.xyz);\n\
+         \x20   let pdf = nbrdf_proxy_pdf({mix}, wo.xyz, wi.xyz);\n\
          \x20   return nbrdf_finish(wi.xyz, pdf, nbrdf_eval(wi.xyz, wo.xyz{arg}));\n}}\n\n",
-        p.join(", "),
-        a.join(", "),
-        lit(n as f32),
-        n - 1,
     );
 }

@@ -56,7 +56,7 @@ const DICT: usize = 1 + N_A;
 /// Proxies over the view angle θo (module docs).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub struct ViewProxy {
-    /// The mixture of node `j`, fitted at `θo = j/(N−1) · π/2`.
+    /// The mixture of cell `j`, `cos θo ∈ (1 − (j+1)/N, 1 − j/N]`, fitted at the cell's middle view.
     pub nodes: [Proxy; VIEW_NODES],
 }
 
@@ -117,13 +117,12 @@ pub fn fit_view_proxy(brdf: impl Fn(Vec3, Vec3) -> Rgb) -> ViewProxy {
 /// [`fit_view_proxy`] given the all-view proxy `global` ([`fit_proxy`](super::fit_proxy) of the same
 /// BRDF), which a cell keeps unless its own mixture is clearly better.
 pub fn fit_view_proxy_around(brdf: impl Fn(Vec3, Vec3) -> Rgb, global: &Proxy) -> ViewProxy {
-    let global = *global;
     let mut view = ViewProxy::default();
     for (j, node) in view.nodes.iter_mut().enumerate() {
         // The cell's middle view.
         let cos_o = 1.0 - (j as f32 + 0.5) / VIEW_NODES as f32;
         let wo = Vec3::new(libm::sqrtf(1.0 - cos_o * cos_o), 0.0, cos_o);
-        *node = fit_node(&brdf, wo, &global);
+        *node = fit_node(&brdf, wo, global);
     }
     view
 }
@@ -361,7 +360,7 @@ fn fit_node(brdf: &impl Fn(Vec3, Vec3) -> Rgb, wo: Vec3, global: &Proxy) -> Prox
     if pts.n == 0 {
         return Proxy::COSINE;
     }
-    let r = 1.0 - VIEW_DEFENSIVE as f64;
+    let (d, r) = (VIEW_DEFENSIVE as f64, 1.0 - VIEW_DEFENSIVE as f64);
     // Weights (cosine, lobe 1, lobe 2) of the mixture and its second moment; cosine alone first.
     let s_cos = (0..pts.n).map(|i| pts.c[i] as f64 / pts.basis[i][0] as f64).sum::<f64>();
     let mut best = (s_cos, [1.0f64, 0.0, 0.0], [1usize, 1]);
@@ -377,7 +376,6 @@ fn fit_node(brdf: &impl Fn(Vec3, Vec3) -> Rgb, wo: Vec3, global: &Proxy) -> Prox
     }
     singles.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
     // Pairs among the best single lobes: the inside of each triangle and its cosine-free edge.
-    let d = VIEW_DEFENSIVE as f64;
     for i in 0..PAIR_POOL {
         for j in i + 1..PAIR_POOL {
             let (l1, l2) = (singles[i].1, singles[j].1);
@@ -394,13 +392,12 @@ fn fit_node(brdf: &impl Fn(Vec3, Vec3) -> Rgb, wo: Vec3, global: &Proxy) -> Prox
         }
     }
     let (_, [w0, w1, w2], [l1, l2]) = best;
-    let dd = VIEW_DEFENSIVE;
     // Lobes under 0.1 % of the mass would only cost a branch: dropped.
     let lobe = |w: f64, l: usize| {
-        let m = (1.0 - dd) * w as f32;
+        let m = (1.0 - VIEW_DEFENSIVE) * w as f32;
         if m < 1e-3 { GgxLobe::NONE } else { GgxLobe { weight: m, alpha: alpha_of(l - 1) } }
     };
-    let Ok(own) = Proxy::new(dd + (1.0 - dd) * w0.max(0.0) as f32, [lobe(w1, l1), lobe(w2, l2)]) else {
+    let Ok(own) = Proxy::new(VIEW_DEFENSIVE + (1.0 - VIEW_DEFENSIVE) * w0.max(0.0) as f32, [lobe(w1, l1), lobe(w2, l2)]) else {
         return *global;
     };
     // The winner of many candidates on one point set looks better there than it is, and a peak narrower
