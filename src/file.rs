@@ -1,16 +1,20 @@
 //! The `.nbrdf` model file: a versioned header followed by little-endian weights, loadable without a copy.
 //!
-//! # Layout (version 1)
+//! # Layout (versions 1 and 2)
 //! | bytes | content |
 //! |---|---|
 //! | 0..8 | magic `b"NBRDFMDL"` |
 //! | 8..12 | format version, `u32` LE |
 //! | 12..16 | header length `H`, `u32` LE |
-//! | 16..16+H | [`ModelHeader`], postcard-encoded; it may end before its trailing optional fields (the sampling proxy, the mesh hash, then the per-view sampling table), which then read as `None`; zero padding to a multiple of 4 |
+//! | 16..16+H | [`ModelHeader`], postcard-encoded; it may end before its trailing optional fields (the sampling proxy, the mesh hash, the per-view sampling table, then the albedo bound), which then read as `None`; zero padding to a multiple of 4 |
 //! | … | network weights in file order (`docs/models.md`), `f32` or `f16` LE per [`Precision`]; zero padding to a multiple of 4 |
 //! | … | object parameters, `f32` LE ([`ModelHeader::n_object`]) |
 //! | … | optional per-vertex position table, `f32` LE, `n_vertices × k` row-major (intrinsic encoding) |
 //! | last 4 | CRC-32 (IEEE) of every preceding byte, `u32` LE |
+//!
+//! A file is version 2 exactly when its header carries an albedo bound ([`ModelHeader::albedo_bound`]):
+//! the bound changes the model's values, so a reader that would ignore it must refuse the file instead.
+//! Every other file is version 1, byte for byte as before the bound existed.
 //!
 //! Every section starts 4-byte aligned, so [`Model::from_bytes`](crate::Model::from_bytes) borrows the
 //! weights in place when the buffer is 4-byte aligned on a little-endian machine;
@@ -33,8 +37,8 @@ use crate::Error;
 
 /// File magic.
 pub const MAGIC: [u8; 8] = *b"NBRDFMDL";
-/// Newest format version this build writes and reads.
-pub const VERSION: u32 = 1;
+/// Newest format version this build writes and reads (2: the header may carry an albedo bound).
+pub const VERSION: u32 = 2;
 /// Most networks one model holds (the Additive Shared trunk and two heads).
 pub const MAX_NETS: usize = 3;
 /// Largest number of positional-encoding octaves, for angles and for the extrinsic position.
@@ -189,6 +193,11 @@ pub struct ModelHeader {
     ///
     /// [`proxy`]: ModelHeader::proxy
     pub view_proxy: Option<crate::sampling::ViewProxy>,
+    /// The conservative albedo table of an energy-bounded model ([`crate::energy::AlbedoBound`]):
+    /// evaluation divides `f` by `max(1, Â(θi), Â(θo))` per channel, so the albedo is ≤ 1 wherever `Â`
+    /// bounds it. A file with it is version 2, which older readers refuse rather than evaluate
+    /// without it.
+    pub albedo_bound: Option<crate::energy::AlbedoBound>,
 }
 
 impl ModelHeader {
@@ -253,6 +262,7 @@ impl ModelHeader {
             proxy: None,
             mesh_hash: None,
             view_proxy: None,
+            albedo_bound: None,
         }
     }
 
@@ -276,6 +286,21 @@ impl ModelHeader {
     pub fn with_view_proxy(mut self, view: crate::sampling::ViewProxy) -> Self {
         self.view_proxy = Some(view);
         self
+    }
+
+    /// The same header carrying the albedo bound `bound` (see [`ModelHeader::albedo_bound`]).
+    pub fn with_albedo_bound(mut self, bound: crate::energy::AlbedoBound) -> Self {
+        self.albedo_bound = Some(bound);
+        self
+    }
+
+    /// The format version a file of this header is written as: 2 with an albedo bound, else 1.
+    pub fn version(&self) -> u32 {
+        if self.albedo_bound.is_some() {
+            2
+        } else {
+            1
+        }
     }
 
     /// The same model with `nol` hidden layers after the angles enter: the "number of layers for the
@@ -406,6 +431,9 @@ impl ModelHeader {
         if let Some(p) = &self.view_proxy {
             p.validate()?;
         }
+        if let Some(b) = &self.albedo_bound {
+            b.validate()?;
+        }
         if self.n_nets as usize > MAX_NETS || self.n_nets == 0 {
             return Err(Error::InvalidValue { what: "network count", reason: "must be 1 to 3" });
         }
@@ -496,6 +524,12 @@ pub(crate) fn parse(bytes: &[u8]) -> Result<(ModelHeader, Sections), Error> {
         .ok_or(Error::Truncated { what: "model header", needed: header_end, got: bytes.len() })?;
     let header = decode_header(header_bytes)?;
     header.validate()?;
+    if header.version() > version {
+        return Err(Error::InvalidValue {
+            what: "model file version",
+            reason: "a header with an albedo bound needs version 2",
+        });
+    }
 
     let weights_start = align4(header_end);
     let weights_len = header
@@ -535,12 +569,21 @@ pub(crate) fn parse(bytes: &[u8]) -> Result<(ModelHeader, Sections), Error> {
     Ok((header, sections))
 }
 
-/// Longest header accepted without its trailing optional fields (a real header is under 100 bytes).
-const MAX_LEGACY_HEADER: usize = 256;
+/// Longest header accepted without its last trailing optional fields (a header is under 100 bytes
+/// with none of them, about 450 with all but the albedo bound).
+const MAX_LEGACY_HEADER: usize = 1024;
 
 /// Optional fields at the end of the header, in order, each added after version 1 was released:
-/// `proxy`, `mesh_hash`, then `view_proxy`.
-const TRAILING_OPTIONS: usize = 3;
+/// `proxy`, `mesh_hash`, `view_proxy`, then `albedo_bound`.
+const TRAILING_OPTIONS: usize = 4;
+
+/// How many of the trailing optional fields, counted from the last, are `None` in a row.
+fn trailing_nones(h: &ModelHeader) -> usize {
+    [h.albedo_bound.is_none(), h.view_proxy.is_none(), h.mesh_hash.is_none(), h.proxy.is_none()]
+        .iter()
+        .take_while(|none| **none)
+        .count()
+}
 
 /// Decodes the postcard header. A header may end before any of its trailing optional fields (files
 /// written before the field existed, and [`encode`], which leaves a trailing `None` out so that such
@@ -556,12 +599,7 @@ fn decode_header(bytes: &[u8]) -> Result<ModelHeader, Error> {
             for missing in 1..=TRAILING_OPTIONS {
                 match postcard::from_bytes::<ModelHeader>(&buf[..bytes.len() + missing]) {
                     // Only the appended fields may be filled in, and only with `None`.
-                    Ok(h) if h.view_proxy.is_none()
-                        && (missing < 2 || h.mesh_hash.is_none())
-                        && (missing < 3 || h.proxy.is_none()) =>
-                    {
-                        return Ok(h)
-                    }
+                    Ok(h) if trailing_nones(&h) >= missing => return Ok(h),
                     Err(postcard::Error::DeserializeUnexpectedEnd) => continue,
                     _ => return Err(bad),
                 }
@@ -578,11 +616,9 @@ fn decode_header(bytes: &[u8]) -> Result<ModelHeader, Error> {
 fn encode_header(header: &ModelHeader) -> Result<alloc::vec::Vec<u8>, Error> {
     let mut bytes = postcard::to_allocvec(header)
         .map_err(|_| Error::InvalidValue { what: "model header", reason: "cannot be encoded" })?;
-    if header.view_proxy.is_none() {
+    // The proxy's byte stays: version-1 exports always wrote it.
+    for _ in 0..trailing_nones(header).min(TRAILING_OPTIONS - 1) {
         bytes.pop();
-        if header.mesh_hash.is_none() {
-            bytes.pop();
-        }
     }
     Ok(bytes)
 }
@@ -661,7 +697,7 @@ pub fn encode(
     let header_bytes = encode_header(&header)?;
     let mut out = Vec::with_capacity(16 + header_bytes.len() + weights.len() * 4 + 8);
     out.extend_from_slice(&MAGIC);
-    out.extend_from_slice(&VERSION.to_le_bytes());
+    out.extend_from_slice(&header.version().to_le_bytes());
     out.extend_from_slice(&(header_bytes.len() as u32).to_le_bytes());
     out.extend_from_slice(&header_bytes);
     out.resize(align4(out.len()), 0);
@@ -702,15 +738,40 @@ pub fn encode(
 /// ```
 #[cfg(feature = "alloc")]
 pub fn record_mesh(bytes: &[u8], hash: u64) -> Result<alloc::vec::Vec<u8>, Error> {
+    rewrite_header(bytes, |h| h.mesh_hash = Some(hash))
+}
+
+/// The model file `bytes` with [`ModelHeader::albedo_bound`] set to `bound` (`None` removes it): the
+/// energy-bounded model of the same networks, or the unbounded one back. Everything after the header
+/// is kept byte for byte; the version follows the header ([`ModelHeader::version`]).
+///
+/// ```
+/// use nbrdf::energy::{AlbedoBound, ALBEDO_CELLS};
+/// use nbrdf::file::{encode, set_albedo_bound, ModelHeader, ModelKind, PositionEncoding, Reciprocity};
+/// let h = ModelHeader::paper(ModelKind::SingleMlp, false, Reciprocity::Exact, PositionEncoding::Uniform, 2);
+/// let bytes = encode(&h, &vec![0.01; h.n_weights()], None).unwrap();
+/// let bound = AlbedoBound { cells: [[1.5; 3]; ALBEDO_CELLS] };
+/// let bounded = set_albedo_bound(&bytes, Some(bound)).unwrap();
+/// assert_eq!(bounded[8], 2); // version 2: older readers refuse it rather than ignore the bound
+/// assert_eq!(set_albedo_bound(&bounded, None).unwrap(), bytes);
+/// ```
+#[cfg(feature = "alloc")]
+pub fn set_albedo_bound(bytes: &[u8], bound: Option<crate::energy::AlbedoBound>) -> Result<alloc::vec::Vec<u8>, Error> {
+    rewrite_header(bytes, |h| h.albedo_bound = bound)
+}
+
+/// The model file `bytes` with its header changed by `change`; the sections after it byte for byte.
+#[cfg(feature = "alloc")]
+fn rewrite_header(bytes: &[u8], change: impl FnOnce(&mut ModelHeader)) -> Result<alloc::vec::Vec<u8>, Error> {
     use alloc::vec::Vec;
     let (mut header, sections) = parse(bytes)?;
-    header.mesh_hash = Some(hash);
+    change(&mut header);
     header.validate()?;
     let header_bytes = encode_header(&header)?;
     let body = &bytes[sections.weights.0..sections.table.1];
     let mut out = Vec::with_capacity(16 + header_bytes.len() + 3 + body.len() + 4);
     out.extend_from_slice(&MAGIC);
-    out.extend_from_slice(&VERSION.to_le_bytes());
+    out.extend_from_slice(&header.version().to_le_bytes());
     out.extend_from_slice(&(header_bytes.len() as u32).to_le_bytes());
     out.extend_from_slice(&header_bytes);
     // Every section after the header starts 4-aligned, so the body keeps its layout after padding.

@@ -37,6 +37,7 @@ pub mod angles;
 pub mod brdf;
 pub mod builtin;
 pub mod encoding;
+pub mod energy;
 pub mod error;
 pub mod file;
 #[cfg(feature = "std")]

@@ -3,6 +3,7 @@
 
 use std::fmt::Write;
 
+use nbrdf::energy::AlbedoBound;
 use nbrdf::file::{ModelKind, PositionEncoding, Reciprocity};
 use nbrdf::parametric::ParametricKind;
 use nbrdf::sampling::{Proxy, ViewProxy};
@@ -118,6 +119,12 @@ pub(crate) fn body(model: &Model<'_>, storage: Storage) -> Body {
         }
     };
     let macs: usize = nets.iter().map(Network::macs).sum();
+    // A bounded model's networks and formula evaluate `f`; `nbrdf_eval` divides it (`emit_bound`).
+    let eval_fn = if h.albedo_bound.is_some() { "nbrdf_eval_unbounded" } else { "nbrdf_eval" };
+    let sample_bound = |call: String| match h.albedo_bound {
+        Some(_) => format!("nbrdf_bound_sample({call}, wo)"),
+        None => call,
+    };
 
     match h.kind {
         ModelKind::Parametric(kind) => {
@@ -134,14 +141,15 @@ pub(crate) fn body(model: &Model<'_>, storage: Storage) -> Body {
             );
             let _ = write!(
                 code,
-                "fn nbrdf_eval(wi: vec3<f32>, wo: vec3<f32>{param}) -> vec3<f32> {{\n\
+                "fn {eval_fn}(wi: vec3<f32>, wo: vec3<f32>{param}) -> vec3<f32> {{\n\
                  \x20   let pair = nbrdf_upper_pair(wi, wo);\n\
                  \x20   if (!pair.ok) {{\n        return vec3<f32>(0.0);\n    }}\n\
                  \x20   return {prefix}_eval(nbrdf_params({a}), pair.wi, pair.wo);\n}}\n\n\
                  fn nbrdf_pdf(wi: vec3<f32>, wo: vec3<f32>{param}) -> f32 {{\n\
                  \x20   return {prefix}_pdf(nbrdf_params({a}), wo, wi);\n}}\n\n\
                  fn nbrdf_sample(wo: vec3<f32>, u: vec3<f32>{param}) -> NbrdfSample {{\n\
-                 \x20   return {prefix}_sample(nbrdf_params({a}), u, wo);\n}}\n\n",
+                 \x20   return {};\n}}\n\n",
+                sample_bound(format!("{prefix}_sample(nbrdf_params({a}), u, wo)", a = arg.trim_start_matches(", "))),
                 a = arg.trim_start_matches(", "),
             );
         }
@@ -185,7 +193,7 @@ pub(crate) fn body(model: &Model<'_>, storage: Storage) -> Body {
             };
             let _ = write!(
                 code,
-                "fn nbrdf_eval(wi: vec3<f32>, wo: vec3<f32>{param}) -> vec3<f32> {{\n\
+                "fn {eval_fn}(wi: vec3<f32>, wo: vec3<f32>{param}) -> vec3<f32> {{\n\
                  \x20   let pair = nbrdf_upper_pair(wi, wo);\n\
                  \x20   if (!pair.ok) {{\n        return vec3<f32>(0.0);\n    }}\n\
                  \x20   let frame = nbrdf_half_frame(pair.wi, pair.wo);\n\
@@ -195,7 +203,39 @@ pub(crate) fn body(model: &Model<'_>, storage: Storage) -> Body {
             emit_proxy_sampling(&mut code, &model.proxy(), model.header().view_proxy.as_ref(), &param, arg);
         }
     }
+    if let Some(bound) = &h.albedo_bound {
+        emit_bound(&mut code, bound, &param, arg);
+    }
     Body { code, buffer, position_len: k, macs, parametric: matches!(h.kind, ModelKind::Parametric(_)), json: false }
+}
+
+/// `nbrdf_eval` of an energy-bounded model (core `AlbedoBound::apply`): `f` of `nbrdf_eval_unbounded`
+/// divided per channel by `max(1, Â(θi), Â(θo))`, with `Â` the table of the file; and the sample
+/// weight of a parametric model's own lobes divided the same way.
+fn emit_bound(code: &mut String, bound: &AlbedoBound, param: &str, arg: &str) {
+    let n = bound.cells.len();
+    let cells: Vec<String> = bound.cells.iter().map(|c| format!("vec3<f32>({}, {}, {})", lit(c[0]), lit(c[1]), lit(c[2]))).collect();
+    let _ = write!(
+        code,
+        "// The energy bound: per cell of cos θ, an upper bound of the albedo per channel (core `AlbedoBound`).\n\
+         var<private> NBRDF_ALBEDO: array<vec3<f32>, {n}> = array<vec3<f32>, {n}>({});\n\n\
+         fn nbrdf_albedo_cell(cos_t: f32) -> u32 {{\n\
+         \x20   return min(u32((1.0 - cos_t) * {}), {}u);\n}}\n\n\
+         fn nbrdf_bound(f: vec3<f32>, wi: vec3<f32>, wo: vec3<f32>) -> vec3<f32> {{\n\
+         \x20   let pair = nbrdf_upper_pair(wi, wo);\n\
+         \x20   if (!pair.ok) {{\n        return f;\n    }}\n\
+         \x20   let d = max(NBRDF_ALBEDO[nbrdf_albedo_cell(pair.wi.z)], NBRDF_ALBEDO[nbrdf_albedo_cell(pair.wo.z)]);\n\
+         \x20   return select(f, f / d, d > vec3<f32>(1.0));\n}}\n\n\
+         fn nbrdf_bound_sample(s: NbrdfSample, wo: vec3<f32>) -> NbrdfSample {{\n\
+         \x20   var b = s;\n\
+         \x20   if (s.ok) {{\n        b.weight = nbrdf_bound(s.weight, s.wi, wo);\n    }}\n\
+         \x20   return b;\n}}\n\n\
+         fn nbrdf_eval(wi: vec3<f32>, wo: vec3<f32>{param}) -> vec3<f32> {{\n\
+         \x20   return nbrdf_bound(nbrdf_eval_unbounded(wi, wo{arg}), wi, wo);\n}}\n\n",
+        cells.join(", "),
+        lit(n as f32),
+        n - 1,
+    );
 }
 
 /// The additive split's output maps (core `neural::split`): `f_d = σ(d) / π` sanitised, `f_s =

@@ -63,6 +63,24 @@ impl<'a> Model<'a> {
             }
             return;
         }
+        if self.header.albedo_bound.is_some() {
+            return self.eval_many_packets(prepared, n, &pair, |i, f| {
+                let (a, b) = pair(i);
+                put(i, self.bounded(f, a, b))
+            });
+        }
+        self.eval_many_packets(prepared, n, pair, put)
+    }
+
+    /// [`Model::eval_many_by`] of a valid neural point, before the albedo bound.
+    #[inline]
+    fn eval_many_packets(
+        &self,
+        prepared: &Prepared,
+        n: usize,
+        pair: impl Fn(usize) -> (Vec3, Vec3),
+        mut put: impl FnMut(usize, Rgb),
+    ) {
         #[cfg(target_arch = "x86_64")]
         if crate::kernels::level() == crate::kernels::Level::Avx512 {
             return self.eval_many_theta16(prepared, n, pair, put);

@@ -24,21 +24,36 @@ impl<'a> Model<'a> {
         if !prepared.valid {
             return BLACK;
         }
-        if let Some(params) = &prepared.params {
-            return match upper_hemisphere_pair(wi, wo) {
-                Some((wi, wo)) => params.eval(wi, wo),
-                None => BLACK,
-            };
-        }
-        let mut enc = [0.0f32; MAX_ANGLE_INPUT];
-        let Some(n) = self.encode_pair(wi, wo, &mut enc) else {
+        let Some((wi, wo)) = upper_hemisphere_pair(wi, wo) else {
             return BLACK;
         };
-        let f = match self.weights {
-            Weights::F32(w) => self.eval_with(&self.nets(w), prepared, &enc[..n]),
-            Weights::F16(w) => self.eval_with(&self.nets(w), prepared, &enc[..n]),
+        let f = match &prepared.params {
+            Some(params) => params.eval(wi, wo),
+            None => {
+                let mut enc = [0.0f32; MAX_ANGLE_INPUT];
+                let Some(n) = self.encode_unit_pair(wi, wo, &mut enc) else {
+                    return BLACK;
+                };
+                sanitize(match self.weights {
+                    Weights::F32(w) => self.eval_with(&self.nets(w), prepared, &enc[..n]),
+                    Weights::F16(w) => self.eval_with(&self.nets(w), prepared, &enc[..n]),
+                })
+            }
         };
-        sanitize(f)
+        match &self.header.albedo_bound {
+            Some(bound) => bound.apply(f, wi.z, wo.z),
+            None => f,
+        }
+    }
+
+    /// `f` of the raw pair (`wi`, `wo`) divided as the model's albedo bound says (`docs/models.md`,
+    /// "Energy bound"); the batched paths' version of the end of [`Model::eval`], with the same bits.
+    #[inline]
+    pub(super) fn bounded(&self, f: Rgb, wi: Vec3, wo: Vec3) -> Rgb {
+        match (&self.header.albedo_bound, upper_hemisphere_pair(wi, wo)) {
+            (Some(bound), Some((wi, wo))) => bound.apply(f, wi.z, wo.z),
+            _ => f,
+        }
     }
 
     /// The encoded angle input `PE(a)` of a direction pair (`docs/models.md`), written to the front of
@@ -46,6 +61,12 @@ impl<'a> Model<'a> {
     #[inline]
     pub(super) fn encode_pair(&self, wi: Vec3, wo: Vec3, enc: &mut [f32]) -> Option<usize> {
         let (wi, wo) = upper_hemisphere_pair(wi, wo)?;
+        self.encode_unit_pair(wi, wo, enc)
+    }
+
+    /// [`Model::encode_pair`] of a pair already normalised and above the horizon.
+    #[inline(always)]
+    fn encode_unit_pair(&self, wi: Vec3, wo: Vec3, enc: &mut [f32]) -> Option<usize> {
         let mut angles = [0.0f32; 4];
         let n_angles = match self.header.reciprocity {
             Reciprocity::Exact => {

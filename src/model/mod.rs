@@ -33,9 +33,11 @@
 //! path); `convert.rs` the f16 / f32 files ([`Model::to_f16`], [`Model::to_f32`]); `buf.rs` the owned,
 //! aligned storage ([`ModelBuf`]). Importance sampling of a model ([`Model::sample`], [`Model::pdf`],
 //! [`Model::fit_proxy`]) and the model at one point as a [`Brdf`](crate::Brdf) ([`ModelAt`]) are in
-//! `sampling.rs`, over the proxies of [`crate::sampling`].
+//! `sampling.rs`, over the proxies of [`crate::sampling`]; the energy bound ([`Model::fit_albedo_bound`],
+//! [`Model::unbounded`]) in `bound.rs`, over [`crate::energy`].
 
 mod batch;
+mod bound;
 // `alloc` only, as every item in them is; gating the files too keeps their imports used without it.
 #[cfg(feature = "alloc")]
 mod buf;

@@ -66,7 +66,11 @@ impl<'a> Model<'a> {
     pub fn sample(&self, prepared: &Prepared, wo: Vec3, u: [f32; 3]) -> Option<BsdfSample> {
         let brdf = |wi, wo| self.eval(prepared, wi, wo);
         match (prepared.parameters(), &self.header().view_proxy) {
-            (Some(params), _) if prepared.valid => params.sample(wo, u),
+            (Some(params), _) if prepared.valid => {
+                // The lobes sample the unbounded formula; the weight takes the bound's divisor.
+                let s = params.sample(wo, u)?;
+                Some(BsdfSample { weight: self.bounded(s.weight, s.wi, wo), ..s })
+            }
             (_, Some(view)) => view.sample(wo, u, brdf),
             _ => self.proxy().sample(wo, u, brdf),
         }

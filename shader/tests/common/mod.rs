@@ -2,6 +2,7 @@
 //! architectures (`ModelHeader::paper`) narrowed to a few units, so that the weights stay inline.
 #![allow(dead_code)]
 
+use nbrdf::energy::{AlbedoBound, ALBEDO_CELLS};
 use nbrdf::file::{encode, ModelHeader, ModelKind, PositionEncoding, Precision, Reciprocity};
 use nbrdf::parametric::ParametricKind;
 use nbrdf::sampling::{GgxLobe, Proxy, ViewProxy};
@@ -89,12 +90,24 @@ pub fn all_models() -> Vec<TestModel> {
         let t = c as f32 / 15.0;
         *node = Proxy::new(0.1 + 0.8 * t, [GgxLobe { weight: 0.6 - 0.5 * t, alpha: 0.03 + 0.4 * t }, GgxLobe { weight: 0.3, alpha: 0.6 - 0.5 * t }]).unwrap();
     }
+    // An energy bound whose cells differ per channel, above 1 in some and below in others, so that a
+    // shader dividing by the wrong cell or channel shows.
+    let mut bound = AlbedoBound { cells: [[0.0; 3]; ALBEDO_CELLS] };
+    for (j, c) in bound.cells.iter_mut().enumerate() {
+        let t = j as f32 / (ALBEDO_CELLS - 1) as f32;
+        *c = [0.6 + 1.2 * t, 1.8 - 1.1 * t, if j % 3 == 0 { 2.5 } else { 0.7 }];
+    }
     let mut out = Vec::new();
     let mut seed = 1;
     for (i, kind) in ParametricKind::ALL.into_iter().enumerate() {
-        let h = ModelHeader::paper(ModelKind::Parametric(kind), false, Reciprocity::None, positions[i % 3], 0);
+        let mut h = ModelHeader::paper(ModelKind::Parametric(kind), false, Reciprocity::None, positions[i % 3], 0);
         let precision = if i % 2 == 0 { Precision::F32 } else { Precision::F16 };
-        out.push(model(&format!("Parametric({}) {:?}", kind.id(), positions[i % 3]), narrow(h, 12), precision, seed));
+        let mut name = format!("Parametric({}) {:?}", kind.id(), positions[i % 3]);
+        if i % 2 == 1 {
+            h = h.with_albedo_bound(bound);
+            name.push_str(" bounded");
+        }
+        out.push(model(&name, narrow(h, 12), precision, seed));
         seed += 1;
     }
     let neural: [(ModelKind, bool, Option<u8>); 6] = [
@@ -118,11 +131,15 @@ pub fn all_models() -> Vec<TestModel> {
             if (i + j) % 4 == 0 {
                 h = h.with_view_proxy(view);
             }
+            if (i + j) % 3 == 1 {
+                h = h.with_albedo_bound(bound);
+            }
             let precision = if (i + j) % 2 == 1 { Precision::F16 } else { Precision::F32 };
             let name = format!(
-                "{kind:?}{}{} {reciprocity:?} {position:?}",
+                "{kind:?}{}{} {reciprocity:?} {position:?}{}",
                 if enhanced { " enhanced" } else { "" },
-                nol.map(|n| format!(" NOL {n}")).unwrap_or_default()
+                nol.map(|n| format!(" NOL {n}")).unwrap_or_default(),
+                if h.albedo_bound.is_some() { " bounded" } else { "" }
             );
             out.push(model(&name, narrow(h, 12), precision, seed));
             seed += 1;
