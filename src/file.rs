@@ -303,6 +303,32 @@ impl ModelHeader {
         }
     }
 
+    /// The same architecture with every network `width` wide (the paper's is 128): a smaller model for
+    /// a tight shading budget, or a quick test. Where a trunk feeds a head, the head's input follows.
+    ///
+    /// ```
+    /// use nbrdf::file::{ModelHeader, ModelKind, PositionEncoding, Reciprocity};
+    /// let h = ModelHeader::paper(ModelKind::AdditiveShared, true, Reciprocity::Exact, PositionEncoding::Uniform, 2)
+    ///     .with_width(16);
+    /// assert!(h.validate().is_ok());
+    /// assert_eq!(h.nets()[2].n_in as usize, 16 + h.angle_input_len());
+    /// ```
+    pub fn with_width(mut self, width: u16) -> Self {
+        let a = self.angle_input_len() as u16;
+        for n in self.nets.iter_mut().take(self.n_nets as usize) {
+            n.width = width;
+        }
+        match (self.kind, self.n_nets) {
+            (ModelKind::SingleMlp, 2) => self.nets[1].n_in = width + a,
+            (ModelKind::AdditiveShared, 3) => {
+                self.nets[1].n_in = width;
+                self.nets[2].n_in = width + a;
+            }
+            _ => {}
+        }
+        self
+    }
+
     /// The same model with `nol` hidden layers after the angles enter: the "number of layers for the
     /// directions" of Tab. 2. Single MLP: a position-only trunk of `6 - nol` layers, then a head of `nol`
     /// layers on `[trunk, PE(a)]` (`nol ≥ 6` keeps the paper's single network). Additive Separate: the

@@ -269,6 +269,7 @@ def fit(
     resume: bool = False,
     pixel_stride: Optional[int] = None,
     cache: Optional[PathLike] = None,
+    energy_bound: bool = False,
     progress: Progress = None,
 ) -> FitResult:
     """Fits one model variant (Sec. 4.1; ``trainer fit``) and writes ``<variant>.nbrdf``, a checkpoint
@@ -278,7 +279,8 @@ def fit(
     intrinsic:K or extrinsic:F. Unset options take ``trainer fit``'s defaults: ``object`` bear, ``out``
     "out", 20 000 ``steps``, ``batch`` the paper's 2^15 colour values, ``lr`` 1e-3 to ``lr_final`` 1e-4,
     ``seed`` 0, ``reciprocity`` exact, ``position`` intrinsic:32, a checkpoint every 1000 steps, every
-    pixel (``pixel_stride`` 1), ``cache`` "out/cache". ``progress``: as ``synth``'s, the callable called with ``(steps done, steps)``.
+    pixel (``pixel_stride`` 1), ``cache`` "out/cache". ``energy_bound``: write the model with its albedo
+    bound (``trainer fit --energy-bound``; albedo at most 1 at every view, docs/models.md). ``progress``: as ``synth``'s, the callable called with ``(steps done, steps)``.
     Ctrl-C (a notebook's interrupt) stops it within a second, leaving ``out`` as it was. Returns the
     model file and the log (``FitResult``: ``load()`` the model, ``curve`` as arrays)."""
     import json
@@ -291,7 +293,7 @@ def fit(
             position=position, angle_frequencies=angle_frequencies, direction_layers=direction_layers,
             lambda_diffuse=lambda_diffuse, lambda_specular=lambda_specular,
             checkpoint_every=checkpoint_every, resume=resume, pixel_stride=pixel_stride, cache=cache,
-            bar=bar, progress=callback,
+            energy_bound=energy_bound, bar=bar, progress=callback,
         )
     finally:
         close()

@@ -88,6 +88,9 @@ class Model:
     def position_len(self) -> int:
         """Values per point input: 0 (the same everywhere), k (intrinsic) or 3 (extrinsic: x, y, z)."""
     @property
+    def albedo_bound(self) -> Optional[_F32]:
+        """The albedo table (32, 3) of an energy-bounded model (``fit(..., energy_bound=True)``); None otherwise."""
+    @property
     def has_position_table(self) -> bool:
         """Whether the file carries per-vertex intrinsic features (position_features)."""
     @property
@@ -198,6 +201,7 @@ def fit(
     resume: bool = False,
     pixel_stride: Optional[int] = None,
     cache: Optional[_Path] = None,
+    energy_bound: bool = False,
     bar: bool = False,
     progress: Optional[Callable[[int, int], None]] = None,
 ) -> Tuple[str, str]:

@@ -352,6 +352,15 @@ impl Model {
         self.brdf.position_len()
     }
 
+    /// The albedo table of an energy-bounded model (`fit(..., energy_bound=True)`): an upper bound of
+    /// the albedo per cell of cos θ (cell j: cos θ in (1 − (j+1)/32, 1 − j/32]) and channel, shape
+    /// (32, 3); evaluation divides f by max(1, Â(θi), Â(θo)). `None` for an unbounded BRDF.
+    #[getter]
+    fn albedo_bound<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyArrayDyn<f32>>> {
+        let bound = *self.brdf.as_model()?.albedo_bound()?;
+        Some(arrays::out3(py, &[bound.cells.len()], bound.cells.to_vec()))
+    }
+
     /// Whether the model's file carries a per-vertex table of intrinsic features (`position_features`).
     #[getter]
     fn has_position_table(&self) -> bool {

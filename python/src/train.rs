@@ -124,7 +124,7 @@ pub(crate) fn synth(
                     batch = None, lr = None, lr_final = None, seed = None, reciprocity = None, enhanced = false,
                     position = None, angle_frequencies = None, direction_layers = None, lambda_diffuse = None,
                     lambda_specular = None, checkpoint_every = None, resume = false, pixel_stride = None,
-                    cache = None, bar = false, progress = None))]
+                    cache = None, energy_bound = false, bar = false, progress = None))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn fit(
     py: Python<'_>,
@@ -150,6 +150,7 @@ pub(crate) fn fit(
     resume: bool,
     pixel_stride: Option<usize>,
     cache: Option<PathBuf>,
+    energy_bound: bool,
     bar: bool,
     progress: Option<Bound<'_, PyAny>>,
 ) -> PyResult<(PathBuf, String)> {
@@ -169,7 +170,7 @@ pub(crate) fn fit(
         a.model.enhanced = enhanced;
         a.model.angle_frequencies = angle_frequencies.unwrap_or(a.model.angle_frequencies);
         a.model.direction_layers = direction_layers;
-        (a.data, a.toy, a.diligent, a.resume) = (data, toy, diligent, resume);
+        (a.data, a.toy, a.diligent, a.resume, a.energy_bound) = (data, toy, diligent, resume, energy_bound);
         a.object = object.unwrap_or(a.object);
         a.out = out.unwrap_or(a.out);
         a.steps = steps.unwrap_or(a.steps);

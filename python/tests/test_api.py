@@ -218,6 +218,17 @@ def test_synth_fit_and_compare(tmp_path):
     curve = result.curve
     assert curve["step"][-1] == 30 and len({len(v) for v in curve.values()}) == 1
     assert np.isfinite(curve["train_loss"][1:]).all() and np.isnan(curve["test_psnr"]).all()
+    # Energy-bounded: the albedo table travels with the model, and the values are the unbounded
+    # network's divided where it passes 1, the same for both orders of a pair.
+    bounded = nbrdf.fit("single-mlp", toy=500, position="uniform", steps=5, batch=256, out=tmp_path / "bounded",
+                        energy_bound=True, progress=False).load()
+    table = bounded.albedo_bound
+    assert table.shape == (32, 3) and table.dtype == np.float32 and (table > 0).all()
+    assert result.load().albedo_bound is None
+    rng = np.random.default_rng(3)
+    wi, wo = (v / np.linalg.norm(v, axis=-1, keepdims=True) for v in (rng.normal(size=(64, 3)) for _ in range(2)))
+    wi[:, 2], wo[:, 2] = np.abs(wi[:, 2]), np.abs(wo[:, 2])
+    np.testing.assert_array_equal(bounded.eval(wi, wo), bounded.eval(wo, wi))
     with pytest.raises(ValueError, match="unknown model"):
         nbrdf.fit("plastic", toy=10, out=tmp_path / "x", progress=False)
     with pytest.raises(ValueError, match="--data DIR, --diligent PATH or --toy N"):

@@ -30,6 +30,9 @@ enum Command {
     Inspect(trainer::dataset::DataArgs),
     /// Fit one model variant and write the model, checkpoint and training log
     Fit(commands::fit::FitArgs),
+    /// Make a fitted model energy-bounded without refitting it: its albedo at most 1 at every view,
+    /// exact reciprocity kept (docs/models.md, "Energy bound"); --remove undoes it
+    Bound(commands::bound::BoundArgs),
     /// Score a linear EXR rendering against a reference with the study's image metrics (PSNR, DSSIM,
     /// LPIPS, HDR-FLIP), optionally over an object mask
     Compare(commands::compare::CompareArgs),
@@ -162,6 +165,22 @@ fn run(cli: Cli) -> trainer::Result<()> {
                 log.samples_per_s,
                 outputs.model.parent().unwrap_or(&outputs.model).display()
             );
+        }
+        Command::Bound(args) => {
+            let b = commands::bound::run(&args)?;
+            match b.max_albedo {
+                Some(max) if max > 1.0 => println!(
+                    "{}: bounded over {} surface point(s); the albedo bound reaches {max:.3}, so values are divided where it passes 1",
+                    args.out.display(),
+                    b.points
+                ),
+                Some(max) => println!(
+                    "{}: bounded over {} surface point(s); the albedo bound stays at {max:.3} ≤ 1, so no value changes",
+                    args.out.display(),
+                    b.points
+                ),
+                None => println!("{}: the bound removed; the model's own values again", args.out.display()),
+            }
         }
         Command::Compare(args) => commands::compare::run(&args)?,
         #[cfg(feature = "shader")]

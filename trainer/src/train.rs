@@ -45,6 +45,10 @@ pub struct TrainOptions {
     pub checkpoint_every: usize,
     /// Record the loss every this many steps.
     pub log_every: usize,
+    /// Export the model energy-bounded: with an albedo bound fitted over points of the training data
+    /// (docs/models.md, "Energy bound"), so that its albedo is at most 1 at every view.
+    #[serde(default)]
+    pub energy_bound: bool,
 }
 
 impl Default for TrainOptions {
@@ -63,6 +67,7 @@ impl Default for TrainOptions {
             max_radiance: 1e4,
             checkpoint_every: 1000,
             log_every: 50,
+            energy_bound: false,
         }
     }
 }

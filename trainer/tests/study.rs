@@ -31,6 +31,8 @@ fn tiny() -> StudyConfig {
         reciprocity_pairs: 100,
         energy_pairs: 4,
         energy_samples: 100,
+        // Bounding costs half a million evaluations per point: only the test of the bound pays it.
+        energy_bound: false,
         ..StudyConfig::default_small()
     }
 }
@@ -39,7 +41,7 @@ fn tiny() -> StudyConfig {
 fn tiny_study_writes_every_table_and_reuses_jobs() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("study");
-    let config = tiny();
+    let config = StudyConfig { energy_bound: true, ..tiny() };
     let results = study::run_and_report(&config, &out, None, false).unwrap();
     let names: Vec<&str> = results.iter().map(|r| r.model.as_str()).collect();
     assert_eq!(names, ["rp", "single-mlp+exact", "single-mlp+exact+nol3", "single-mlp"]);
@@ -84,9 +86,23 @@ fn tiny_study_writes_every_table_and_reuses_jobs() {
             (None, None) => assert_eq!(r.model, "rp"),
             other => panic!("{}: f16 evaluation and size must come together, got {other:?}", r.model),
         }
+        // Every fit is also scored energy-bounded: no pair above 1, reciprocity as it was (the divisor
+        // is symmetric), and where the table stays under 1 the very same values.
+        let b = r.eval_bounded.as_ref().expect("the default config scores the bounded copy");
+        let max = r.albedo_bound_max.unwrap();
+        assert!(max > 0.0 && max.is_finite(), "{}: largest Â {max}", r.model);
+        assert_eq!(b.energy.share_above_one, 0.0, "{}: bounded {:?}", r.model, b.energy);
+        assert_eq!(b.reciprocity_rmse == 0.0, e.reciprocity_rmse == 0.0, "{}", r.model);
+        if max <= 1.0 {
+            assert_eq!(b.image.psnr, e.image.psnr, "{}: a bound under 1 changes nothing", r.model);
+        }
+        let bounded_file = std::fs::read_dir(out.join("jobs")).unwrap().flatten().any(|scene| {
+            scene.path().join(r.model.replace('+', "_")).join(format!("{}.bounded.nbrdf", r.model.replace('+', "_"))).exists()
+        });
+        assert!(bounded_file, "{}: the bounded model is kept beside the fit", r.model);
     }
     let report = std::fs::read_to_string(out.join("REPORT.md")).unwrap();
-    for heading in ["## Tab. 1", "## Learning curves", "Exposure of the renders", "## Tab. 2", "## Tab. 3", "## Tab. 4", "## Accuracy versus cost", "## Renderings", "Reduced scale"] {
+    for heading in ["## Tab. 1", "## Learning curves", "Exposure of the renders", "## Tab. 2", "## Tab. 3", "## Tab. 4", "## Energy bound", "## Accuracy versus cost", "## Renderings", "Reduced scale"] {
         assert!(report.contains(heading), "missing {heading}:\n{report}");
     }
     let section = |h: &str| {
@@ -157,13 +173,7 @@ fn tiny_study_writes_every_table_and_reuses_jobs() {
     assert_eq!(json["jobs"].as_array().unwrap().len(), 4);
 
     // A rerun finds both results and fits nothing: the model files stay untouched.
-    let model_file = |name: &str| {
-        std::fs::read_dir(study::job_dir(&out, &config.scenes[0], name))
-            .unwrap()
-            .map(|e| e.unwrap().path())
-            .find(|p| p.extension().is_some_and(|x| x == "nbrdf"))
-            .unwrap()
-    };
+    let model_file = |name: &str| study::job_dir(&out, &config.scenes[0], name).join(format!("{}.nbrdf", name.replace('+', "_")));
     let before = std::fs::metadata(model_file(&results[1].model)).unwrap().modified().unwrap();
     let again = study::run_and_report(&config, &out, None, false).unwrap();
     // Read back from result.json (serde_json's float parsing may differ in the last bit).
@@ -185,6 +195,7 @@ fn tiny_study_writes_every_table_and_reuses_jobs() {
     assert!(s0.iter().all(|a| s1.iter().all(|b| a.model != b.model)));
 
     // Shards run into separate folders and merged give the same jobs as one run.
+    let config = tiny();
     let (a, b) = (dir.path().join("a"), dir.path().join("b"));
     study::run_and_report(&config, &a, Some("0/2".parse().unwrap()), false).unwrap();
     study::run_and_report(&config, &b, Some("1/2".parse().unwrap()), false).unwrap();

@@ -25,19 +25,8 @@ pub struct TestModel {
 }
 
 /// `h` with every network `width` wide (the inputs of the heads that read a trunk follow).
-pub fn narrow(mut h: ModelHeader, width: u16) -> ModelHeader {
-    let a = h.angle_input_len() as u16;
-    for n in h.nets.iter_mut().take(h.n_nets as usize) {
-        n.width = width;
-    }
-    match (h.kind, h.n_nets) {
-        (ModelKind::SingleMlp, 2) => h.nets[1].n_in = width + a,
-        (ModelKind::AdditiveShared, 3) => {
-            h.nets[1].n_in = width;
-            h.nets[2].n_in = width + a;
-        }
-        _ => {}
-    }
+pub fn narrow(h: ModelHeader, width: u16) -> ModelHeader {
+    let h = h.with_width(width);
     h.validate().expect("narrowed header");
     h
 }

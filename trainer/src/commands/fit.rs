@@ -91,6 +91,10 @@ pub struct FitArgs {
     /// Continue from the checkpoint in --out
     #[arg(long)]
     pub resume: bool,
+    /// Write the model energy-bounded: its albedo is at most 1 at every view (docs/models.md, "Energy
+    /// bound"); reciprocal models stay exactly reciprocal
+    #[arg(long)]
+    pub energy_bound: bool,
 }
 
 impl FitArgs {
@@ -194,6 +198,7 @@ fn run_checked(args: &FitArgs, progress: bool) -> Result<(Outputs, train::TrainL
         lambda_diffuse: args.lambda_diffuse,
         lambda_specular: args.lambda_specular,
         checkpoint_every: args.checkpoint_every,
+        energy_bound: args.energy_bound,
         ..TrainOptions::default()
     };
     let log = run(config, obs, &opts, &args.out, resume, progress, table.as_ref(), None)?;
@@ -332,6 +337,10 @@ pub fn run(
     if let Some(t) = position_table {
         bytes = nbrdf::file::record_mesh(&bytes, t.mesh_hash)?;
     }
+    if opts.energy_bound {
+        let points = crate::models::export::bound_points(&obs.position, obs.n_position);
+        bytes = crate::models::export::with_energy_bound(&bytes, &points)?;
+    }
     let log_json = serde_json::to_vec_pretty(&log).map_err(|e| Error::io(&outputs.log, e))?;
     let files = vec![
         StagedFile::new(&outputs.model, &bytes)?,
@@ -378,5 +387,24 @@ mod tests {
         let resumed = run(config, obs, &more, &dir, from, false, None, None).unwrap();
         assert_eq!((resumed.steps_done, resumed.loss.len()), (6, 3));
         std::fs::remove_dir_all(&dir).ok();
+    }
+
+    /// `--energy-bound` writes the model with its albedo table (a version-2 file): the same networks,
+    /// whose values are the unbounded ones divided where the table passes 1.
+    #[test]
+    fn energy_bound_fits_write_a_bounded_model() {
+        let dir = tempfile::tempdir().unwrap();
+        let config = Config::paper(Kind::AdditiveShared, true, Reciprocity::Exact, PositionEncoding::Uniform);
+        let obs = crate::toy::observations(200, PositionEncoding::Uniform, 2);
+        let opts = TrainOptions { steps: 2, batch: 64, energy_bound: true, ..Default::default() };
+        run(config, obs, &opts, dir.path(), None, false, None, None).unwrap();
+        let bytes = std::fs::read(Outputs::in_dir(dir.path(), &config).model).unwrap();
+        assert_eq!(u32::from_le_bytes(bytes[8..12].try_into().unwrap()), 2);
+        let model = nbrdf::ModelBuf::from_bytes(&bytes).unwrap();
+        let m = model.model();
+        let bound = *m.albedo_bound().expect("the bound is in the header");
+        let p = m.prepare(&[]).unwrap();
+        let (wi, wo) = (nbrdf::Vec3::new(0.3, 0.2, 0.9).normalize(), nbrdf::Vec3::new(-0.6, 0.1, 0.3).normalize());
+        assert_eq!(m.eval(&p, wi, wo), bound.apply(m.unbounded().eval(&p, wi, wo), wi.z, wo.z));
     }
 }

@@ -1,6 +1,7 @@
 //! The bodies of the trainer's subcommands; `main.rs` only parses arguments and dispatches here.
 
 pub mod bench_host;
+pub mod bound;
 pub mod bench_step;
 pub mod compare;
 pub mod data;

@@ -48,6 +48,36 @@ pub fn encode(model: &Model, position_table: Option<&[f32]>) -> Result<Vec<u8>> 
     Ok(nbrdf::file::encode(&header.with_proxy(proxy).with_view_proxy(view), &weights, position_table)?)
 }
 
+/// Most surface points an energy bound is fitted over (each costs half a million evaluations).
+pub const BOUND_POINTS: usize = 64;
+
+/// Up to [`BOUND_POINTS`] position inputs spread evenly over the rows of `positions` (`n` values per
+/// row: the training pixels' points); the one empty point of a uniform model (`n = 0`).
+pub fn bound_points(positions: &[f32], n: usize) -> Vec<Vec<f32>> {
+    if n == 0 {
+        return vec![Vec::new()];
+    }
+    let rows = positions.len() / n;
+    let take = rows.min(BOUND_POINTS);
+    (0..take).map(|i| positions[(i * rows / take) * n..][..n].to_vec()).collect()
+}
+
+/// The model file `bytes` energy-bounded: [`nbrdf::file::set_albedo_bound`] with the envelope of the
+/// unbounded model's albedo curves at `points` (position inputs, curves computed in parallel;
+/// `docs/models.md`, "Energy bound"). A model already bounded is bounded again from its own values.
+pub fn with_energy_bound(bytes: &[u8], points: &[Vec<f32>]) -> Result<Vec<u8>> {
+    use rayon::prelude::*;
+    if points.is_empty() {
+        return Err(Error::Invalid("the energy bound needs at least one surface point".into()));
+    }
+    let buf = nbrdf::ModelBuf::from_bytes(bytes)?;
+    let core = buf.model();
+    let prepared = points.iter().map(|p| core.prepare(p)).collect::<core::result::Result<Vec<_>, _>>()?;
+    let curves: Vec<nbrdf::energy::AlbedoCurve> = prepared.par_iter().map(|p| core.albedo_curve(p)).collect();
+    let bound = nbrdf::energy::AlbedoBound::envelope(curves);
+    Ok(nbrdf::file::set_albedo_bound(bytes, Some(bound))?)
+}
+
 /// Writes `model` to `path` atomically.
 pub fn save(model: &Model, path: &Path, position_table: Option<&[f32]>) -> Result<()> {
     let bytes = encode(model, position_table)?;

@@ -161,6 +161,11 @@ pub struct StudyConfig {
     /// Point-light pairs and view samples per pair of the energy analysis (Tab. 4; paper 50k × 20k).
     pub energy_pairs: usize,
     pub energy_samples: usize,
+    /// Also score every fit energy-bounded (`trainer fit --energy-bound`, docs/models.md "Energy
+    /// bound"): the same networks with their albedo bound, evaluated beside the unbounded ones. Not part
+    /// of the job hash: a finished job gets its bounded scores without refitting.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub energy_bound: bool,
 }
 
 impl StudyConfig {
@@ -203,6 +208,7 @@ impl StudyConfig {
             // at about 0.02, so a violation of a few percent shows; 256 pairs resolve shares of 0.4 %.
             energy_pairs: 256,
             energy_samples: 20_000,
+            energy_bound: true,
         }
     }
 

@@ -63,6 +63,12 @@ pub struct JobResult {
     /// model can read against the capture (`None` without a ground truth, or written before).
     #[serde(default)]
     pub ceiling: Option<crate::metrics::ImageMetrics>,
+    /// The same fit energy-bounded (`StudyConfig::energy_bound`): its evaluation, and the largest
+    /// value of its albedo table (at most 1: the bound changed no value).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub eval_bounded: Option<Evaluation>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub albedo_bound_max: Option<f32>,
 }
 
 /// Which jobs this process runs: job `j` (in scene-major order) belongs to shard `j % count`.
@@ -212,11 +218,25 @@ pub fn run(config: &StudyConfig, out: &Path, shard: Option<Shard>, progress: boo
             let jdir = job_dir(out, scene, &name);
             let hash = config.job_hash(scene, spec);
             let result_path = jdir.join("result.json");
-            if let Some(r) = read_result(&result_path).filter(|r| r.hash == hash) {
+            if let Some(mut r) = read_result(&result_path).filter(|r| r.hash == hash) {
                 // A result is reused only with the model files it scored, whole: a file cut short or
                 // damaged since means the job runs again.
                 match finished_models_load(&jdir, &model_config, spec) {
                     Ok(()) => {
+                        if config.energy_bound && r.eval_bounded.is_none() {
+                            // The bounded scores of a job finished without them: the same fit, bounded.
+                            if training.is_none() {
+                                bar.doing(format!("{}: loading the training pixels", scene.id()));
+                                training = Some(data::load(&args, model_config.position, &out.join("cache"))?);
+                            }
+                            bar.doing(format!("{} / {name}: bounding and evaluating", scene.id()));
+                            let model_path = fit::Outputs::in_dir(&jdir, &model_config).model;
+                            let obs = &training.as_ref().expect("just loaded").obs;
+                            let (e, max) = evaluate_bounded(&ds, &model_path, obs, &lpips, config)?;
+                            (r.eval_bounded, r.albedo_bound_max) = (Some(e), Some(max));
+                            let json = serde_json::to_vec_pretty(&r).map_err(|e| Error::io(&result_path, e))?;
+                            crate::train::write_atomic(&result_path, &json)?;
+                        }
                         bar.say(format!("{} / {name}: cached", scene.id()));
                         results.push(r);
                         bar.done();
@@ -252,6 +272,13 @@ pub fn run(config: &StudyConfig, out: &Path, shard: Option<Shard>, progress: boo
                 let f16 = evaluate::evaluate(&ds, &path16, &lpips, config)?;
                 (Some(f16), Some(bytes.len() as u64))
             };
+            let (eval_bounded, albedo_bound_max) = if config.energy_bound {
+                bar.doing(format!("{} / {name}: bounding and evaluating", scene.id()));
+                let (e, max) = evaluate_bounded(&ds, &model_path, &t.obs, &lpips, config)?;
+                (Some(e), Some(max))
+            } else {
+                (None, None)
+            };
             let r = JobResult {
                 scene: scene.id(),
                 model: name.clone(),
@@ -270,6 +297,8 @@ pub fn run(config: &StudyConfig, out: &Path, shard: Option<Shard>, progress: boo
                     Some(c) => c.clone(),
                     None => ceiling.insert(evaluate::ceiling(&ds, &lpips)?).clone(),
                 },
+                eval_bounded,
+                albedo_bound_max,
             };
             let json = serde_json::to_vec_pretty(&r).map_err(|e| Error::io(&result_path, e))?;
             crate::train::write_atomic(&result_path, &json)?;
@@ -286,6 +315,25 @@ pub fn run(config: &StudyConfig, out: &Path, shard: Option<Shard>, progress: boo
     }
     bar.finish();
     Ok(results)
+}
+
+/// Writes the energy-bounded copy of the fitted model at `model_path` (`<name>.bounded.nbrdf`, bounded
+/// over the training pixels' points as `trainer fit --energy-bound` bounds it) and evaluates it; returns
+/// the evaluation and the largest value of its albedo table.
+fn evaluate_bounded(
+    ds: &Dataset,
+    model_path: &Path,
+    obs: &crate::observations::Observations,
+    lpips: &std::result::Result<Lpips, String>,
+    config: &StudyConfig,
+) -> Result<(evaluate::Evaluation, f32)> {
+    let bytes = nbrdf::io::read(model_path)?;
+    let points = crate::models::export::bound_points(&obs.position, obs.n_position);
+    let bounded = crate::models::export::with_energy_bound(&bytes, &points)?;
+    let max = nbrdf::ModelBuf::from_bytes(&bounded)?.model().albedo_bound().map_or(0.0, |b| b.max());
+    let path = model_path.with_extension("bounded.nbrdf");
+    crate::train::write_atomic(&path, &bounded)?;
+    Ok((evaluate::evaluate(ds, &path, lpips, config)?, max))
 }
 
 /// For each scene, the reference next to the rendering of the best parametric and the best purely

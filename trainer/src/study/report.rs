@@ -46,6 +46,21 @@ pub struct ModelSummary {
     pub size_bytes: u64,
     /// The f16-weight copies (purely neural models; `None` when some object has none).
     pub f16: Option<F16Summary>,
+    /// The energy-bounded copies (`None` unless every object has one).
+    pub bounded: Option<BoundedSummary>,
+}
+
+/// Means over the objects of the energy-bounded copies of a model (`StudyConfig::energy_bound`).
+#[derive(Clone, Debug, Serialize)]
+pub struct BoundedSummary {
+    pub psnr: f64,
+    pub brdf_rmse_cbrt: f64,
+    pub energy_share_above_one: f64,
+    /// Mean over objects of the median violating albedo; `None` when no object violates.
+    pub energy_median_above_one: Option<f64>,
+    pub energy_mean_albedo: f64,
+    /// Largest value of the albedo tables over the objects (at most 1: no value was changed).
+    pub albedo_bound_max: f64,
 }
 
 /// Means over the objects of the f16-weight copies of a model.
@@ -100,6 +115,7 @@ pub fn summarize(results: &[JobResult]) -> Vec<ModelSummary> {
                 n_weights: rs[0].n_weights,
                 size_bytes: rs[0].size_bytes,
                 f16: f16_summary(rs.iter().map(|r| r.eval_f16.as_ref().zip(r.size_bytes_f16))),
+                bounded: bounded_summary(rs.iter().map(|r| r.eval_bounded.as_ref().zip(r.albedo_bound_max))),
             }
         })
         .collect()
@@ -115,6 +131,21 @@ fn f16_summary<'a>(v: impl Iterator<Item = Option<(&'a Evaluation, u64)>>) -> Op
         prepare_ns_per_point: mean_all(v.iter().map(|(e, _)| e.prepare_ns_per_point)),
         prepare_many_ns_per_point: mean_all(v.iter().map(|(e, _)| e.prepare_many_ns_per_point)),
         size_bytes: v[0].1,
+    })
+}
+
+/// Means over the objects of energy-bounded evaluations, `None` unless every object has one.
+fn bounded_summary<'a>(v: impl Iterator<Item = Option<(&'a Evaluation, f32)>>) -> Option<BoundedSummary> {
+    v.collect::<Option<Vec<_>>>().filter(|v| !v.is_empty()).map(|v| {
+        let medians: Vec<f64> = v.iter().filter_map(|(e, _)| e.energy.median_above_one).collect();
+        BoundedSummary {
+            psnr: mean(v.iter().map(|(e, _)| e.image.psnr)),
+            brdf_rmse_cbrt: mean(v.iter().map(|(e, _)| e.brdf_rmse_cbrt.value)),
+            energy_share_above_one: mean(v.iter().map(|(e, _)| e.energy.share_above_one)),
+            energy_median_above_one: (!medians.is_empty()).then(|| mean(medians.into_iter())),
+            energy_mean_albedo: mean(v.iter().map(|(e, _)| e.energy.mean_albedo)),
+            albedo_bound_max: v.iter().map(|(_, m)| *m as f64).fold(0.0, f64::max),
+        }
     })
 }
 
@@ -625,6 +656,44 @@ pub fn markdown(
         );
     }
 
+    if s.iter().any(|m| m.bounded.is_some()) {
+        let _ = writeln!(md, "\n## Energy bound — what conservation by construction costs\n");
+        let _ = writeln!(
+            md,
+            "Every variant, fitted once and scored twice: as fitted, and energy-bounded as `trainer fit --energy-bound` \
+             writes it (`f / max(1, Â(θi), Â(θo))` per channel, `Â` an upper bound of the albedo over the view angle \
+             fitted over {} training points; docs/models.md, \"Energy bound\"). Largest Â: the table's largest value over \
+             the objects; at most 1 means the bound changed no value and both rows are the same model. Tab. 4's columns \
+             for both, at the same detection threshold as above; reciprocity is unchanged (the divisor is symmetric).\n",
+            crate::models::export::BOUND_POINTS
+        );
+        let _ = writeln!(
+            md,
+            "| model | largest Â | PSNR | bounded | RMSE ∛ ×100 | bounded | % > 1 | bounded | μ.5 > 1 | bounded | mean albedo | bounded |"
+        );
+        let _ = writeln!(md, "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+        let median = |v: Option<f64>| v.map_or("all valid".into(), |v| format!("{v:.3}"));
+        for m in &s {
+            let Some(b) = &m.bounded else { continue };
+            let _ = writeln!(
+                md,
+                "| {} | {:.3} | {:.2} | {:.2} | {:.2} | {:.2} | {:.1} | {:.1} | {} | {} | {:.3} | {:.3} |",
+                m.model,
+                b.albedo_bound_max,
+                m.psnr,
+                b.psnr,
+                m.brdf_rmse_cbrt * 100.0,
+                b.brdf_rmse_cbrt * 100.0,
+                m.energy_share_above_one * 100.0,
+                b.energy_share_above_one * 100.0,
+                median(m.energy_median_above_one),
+                median(b.energy_median_above_one),
+                m.energy_mean_albedo,
+                b.energy_mean_albedo
+            );
+        }
+    }
+
     let _ = writeln!(md, "\n## Accuracy versus cost\n");
     let _ = writeln!(
         md,
@@ -723,15 +792,17 @@ pub fn csv(results: &[JobResult]) -> String {
         "scene,model,psnr,dssim,lpips,flip,brdf_rmse_cbrt,brdf_samples,reciprocity_rmse,energy_share_above_one,\
          energy_median_above_one,energy_mean_albedo,train_wall_s,eval_ns_per_query,n_weights,size_bytes,steps,final_loss,\
          psnr_f16,brdf_rmse_cbrt_f16,eval_ns_per_query_f16,size_bytes_f16,eval_batch_ns_per_query,\
-         eval_batch_ns_per_query_f16,prepare_ns_per_point,prepare_many_ns_per_point\n",
+         eval_batch_ns_per_query_f16,prepare_ns_per_point,prepare_many_ns_per_point,psnr_bounded,brdf_rmse_cbrt_bounded,\
+         energy_share_above_one_bounded,albedo_bound_max\n",
     );
     let o = |v: Option<f64>| v.map_or(String::new(), |x| x.to_string());
     for r in results {
         let e = &r.eval;
         let f16 = r.eval_f16.as_ref();
+        let bounded = r.eval_bounded.as_ref();
         let _ = writeln!(
             out,
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             r.scene,
             r.model,
             e.image.psnr,
@@ -758,6 +829,10 @@ pub fn csv(results: &[JobResult]) -> String {
             o(f16.and_then(|e| e.eval_batch_ns_per_query)),
             o(e.prepare_ns_per_point),
             o(e.prepare_many_ns_per_point),
+            o(bounded.map(|e| e.image.psnr)),
+            o(bounded.map(|e| e.brdf_rmse_cbrt.value)),
+            o(bounded.map(|e| e.energy.share_above_one)),
+            o(r.albedo_bound_max.map(f64::from)),
         );
     }
     out
