@@ -32,7 +32,8 @@ struct Args {
     /// or a file whose extension says which.
     #[arg(long, default_value = "lambert:0.8,0.8,0.8")]
     brdf: String,
-    /// `native` (own lobes or fitted proxy) or `cosine`.
+    /// `native` (own lobes or fitted per-view table), `cosine`, or `proxy` (a fitted BRDF's single
+    /// all-view proxy, the sampler the per-view table replaced).
     #[arg(long, default_value = "native")]
     sampling: String,
     /// Camera position.
@@ -131,7 +132,8 @@ fn run(args: Args) -> Result<(), String> {
     let sampling = match args.sampling.as_str() {
         "native" => Sampling::Native,
         "cosine" => Sampling::Cosine,
-        s => return Err(format!("--sampling `{s}`: expected native or cosine")),
+        "proxy" => Sampling::Proxy,
+        s => return Err(format!("--sampling `{s}`: expected native, cosine or proxy")),
     };
     // Every size, number and output is checked before any work.
     if args.spp == 0 || args.spp > MAX_SPP {

@@ -4,10 +4,12 @@
 //! | BRDF | sampled with |
 //! |---|---|
 //! | parametric model, built-in material | its own lobes ([`nbrdf::sampling`]) |
-//! | `.nbrdf` model | a parametric model's own lobes at the point; a neural model's stored proxy |
-//! | MERL table, NBRDF-json network | the proxy fitted to it at load ([`nbrdf::sampling::fit_proxy`]) |
+//! | `.nbrdf` model | a parametric model's own lobes at the point; a neural model's stored per-view table (or proxy) |
+//! | MERL table, NBRDF-json network | the per-view table fitted to it at load ([`nbrdf::sampling::fit_view_proxy`]) |
 //!
-//! [`Sampling::Cosine`] replaces all of that by cosine sampling, the baseline the tests compare with.
+//! [`Sampling::Cosine`] replaces all of that by cosine sampling, the baseline the tests compare with;
+//! [`Sampling::Proxy`] samples a fitted BRDF through its single all-view proxy instead of its per-view
+//! table, the sampler it replaced.
 
 use std::string::String;
 use std::sync::Arc;
@@ -31,6 +33,9 @@ pub enum Sampling {
     Native,
     /// Cosine-weighted hemisphere sampling for every BRDF (the baseline).
     Cosine,
+    /// The single all-view proxy of a neural model, MERL table or NBRDF-json network, as files and
+    /// loaders did before the per-view table (for comparing the two); other BRDFs sample natively.
+    Proxy,
 }
 
 /// A BRDF of `nbrdf` ([`AnyBrdf`], shared) with its sampler.
@@ -140,6 +145,13 @@ impl Material {
                 let what = what.split(", sampled").next().unwrap_or(&what);
                 std::format!("{what}, sampled by cosine (forced)")
             }
+            Sampling::Proxy => match self.brdf.proxy() {
+                Some(_) => {
+                    let what = what.split(", sampled").next().unwrap_or(&what);
+                    std::format!("{what}, sampled by its single all-view proxy (forced)")
+                }
+                None => what,
+            },
         }
     }
 
@@ -147,10 +159,14 @@ impl Material {
     /// (for an extrinsic encoding the mesh should lie in the unit sphere, as in training).
     #[inline]
     pub fn point(&self, mesh: &Mesh, tri: u32, b1: f32, b2: f32, x: Vec3) -> Shading<'_> {
-        let cosine = self.sampling == Sampling::Cosine;
+        let instead = match self.sampling {
+            Sampling::Native => None,
+            Sampling::Cosine => Some(Proxy::COSINE),
+            Sampling::Proxy => self.brdf.proxy(),
+        };
         // A BRDF that is the same everywhere, or a model prepared once at load.
         if let Some(at) = self.brdf.at_prepared(None) {
-            return Shading { at: Some(at), cosine };
+            return Shading { at: Some(at), instead };
         }
         let prepared: Result<Prepared, Error> = match self.brdf.as_model().map(|m| m.header().position) {
             Some(PositionEncoding::Extrinsic { .. }) => self.brdf.prepare(&[x.x, x.y, x.z]),
@@ -160,10 +176,10 @@ impl Material {
                 let bary = [1.0 - b1 - b2, b1, b2];
                 self.brdf.position_features(mesh.triangles[tri as usize], bary, feat).and_then(|()| self.brdf.prepare(feat))
             }
-            _ => return Shading { at: None, cosine },
+            _ => return Shading { at: None, instead },
         };
         // A mesh that does not match the model's table shades black.
-        Shading { at: prepared.ok().and_then(|p| self.brdf.at_prepared(Some(&p))), cosine }
+        Shading { at: prepared.ok().and_then(|p| self.brdf.at_prepared(Some(&p))), instead }
     }
 }
 
@@ -172,8 +188,8 @@ impl Material {
 pub struct Shading<'a> {
     /// None where a mesh does not match the model's per-vertex table: it shades black.
     at: Option<any::At<'a>>,
-    /// Sample the cosine lobe instead of the BRDF's own sampler.
-    cosine: bool,
+    /// A mixture to sample instead of the BRDF's own sampler (the cosine lobe, or its single proxy).
+    instead: Option<Proxy>,
 }
 
 impl Brdf for Shading<'_> {
@@ -184,16 +200,16 @@ impl Brdf for Shading<'_> {
 
     #[inline]
     fn sample(&self, wo: Vec3, u: [f32; 3]) -> Option<BsdfSample> {
-        if self.cosine {
-            return Proxy::COSINE.sample(wo, u, |wi, wo| self.eval(wi, wo));
+        if let Some(proxy) = &self.instead {
+            return proxy.sample(wo, u, |wi, wo| self.eval(wi, wo));
         }
         self.at.and_then(|b| b.sample(wo, u))
     }
 
     #[inline]
     fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
-        if self.cosine {
-            return Proxy::COSINE.pdf(wi, wo);
+        if let Some(proxy) = &self.instead {
+            return proxy.pdf(wi, wo);
         }
         self.at.map_or(0.0, |b| b.pdf(wi, wo))
     }
