@@ -10,18 +10,8 @@ use nbrdf::parametric::ParametricKind;
 use nbrdf::{Brdf, Error, ModelBuf, Prepared, Vec3};
 
 mod common;
-use common::albedo;
+use common::{albedo, r3, weights};
 
-/// Deterministic weights in [-scale, scale].
-fn weights(n: usize, seed: u64, scale: f32) -> Vec<f32> {
-    let mut s = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-    (0..n)
-        .map(|_| {
-            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            ((s >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0) * scale
-        })
-        .collect()
-}
 
 /// The unbounded model file and the same file bounded over `points` (position inputs).
 fn bounded_pair(h: &ModelHeader, seed: u64, scale: f32, points: &[Vec<f32>]) -> (ModelBuf, ModelBuf, Vec<Prepared>) {
@@ -63,9 +53,7 @@ fn cases() -> Vec<(&'static str, ModelHeader, f32)> {
 fn sampled_albedo(sample: &dyn Fn([f32; 3]) -> Option<nbrdf::BsdfSample>, n: usize, seed: u64) -> ([f64; 3], [f64; 3]) {
     let (mut sum, mut sq) = ([0.0f64; 3], [0.0f64; 3]);
     for i in 0..n {
-        // The R3 low-discrepancy sequence (Roberts 2018), shifted per seed.
-        let r = |a: f64| ((i as f64 + 0.5 + seed as f64 * 0.618_034) * a).fract() as f32;
-        let Some(s) = sample([r(0.819_172_513_396_164_4), r(0.671_043_606_703_789_2), r(0.549_700_477_901_970_4)]) else { continue };
+        let Some(s) = sample(r3(i, seed as f64 * 0.618_034)) else { continue };
         for c in 0..3 {
             sum[c] += s.weight[c] as f64;
             sq[c] += (s.weight[c] as f64).powi(2);
@@ -167,9 +155,7 @@ fn bounded_models_sample_their_bounded_values() {
             let n: usize = 20_000;
             let mut mean = [0.0f64; 3];
             for i in 0..n {
-                // The R3 low-discrepancy sequence (Roberts 2018).
-                let r = |a: f64| ((i as f64 + 0.5) * a).fract() as f32;
-                let u = [r(0.819_172_513_396_164_4), r(0.671_043_606_703_789_2), r(0.549_700_477_901_970_4)];
+                let u = r3(i, 0.0);
                 let Some(s) = brdf.sample(wo, u) else { continue };
                 let r = unbounded.sample(wo, u).unwrap();
                 assert_eq!((s.wi, s.pdf), (r.wi, r.pdf), "{name}: the same draw");

@@ -8,16 +8,8 @@ use nbrdf::{Model, ModelBuf, Weights};
 use nbrdf::parametric::ParametricKind;
 use nbrdf::{Error, Vec3};
 
-/// Deterministic weights in [-scale, scale].
-fn weights(n: usize, seed: u64, scale: f32) -> Vec<f32> {
-    let mut s = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-    (0..n)
-        .map(|_| {
-            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            ((s >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0) * scale
-        })
-        .collect()
-}
+mod common;
+use common::weights;
 
 fn dir(x: f32, y: f32, z: f32) -> Vec3 {
     Vec3::new(x, y, z).normalize()

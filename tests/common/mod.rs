@@ -11,6 +11,24 @@ use nbrdf::sampling::BsdfSample;
 use nbrdf::{Rgb, Vec3};
 use std::f64::consts::PI;
 
+/// Point `i` of the R3 low-discrepancy sequence in the unit cube (Roberts 2018), shifted by `shift`:
+/// three uniforms for `Brdf::sample`.
+pub fn r3(i: usize, shift: f64) -> [f32; 3] {
+    let r = |a: f64| ((i as f64 + 0.5 + shift) * a).fract() as f32;
+    [r(0.819_172_513_396_164_4), r(0.671_043_606_703_789_2), r(0.549_700_477_901_970_4)]
+}
+
+/// Deterministic weights in [-scale, scale] (an LCG), for model files of any header.
+pub fn weights(n: usize, seed: u64, scale: f32) -> Vec<f32> {
+    let mut s = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+    (0..n)
+        .map(|_| {
+            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            ((s >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0) * scale
+        })
+        .collect()
+}
+
 /// Bins in cos θ (equal solid angle).
 pub const N_THETA: usize = 16;
 pub const N_PHI: usize = 32;
