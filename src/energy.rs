@@ -50,8 +50,8 @@ const GRAZING: f32 = 1.0 / 1024.0;
 
 /// Half-vector rows of the quadrature over `θh` (spaced as `t²`, dense near the normal where
 /// specular peaks are) and columns over `φh`.
-const ROWS: usize = 64;
-const COLUMNS: usize = 128;
+const ROWS: usize = 48;
+const COLUMNS: usize = 96;
 
 /// The conservative albedo table of a bounded model (module docs): per cell of `cos θ`, per channel.
 #[derive(Clone, Copy, Debug, Serialize, Deserialize)]
@@ -161,7 +161,7 @@ impl AlbedoCurve {
 /// the error estimate of [`AlbedoCurve::error`]. `eval(wi, wo, out)` evaluates a batch of pairs.
 ///
 /// The integral runs over the half vector `h` (`wi = 2 (wo·h) h − wo`, `dwi = 4 (wo·h) dh`; Walter et
-/// al. 2007, Eq. 14) on a product midpoint rule in `t = sqrt(2 θh / π)` and `φh`: the rows crowd toward
+/// al. 2007, Eq. 14) on a product midpoint rule in `t = (2 θh / π)^(1/3)` and `φh`: the rows crowd toward
 /// the normal, where an isotropic BRDF's specular peak lies at every view, and `wi` below the horizon
 /// contributes 0.
 pub fn albedo_at(cos_o: f32, mut eval: impl FnMut(&[Vec3], &[Vec3], &mut [Rgb])) -> (Rgb, Rgb) {
@@ -174,10 +174,10 @@ pub fn albedo_at(cos_o: f32, mut eval: impl FnMut(&[Vec3], &[Vec3], &mut [Rgb]))
     let mut out = [[0.0f32; 3]; COLUMNS];
     let dphi = 2.0 * core::f64::consts::PI / COLUMNS as f64;
     for row in 0..ROWS {
-        // θh = (π/2) t², dθh = π t dt.
+        // θh = (π/2) t³, dθh = (3π/2) t² dt.
         let t = (row as f64 + 0.5) / ROWS as f64;
-        let theta_h = core::f64::consts::FRAC_PI_2 * t * t;
-        let d_theta = core::f64::consts::PI * t / ROWS as f64;
+        let theta_h = core::f64::consts::FRAC_PI_2 * t * t * t;
+        let d_theta = 3.0 * core::f64::consts::FRAC_PI_2 * t * t / ROWS as f64;
         let (sin_h, cos_h) = (libm::sin(theta_h), libm::cos(theta_h));
         for (col, (w, q)) in wi.iter_mut().zip(weight.iter_mut()).enumerate() {
             let phi = (col as f64 + 0.5) * dphi;
@@ -209,7 +209,7 @@ pub fn albedo_at(cos_o: f32, mut eval: impl FnMut(&[Vec3], &[Vec3], &mut [Rgb]))
     (core::array::from_fn(|c| fine[c] as f32), core::array::from_fn(|c| (fine[c] - coarse[c]).abs() as f32))
 }
 
-/// [`albedo_at`] at every node of an [`AlbedoCurve`]: 65 views × 8192 evaluations.
+/// [`albedo_at`] at every node of an [`AlbedoCurve`]: 65 views × 4608 evaluations.
 pub fn albedo_curve(mut eval: impl FnMut(&[Vec3], &[Vec3], &mut [Rgb])) -> AlbedoCurve {
     let mut curve = AlbedoCurve { albedo: [[0.0; 3]; CURVE_NODES], error: [[0.0; 3]; CURVE_NODES] };
     for k in 0..CURVE_NODES {

@@ -48,8 +48,8 @@ pub fn encode(model: &Model, position_table: Option<&[f32]>) -> Result<Vec<u8>> 
     Ok(nbrdf::file::encode(&header.with_proxy(proxy).with_view_proxy(view), &weights, position_table)?)
 }
 
-/// Most surface points an energy bound is fitted over (each costs half a million evaluations).
-pub const BOUND_POINTS: usize = 64;
+/// Most surface points an energy bound is fitted over (each costs 300k evaluations).
+pub const BOUND_POINTS: usize = 32;
 
 /// Up to [`BOUND_POINTS`] position inputs spread evenly over the rows of `positions` (`n` values per
 /// row: the training pixels' points); the one empty point of a uniform model (`n = 0`).
