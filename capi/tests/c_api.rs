@@ -8,7 +8,8 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use nbrdf_core::builtin::Builtin;
-use nbrdf_core::file::{encode, ModelHeader, ModelKind, PositionEncoding, Reciprocity};
+use nbrdf_core::energy::{AlbedoBound, ALBEDO_CELLS};
+use nbrdf_core::file::{encode, set_albedo_bound, ModelHeader, ModelKind, PositionEncoding, Reciprocity};
 use nbrdf_core::measured::{MerlTable, NbrdfNetwork};
 use nbrdf_core::parametric::{Disney, FresnelMicrofacet, Lambert, Parametric, ParametricKind, Phong, TorranceSparrow};
 use nbrdf_core::{Brdf, ModelBuf, Vec3};
@@ -182,7 +183,18 @@ fn write_cases(dir: &Path) -> (Vec<Box<dyn Brdf>>, Vec<ModelBuf>) {
     std::fs::write(dir.join("varying.nbrdf"), &varying).unwrap();
     lines.push(format!("file {}|0.1 -0.2 0.3", dir.join("varying.nbrdf").display()));
     bufs.push(ModelBuf::from_bytes(&varying).unwrap());
-    let points: [&[f32]; 3] = [&[], &[], &[0.1, -0.2, 0.3]];
+    // An energy-bounded model (a version-2 file): a table above 1 in some cells and channels, so that
+    // a value divided by the wrong cell shows.
+    let mut bound = AlbedoBound { cells: [[0.0; 3]; ALBEDO_CELLS] };
+    for (j, c) in bound.cells.iter_mut().enumerate() {
+        let t = j as f32 / (ALBEDO_CELLS - 1) as f32;
+        *c = [0.6 + 1.2 * t, 1.8 - 1.1 * t, if j % 3 == 0 { 2.5 } else { 0.7 }];
+    }
+    let bounded = set_albedo_bound(&model, Some(bound)).unwrap();
+    std::fs::write(dir.join("bounded.nbrdf"), &bounded).unwrap();
+    lines.push(format!("file {}|", dir.join("bounded.nbrdf").display()));
+    bufs.push(ModelBuf::from_bytes(&bounded).unwrap());
+    let points: [&[f32]; 4] = [&[], &[], &[0.1, -0.2, 0.3], &[]];
     // The model cases' Rust twins are made after `bufs` is complete (they borrow it).
     let json = r#"{"input": "rusinkiewicz_half_diff_vectors", "output": "expm1_clamped", "layers": [
         {"inputs": 6, "outputs": 4, "activation": "relu",
