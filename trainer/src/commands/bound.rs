@@ -73,10 +73,9 @@ pub fn run(args: &BoundArgs) -> Result<Bounded> {
             bound_points(&d.obs.position, d.obs.n_position)
         }
     };
-    let out = with_energy_bound(&bytes, &points)?;
-    let max = nbrdf::ModelBuf::from_bytes(&out)?.model().albedo_bound().map(|b| b.max());
+    let (out, bound) = with_energy_bound(&bytes, &points)?;
     nbrdf::file::save(&args.out, &out)?;
-    Ok(Bounded { points: points.len(), max_albedo: max })
+    Ok(Bounded { points: points.len(), max_albedo: Some(bound.max()) })
 }
 
 #[cfg(test)]

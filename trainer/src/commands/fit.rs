@@ -339,7 +339,7 @@ pub fn run(
     }
     if opts.energy_bound {
         let points = crate::models::export::bound_points(&obs.position, obs.n_position);
-        bytes = crate::models::export::with_energy_bound(&bytes, &points)?;
+        bytes = crate::models::export::with_energy_bound(&bytes, &points)?.0;
     }
     let log_json = serde_json::to_vec_pretty(&log).map_err(|e| Error::io(&outputs.log, e))?;
     let files = vec![

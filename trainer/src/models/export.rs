@@ -64,8 +64,9 @@ pub fn bound_points(positions: &[f32], n: usize) -> Vec<Vec<f32>> {
 
 /// The model file `bytes` energy-bounded: [`nbrdf::file::set_albedo_bound`] with the envelope of the
 /// unbounded model's albedo curves at `points` (position inputs, curves computed in parallel;
-/// `docs/models.md`, "Energy bound"). A model already bounded is bounded again from its own values.
-pub fn with_energy_bound(bytes: &[u8], points: &[Vec<f32>]) -> Result<Vec<u8>> {
+/// `docs/models.md`, "Energy bound"), and that bound. A model already bounded is bounded again from
+/// its own values.
+pub fn with_energy_bound(bytes: &[u8], points: &[Vec<f32>]) -> Result<(Vec<u8>, nbrdf::energy::AlbedoBound)> {
     use rayon::prelude::*;
     if points.is_empty() {
         return Err(Error::Invalid("the energy bound needs at least one surface point".into()));
@@ -75,7 +76,7 @@ pub fn with_energy_bound(bytes: &[u8], points: &[Vec<f32>]) -> Result<Vec<u8>> {
     let prepared = points.iter().map(|p| core.prepare(p)).collect::<core::result::Result<Vec<_>, _>>()?;
     let curves: Vec<nbrdf::energy::AlbedoCurve> = prepared.par_iter().map(|p| core.albedo_curve(p)).collect();
     let bound = nbrdf::energy::AlbedoBound::envelope(curves);
-    Ok(nbrdf::file::set_albedo_bound(bytes, Some(bound))?)
+    Ok((nbrdf::file::set_albedo_bound(bytes, Some(bound))?, bound))
 }
 
 /// Writes `model` to `path` atomically.

@@ -209,6 +209,14 @@ pub fn run(config: &StudyConfig, out: &Path, shard: Option<Shard>, progress: boo
         let ds = Dataset::open(&dir)?;
         let args = DataArgs { dataset: Some(dir.clone()), diligent: None, object: String::new(), pixel_stride: config.pixel_stride };
         let mut training: Option<data::TrainingData> = None;
+        // The scene's training pixels, loaded once, when a job first needs them.
+        let load_training = |training: &mut Option<data::TrainingData>, position| -> Result<()> {
+            if training.is_none() {
+                bar.doing(format!("{}: loading the training pixels", scene.id()));
+                *training = Some(data::load(&args, position, &out.join("cache"))?);
+            }
+            Ok(())
+        };
         let mut test_views: Option<evaluate::TestViews> = None;
         let mut ceiling: Option<Option<crate::metrics::ImageMetrics>> = None;
         for m in here {
@@ -225,10 +233,7 @@ pub fn run(config: &StudyConfig, out: &Path, shard: Option<Shard>, progress: boo
                     Ok(()) => {
                         if config.energy_bound && r.eval_bounded.is_none() {
                             // The bounded scores of a job finished without them: the same fit, bounded.
-                            if training.is_none() {
-                                bar.doing(format!("{}: loading the training pixels", scene.id()));
-                                training = Some(data::load(&args, model_config.position, &out.join("cache"))?);
-                            }
+                            load_training(&mut training, model_config.position)?;
                             bar.doing(format!("{} / {name}: bounding and evaluating", scene.id()));
                             let model_path = fit::Outputs::in_dir(&jdir, &model_config).model;
                             let obs = &training.as_ref().expect("just loaded").obs;
@@ -245,10 +250,7 @@ pub fn run(config: &StudyConfig, out: &Path, shard: Option<Shard>, progress: boo
                     Err(e) => bar.say(format!("{} / {name}: the finished job's model does not load ({e}); running it again", scene.id())),
                 }
             }
-            if training.is_none() {
-                bar.doing(format!("{}: loading the training pixels", scene.id()));
-                training = Some(data::load(&args, model_config.position, &out.join("cache"))?);
-            }
+            load_training(&mut training, model_config.position)?;
             let t = training.as_ref().expect("just loaded");
             bar.doing(format!("{} / {name}: fitting {} steps", scene.id(), config.steps));
             let table = t.position_table.as_ref();
@@ -329,8 +331,8 @@ fn evaluate_bounded(
 ) -> Result<(evaluate::Evaluation, f32)> {
     let bytes = nbrdf::io::read(model_path)?;
     let points = crate::models::export::bound_points(&obs.position, obs.n_position);
-    let bounded = crate::models::export::with_energy_bound(&bytes, &points)?;
-    let max = nbrdf::ModelBuf::from_bytes(&bounded)?.model().albedo_bound().map_or(0.0, |b| b.max());
+    let (bounded, bound) = crate::models::export::with_energy_bound(&bytes, &points)?;
+    let max = bound.max();
     let path = model_path.with_extension("bounded.nbrdf");
     crate::train::write_atomic(&path, &bounded)?;
     Ok((evaluate::evaluate(ds, &path, lpips, config)?, max))
