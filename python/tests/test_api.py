@@ -4,6 +4,7 @@ exceptions (never a crash), and the trainer's synth, fit and metrics."""
 from __future__ import annotations
 
 import _thread
+import signal
 import threading
 import time
 
@@ -299,6 +300,16 @@ def _snapshot(folder):
 
 
 def test_an_interrupt_stops_fit_within_a_second_and_leaves_the_earlier_fit_as_it_was(tmp_path):
+    # Under Python's own Ctrl-C handler, which a process started in the background by a shell without
+    # job control lacks (SIGINT is ignored there, and interrupt_main then does nothing).
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        _interrupt_fit(tmp_path)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def _interrupt_fit(tmp_path):
     data = nbrdf.synth(tmp_path / "data", material="lambert:0.6,0.5,0.4", size=32, views=4, train_views=2,
                        train_lights=3, test_lights=2, progress=False)
     out = tmp_path / "fit"
