@@ -5,7 +5,8 @@
 //! (`fit_proxy`, what model files carried before the view table) and the view-conditioned proxy
 //! (`fit_view_proxy`). The table is of the luminance estimate (what the samplers are fitted to); the
 //! summary also gives the green channel alone. Prints one row per material and view, then the medians
-//! and worst cases that docs/speed.md reports.
+//! and worst cases that docs/speed.md reports. Each view's three samplers are timed at that view,
+//! taking turns in blocks of samples so that the host's drift is charged to all three alike.
 //!
 //! With `--models DIR` it measures the purely neural `.nbrdf` files under `DIR` instead (a study's
 //! `jobs/` folder): each file's own proxy against the table fitted as the trainer now exports it.
@@ -37,25 +38,61 @@ impl Pcg {
     }
 }
 
-/// Mean and variance of the luminance weight, variance of the green weight, and seconds per sample,
-/// over `n` samples.
-fn estimate(n: usize, seed: u64, mut sample: impl FnMut([f32; 3]) -> Option<BsdfSample>) -> (f64, f64, f64, f64) {
-    let mut rng = Pcg(seed.wrapping_mul(0x9e3779b97f4a7c15) | 1);
-    let (mut sum, mut sum2, mut green, mut green2) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
-    let start = Instant::now();
-    for _ in 0..n {
-        let u = [rng.next(), rng.next(), rng.next()];
-        let w = sample(u).map_or([0.0; 3], |s| s.weight);
-        let y = 0.2126 * w[0] as f64 + 0.7152 * w[1] as f64 + 0.0722 * w[2] as f64;
-        sum += y;
-        sum2 += y * y;
-        green += w[1] as f64;
-        green2 += (w[1] as f64) * (w[1] as f64);
-    }
-    let secs = start.elapsed().as_secs_f64() / n as f64;
-    let (mean, g) = (sum / n as f64, green / n as f64);
-    (mean, (sum2 / n as f64 - mean * mean).max(0.0), (green2 / n as f64 - g * g).max(0.0), secs)
+/// One sampler's running sums over its samples: luminance and green weights, and the time spent.
+struct Estimate {
+    rng: Pcg,
+    n: usize,
+    sum: [f64; 4],
+    secs: f64,
 }
+
+impl Estimate {
+    fn new(seed: u64) -> Self {
+        Estimate { rng: Pcg(seed.wrapping_mul(0x9e3779b97f4a7c15) | 1), n: 0, sum: [0.0; 4], secs: 0.0 }
+    }
+
+    /// Draws `k` more samples, timing them as one block.
+    fn block(&mut self, k: usize, mut sample: impl FnMut([f32; 3]) -> Option<BsdfSample>) {
+        let mut s = self.sum;
+        let start = Instant::now();
+        for _ in 0..k {
+            let u = [self.rng.next(), self.rng.next(), self.rng.next()];
+            let w = sample(u).map_or([0.0; 3], |s| s.weight);
+            let y = 0.2126 * w[0] as f64 + 0.7152 * w[1] as f64 + 0.0722 * w[2] as f64;
+            let g = w[1] as f64;
+            s = [s[0] + y, s[1] + y * y, s[2] + g, s[3] + g * g];
+        }
+        self.secs += start.elapsed().as_secs_f64();
+        (self.sum, self.n) = (s, self.n + k);
+    }
+
+    fn mean(&self) -> f64 {
+        self.sum[0] / self.n as f64
+    }
+
+    /// Variance of the luminance weight × seconds per sample.
+    fn var_time(&self) -> f64 {
+        self.variance(0) * self.secs_per_sample()
+    }
+
+    /// Variance of the green weight × seconds per sample.
+    fn green_var_time(&self) -> f64 {
+        self.variance(2) * self.secs_per_sample()
+    }
+
+    fn variance(&self, i: usize) -> f64 {
+        let n = self.n as f64;
+        (self.sum[i + 1] / n - (self.sum[i] / n).powi(2)).max(0.0)
+    }
+
+    fn secs_per_sample(&self) -> f64 {
+        self.secs / self.n as f64
+    }
+}
+
+/// Samples per timed block: the three samplers take turns block by block, so a change in the host's
+/// speed during a view is charged to all three alike.
+const BLOCK: usize = 1024;
 
 fn median(v: &mut [f64]) -> f64 {
     v.sort_by(f64::total_cmp);
@@ -70,47 +107,45 @@ struct Summary {
     green_vs_proxy: Vec<f64>,
     green_vs_cos: Vec<f64>,
     own_vs_proxy: Vec<f64>,
+    kept_vs_proxy: Vec<f64>,
     fit_ms: Vec<f64>,
 }
 
-/// The rows of one BRDF: each view's variance × time for the three samplers.
+/// The rows of one BRDF: each view's variance × time for the three samplers, timed at that view.
 fn measure(sum: &mut Summary, name: &str, m: usize, n: usize, eval: &dyn Fn(Vec3, Vec3) -> Rgb, proxy: Proxy, view: &ViewProxy) {
-    // Each sampler's time per sample is its mean over the material's views: one view's timing
-    // alone moves by ±10 % with the host, more than the samplers' cost differs.
-    let mut cells = Vec::new();
-    let mut time = [0.0f64; 3];
-    for (v, &theta) in VIEWS.iter().enumerate() {
-        let wo = Vec3::new(theta.sin(), 0.0, theta.cos());
-        let seed = (m * 16 + v) as u64;
-        let c = estimate(n, seed, |u| Proxy::COSINE.sample(wo, u, eval));
-        let p = estimate(n, seed, |u| proxy.sample(wo, u, eval));
-        let w = estimate(n, seed, |u| view.sample(wo, u, eval));
-        for (t, e) in time.iter_mut().zip([&c, &p, &w]) {
-            *t += e.3 / VIEWS.len() as f64;
-        }
-        cells.push((theta, wo, c, p, w));
-    }
     // A view where every sampler's variance is 0 (a black material) compares as equal.
     let ratio = |a: f64, b: f64| if b > 0.0 { a / b } else { 1.0 };
-    for (theta, wo, c, p, w) in cells {
-        let [tc, tp, tv] = time;
-        let (vc, vp, vv) = (c.1 * tc, p.1 * tp, w.1 * tv);
+    for (v, &theta) in VIEWS.iter().enumerate() {
+        let wo = Vec3::new(theta.sin(), 0.0, theta.cos());
+        // The same seed gives the three samplers the same uniforms.
+        let seed = (m * 16 + v) as u64;
+        let [mut c, mut p, mut w] = [Estimate::new(seed), Estimate::new(seed), Estimate::new(seed)];
+        for done in (0..n).step_by(BLOCK) {
+            let k = BLOCK.min(n - done);
+            c.block(k, |u| Proxy::COSINE.sample(wo, u, eval));
+            p.block(k, |u| proxy.sample(wo, u, eval));
+            w.block(k, |u| view.sample(wo, u, eval));
+        }
+        let (vc, vp, vv) = (c.var_time(), p.var_time(), w.var_time());
         if std::env::var_os("VERBOSE").is_some() {
-            eprintln!("{name} {theta}: var {:.3e} {:.3e} {:.3e}, ns {:.0} {:.0} {:.0}", c.1, p.1, w.1, c.3 * 1e9, p.3 * 1e9, w.3 * 1e9);
+            let ns = |e: &Estimate| e.secs_per_sample() * 1e9;
+            eprintln!("{name} {theta}: var·t {vc:.3e} {vp:.3e} {vv:.3e}, ns {:.0} {:.0} {:.0}", ns(&c), ns(&p), ns(&w));
         }
         sum.vs_proxy.push(ratio(vv, vp));
         sum.vs_cos.push(ratio(vv, vc));
-        sum.green_vs_proxy.push(ratio(w.2 * tv, p.2 * tp));
-        sum.green_vs_cos.push(ratio(w.2 * tv, c.2 * tc));
+        sum.green_vs_proxy.push(ratio(w.green_var_time(), p.green_var_time()));
+        sum.green_vs_cos.push(ratio(w.green_var_time(), c.green_var_time()));
         // Whether the view's cell kept the all-view proxy (then only the cell lookup differs).
         let own = view.at(wo).is_some_and(|cell| *cell != proxy);
         if own {
             sum.own_vs_proxy.push(ratio(vv, vp));
+        } else {
+            sum.kept_vs_proxy.push(ratio(vv, vp));
         }
         println!(
             "| {name} | {theta} | {} | {:.4} | {vc:.3e} | {vp:.3e} | {vv:.3e} | {:.3} | {:.3} |",
             if own { "own" } else { "kept" },
-            c.0,
+            c.mean(),
             ratio(vv, vp),
             ratio(vv, vc)
         );
@@ -211,6 +246,13 @@ fn main() {
         median(&mut sum.own_vs_proxy.clone()),
         worst(&sum.own_vs_proxy)
     );
+    if !sum.kept_vs_proxy.is_empty() {
+        println!(
+            "cells that kept the proxy (same draws, view / proxy is the lookup's time): median {:.3}, worst {:.3}",
+            median(&mut sum.kept_vs_proxy.clone()),
+            worst(&sum.kept_vs_proxy)
+        );
+    }
     println!(
         "view / cosine at equal time: median {:.3}, worst {:.3}, cells over 2: {}",
         median(&mut sum.vs_cos.clone()),

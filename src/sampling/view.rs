@@ -37,7 +37,7 @@ use serde::{Deserialize, Serialize};
 
 use super::fit::{alpha_of, N_A};
 use super::proxy::{GgxLobe, Proxy};
-use super::{lum, valid_wo, BsdfSample};
+use super::{finish, lum, valid_wo, BsdfSample};
 use crate::math::INV_PI;
 use crate::warp::{ggx_vndf_pdf, half_of, reflect_about, sample_ggx_vndf, square_to_cosine_hemisphere};
 use crate::{Error, Rgb, Vec3};
@@ -102,7 +102,11 @@ impl ViewProxy {
     /// [`ViewProxy::pdf`].
     #[inline]
     pub fn sample(&self, wo: Vec3, u: [f32; 3], brdf: impl FnOnce(Vec3, Vec3) -> Rgb) -> Option<BsdfSample> {
-        self.at(wo)?.sample(wo, u, brdf)
+        // [`Proxy::sample`] of the cell, normalising `wo` once for the lookup and the draw.
+        let wo = valid_wo(wo)?;
+        let node = &self.nodes[cell(wo.z)];
+        let wi = node.sample_wi(wo, u)?;
+        finish(wi, node.pdf(wi, wo), brdf(wi, wo))
     }
 }
 
