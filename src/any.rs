@@ -513,7 +513,8 @@ impl<'a> AnyBrdf<'a> {
                     reciprocal: m.is_reciprocal(),
                     position_len: m.position_len(),
                     has_position_table: h.n_vertices > 0,
-                    n_parameters: h.n_weights() + parametric.map_or(0, |k| k.n_object()),
+                    // The networks' weights and the per-object parameters, once.
+                    n_parameters: h.n_weights(),
                 }
             }
             Source::Merl(t) => base(Kind::Merl, None, true, t.raw().len()),
