@@ -6,7 +6,8 @@
 //! - [`objective`]: Eq. 9, 10 and the Sec. 4.4 regularisers on a block, and their gradient;
 //! - [`step`]: all of it as one candle op over the batch, the only training path;
 //! - [`loss`]: Eq. 9 and 10 composed from candle ops, the definition the step is checked against;
-//! - [`adam`]: the optimiser.
+//! - [`adam`]: the optimiser;
+//! - [`vjp`]: the weights' gradient for an outside caller's `∂L/∂f` (a differentiable renderer).
 //!
 //! The engine reads the model twins of [`crate::models`] and is read by [`crate::train`]; nothing
 //! here imports either of those layers' callers.
@@ -19,6 +20,7 @@ pub mod objective;
 pub(crate) mod op;
 pub mod step;
 pub(crate) mod trunked;
+pub mod vjp;
 
 use candle_core::Tensor;
 

@@ -38,6 +38,23 @@ impl Config {
         Config { kind, enhanced, reciprocity, position, angle_frequencies: DEFAULT_ANGLE_FREQUENCIES, direction_layers: None }
     }
 
+    /// The variant whose file header is `header` (kind, flags, encodings and networks), or `None` for a
+    /// header the trainer does not build (another width, a hand-made layout).
+    pub fn of_header(header: &ModelHeader) -> Option<Config> {
+        let base = Config {
+            kind: header.kind,
+            enhanced: header.enhanced && header.kind.is_additive(),
+            reciprocity: header.reciprocity,
+            position: header.position,
+            angle_frequencies: header.angle_frequencies,
+            direction_layers: None,
+        };
+        core::iter::once(None)
+            .chain((1..=6).map(Some))
+            .map(|direction_layers| Config { direction_layers, ..base })
+            .find(|c| c.header().nets() == header.nets())
+    }
+
     /// The core's file header of this variant: `ModelHeader::paper` with the Tab. 2 layer count.
     pub fn header(&self) -> ModelHeader {
         let h = ModelHeader::paper(self.kind, self.enhanced, self.reciprocity, self.position, self.angle_frequencies);

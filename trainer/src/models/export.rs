@@ -79,6 +79,48 @@ pub fn with_energy_bound(bytes: &[u8], points: &[Vec<f32>]) -> Result<(Vec<u8>, 
     Ok((nbrdf::file::set_albedo_bound(bytes, Some(bound))?, bound))
 }
 
+/// The weight vector of a core model in file order (what [`Model::weights`] gives and
+/// [`nbrdf::file::encode`] takes): its network weights, widened from half precision where stored so,
+/// and its per-object parameters.
+pub fn core_weights(core: &nbrdf::model::Model<'_>) -> Vec<f32> {
+    let mut w: Vec<f32> = match core.weights() {
+        nbrdf::model::Weights::F32(w) => w.to_vec(),
+        nbrdf::model::Weights::F16(w) => w.iter().map(|h| h.to_f32()).collect(),
+    };
+    w.extend_from_slice(core.object_parameters());
+    w
+}
+
+/// The trainer's twin of a core model that the trainer could have written (the inverse of
+/// [`encode`]'s networks): its variant from the header ([`Config::of_header`]) and its weights.
+///
+/// [`Config::of_header`]: super::Config::of_header
+pub fn from_core(core: &nbrdf::model::Model<'_>) -> Result<Model> {
+    let header = core.header();
+    let config = super::Config::of_header(header).ok_or_else(|| {
+        Error::Invalid(format!(
+            "a {:?} model with networks {:?} is not one the trainer builds (another width or layout), so it has no backward pass here",
+            header.kind,
+            header.nets()
+        ))
+    })?;
+    let model = Model::init(config, 0, &candle_core::Device::Cpu)?;
+    model.set_weights(&core_weights(core))?;
+    Ok(model)
+}
+
+/// The file bytes of a freshly initialised model of `config` (seed `seed`, outputs starting where a
+/// fit of an image of median `median` starts: [`OutputStart::for_median`]). It samples the cosine
+/// lobe: a proxy fitted to untrained weights would follow nothing; [`encode`] fits one once the
+/// weights mean something.
+///
+/// [`OutputStart::for_median`]: super::OutputStart::for_median
+pub fn initial(config: super::Config, seed: u64, median: Option<f32>) -> Result<Vec<u8>> {
+    let start = super::OutputStart::for_median(median);
+    let model = Model::init_at(config, seed, &candle_core::Device::Cpu, start)?;
+    Ok(nbrdf::file::encode(&config.header(), &model.weights()?, None)?)
+}
+
 /// Writes `model` to `path` atomically.
 pub fn save(model: &Model, path: &Path, position_table: Option<&[f32]>) -> Result<()> {
     let bytes = encode(model, position_table)?;
