@@ -53,6 +53,18 @@ allowlist="$PWD/python/stubtest-allowlist.txt"
 # profile.
 NBRDF_REFERENCE_PROFILE=dev "$py" -m pytest -q -p no:cacheprovider python/tests
 
+# The weight gradients again at the kernel levels below this CPU's: the forward values they are
+# checked against are the core's, which switch by level (NBRDF_KERNEL), as in .ci/run.
+case "$("$py" -c 'import nbrdf; print(nbrdf.kernel_level())')" in
+    avx512) lower="avx2 portable" ;;
+    avx2 | neon) lower="portable" ;;
+    *) lower="" ;;
+esac
+for level in $lower; do
+    echo "== the gradient tests at NBRDF_KERNEL=$level"
+    NBRDF_KERNEL=$level "$py" -m pytest -q -p no:cacheprovider python/tests -k "gradient or differentiable"
+done
+
 # The quickstart notebook, executed headless in a Jupyter kernel of this environment (outside the
 # source folder, as above); a failing cell fails CI.
 "$py" -m ipykernel install --user --name nbrdf-ci >/dev/null

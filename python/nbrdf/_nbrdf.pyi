@@ -19,6 +19,7 @@ __all__ = [
     "fit",
     "fmbrdf",
     "from_spec",
+    "init_model",
     "kernel_level",
     "lambert",
     "merl",
@@ -96,6 +97,19 @@ class Model:
     @property
     def n_parameters(self) -> int:
         """Stored parameters (network weights, table entries or model parameters)."""
+    @property
+    def weights(self) -> _F32:
+        """The network weights (and per-object parameters) in file order, (n_parameters,)."""
+    def with_weights(self, weights: npt.ArrayLike) -> "Model":
+        """The same model with other weights (single precision; an energy bound is dropped)."""
+    def with_fitted_sampler(self) -> "Model":
+        """The same model with its sampling proxies fitted anew to its present weights."""
+    def save(self, path: _Path) -> None:
+        """Writes the model's .nbrdf file, atomically."""
+    def weight_gradient(
+        self, wi: npt.ArrayLike, wo: npt.ArrayLike, grad: npt.ArrayLike, points: Optional[npt.ArrayLike] = None
+    ) -> _F32:
+        """dL/dw, (n_parameters,), for dL/df = grad at each pair, by the trainer's backward pass."""
 
 def merl(path: _Path) -> Model:
     """Loads a MERL .binary table."""
@@ -134,6 +148,18 @@ def disney(
     """Isotropic Disney (Burley 2012); every parameter in [0, 1]."""
 def parametric_from_raw(kind: str, raw: Sequence[float], object: Sequence[float] = ...) -> Model:
     """A parametric model from raw network outputs (any finite values)."""
+def init_model(
+    model: str,
+    *,
+    reciprocity: Optional[str] = None,
+    enhanced: bool = False,
+    position: Optional[str] = None,
+    angle_frequencies: Optional[int] = None,
+    direction_layers: Optional[int] = None,
+    seed: int = 0,
+    median: Optional[float] = None,
+) -> Model:
+    """A freshly initialised model (fit's variant arguments), sampling the cosine lobe."""
 def kernel_level() -> str:
     """The dense-layer kernel level in use: "avx512", "avx2", "neon" or "portable"."""
 def mesh(mesh: str) -> Tuple[_F32, _F32, npt.NDArray[np.uint32]]:

@@ -18,13 +18,24 @@ lobes, the fitted proxy of a neural model, MERL table or NBRDF-json network) wit
 the direction and ``sample1`` picking the lobe; its weight is ``f cos / pdf`` and ``pdf`` the proxy's
 own density, so estimates stay unbiased.
 
+- ``differentiable`` (default false; ``*_ad_rgb`` variants and fitted ``.nbrdf`` network models): the
+  model's weights become the scene parameter ``weights`` (``mi.traverse``, flagged differentiable),
+  and the values of ``eval``, ``eval_pdf`` and ``sample``'s weight carry gradients to them. Each is
+  a Dr.Jit custom operation: the forward value is the core's ``eval`` and the backward pass hands
+  ``∂L/∂f`` to the trainer's backward (``Model.weight_gradient``), so no network is re-implemented in
+  Dr.Jit. Reverse mode only (``dr.backward``, the ``prb`` integrators' adjoint pass). The sampler stays
+  the one fitted to the loaded weights: it remains a valid density, so estimates stay unbiased as the
+  weights move, only less efficient. An energy-bounded model is refused (its bound belongs to the
+  loaded weights); ``Model.with_weights`` gives the unbounded model to start from. Write the result
+  with ``bsdf.model.save(path)``.
+
 Every method hands the whole wavefront to one batched call of the Rust library through numpy. In the
 JIT variants (``llvm_ad_rgb``, ``cuda_ad_rgb``) that means the arrays must be evaluated, which a
-symbolic (recorded) loop or virtual call cannot do: ``register()`` therefore turns
-``dr.JitFlag.SymbolicLoops`` and ``dr.JitFlag.SymbolicCalls`` off (evaluated mode; pass
-``evaluated=False`` to leave them), and the values are plain arrays outside Dr.Jit's AD graph, so
-nothing differentiates through this BSDF. In ``scalar_rgb`` each call is one direction pair, about
-10-30 µs of Python per call; the JIT variants pay that per wavefront.
+symbolic (recorded) loop, virtual call or conditional cannot do: ``register()`` therefore turns
+``dr.JitFlag.SymbolicLoops``, ``SymbolicCalls`` and ``SymbolicConditionals`` off (evaluated mode;
+pass ``evaluated=False`` to leave them). Without ``differentiable`` the values are plain arrays outside
+Dr.Jit's AD graph. In ``scalar_rgb`` each call is one direction pair, about 10-30 µs of Python per
+call; the JIT variants pay that per wavefront.
 """
 
 from __future__ import annotations
@@ -70,6 +81,16 @@ def _has(props: "mi.Properties", key: str) -> bool:
         return props.has_property(key)
 
 
+class _Query:
+    """One call's inputs and value, kept for the backward pass of its custom operation (a plain
+    object: Dr.Jit passes it through untouched)."""
+
+    def __init__(self, model: Model, value: np.ndarray, scale: np.ndarray, wi: np.ndarray, wo: np.ndarray,
+                 points: Optional[np.ndarray], act: np.ndarray) -> None:
+        self.model, self.value, self.scale = model, value, np.asarray(scale, dtype=np.float32)
+        self.wi, self.wo, self.points, self.act = wi, wo, points, np.asarray(act, dtype=bool)
+
+
 def _make_class() -> type:
     """The BSDF class of the variant that is set: Mitsuba's base class and types differ per variant."""
     scalar = (mi.variant() or "").startswith("scalar")
@@ -82,6 +103,28 @@ def _make_class() -> type:
 
     def floats(values: np.ndarray) -> Any:
         return float(values[0]) if scalar else mi.Float(np.ascontiguousarray(values, dtype=np.float32))
+
+    class Weighted(dr.CustomOp):
+        """``f(weights) · scale`` per pair as a Dr.Jit operation: the value was computed by the core;
+        the backward pass turns ``∂L/∂(f · scale)`` into ``∂L/∂weights`` by the trainer's backward."""
+
+        def eval(self, weights: Any, q: "_Query") -> Any:
+            self.q = q
+            return color(q.value)
+
+        def forward(self) -> None:
+            raise NotImplementedError("the nbrdf BSDF differentiates in reverse mode only (dr.backward, prb)")
+
+        def backward(self) -> None:
+            q = self.q
+            g = np.asarray(self.grad_out(), dtype=np.float32).reshape(3, -1).T
+            g = np.ascontiguousarray(np.broadcast_to(g, (len(q.scale), 3)) * q.scale[:, None])
+            g[~q.act] = 0.0
+            grad = q.model.weight_gradient(q.wi, q.wo, g, q.points)
+            self.set_grad_in("weights", mi.Float(grad))
+
+        def name(self) -> str:
+            return "nbrdf weights"
 
     class NbrdfBSDF(mi.BSDF):
         """A BRDF of nbrdf (see the module's documentation for the parameters)."""
@@ -112,6 +155,18 @@ def _make_class() -> type:
                 )
             if k == 3 and isinstance(self.position, str) and self.position != "p":
                 raise ValueError(f'position must be "p" or a texture, not {self.position!r}')
+            self.differentiable = bool(props["differentiable"]) if _has(props, "differentiable") else False
+            if self.differentiable:
+                if scalar or "_ad_" not in (mi.variant() or ""):
+                    raise ValueError(f"differentiable needs an *_ad_rgb variant (llvm_ad_rgb, cuda_ad_rgb), not {mi.variant()}")
+                if self.model.albedo_bound is not None:
+                    raise ValueError(
+                        f"{self.source}: an energy-bounded model cannot be differentiated (its bound belongs to "
+                        "the loaded weights); save model.with_weights(model.weights), which drops it, and bound "
+                        "the optimised model afterwards (trainer bound)"
+                    )
+                # A ValueError naming the problem for BRDFs without trainer networks.
+                self.weights = mi.Float(self.model.weights)
             # Lambert is diffuse for Mitsuba's purposes; everything else a glossy lobe (NEE and BSDF
             # sampling both apply to either).
             diffuse = self.model.parametric_kind == "lambert"
@@ -146,13 +201,23 @@ def _make_class() -> type:
         def _enabled(self, ctx: Any) -> bool:
             return bool(ctx.is_enabled(self.lobe, 0))
 
+        def _value(self, value: np.ndarray, scale: np.ndarray, wi: np.ndarray, wo: np.ndarray,
+                   points: Optional[np.ndarray], act: np.ndarray) -> Any:
+            """``value`` (f · scale, inactive rows zero) as a Color3f, differentiable in the weights
+            where they take gradients."""
+            if not (self.differentiable and dr.grad_enabled(self.weights)):
+                return color(value)
+            q = _Query(self.model, value, scale, wi, wo, points, act)
+            return dr.custom(Weighted, self.weights, q)
+
         def eval(self, ctx, si, wo, active=True):
             n, wi_nb, wo_nb, points, act = self._inputs(si, wo, active)
             f = self.model.eval(wi_nb, wo_nb, points) if self._enabled(ctx) else np.zeros((n, 3), np.float32)
             # Mitsuba's eval carries the cosine foreshortening of the light direction; nbrdf's does not.
-            f *= np.maximum(wi_nb[:, 2:3], 0.0)
+            cos = np.maximum(wi_nb[:, 2], 0.0)
+            f *= cos[:, None]
             f[~act] = 0.0
-            return color(f)
+            return self._value(f, cos, wi_nb, wo_nb, points, act)
 
         def pdf(self, ctx, si, wo, active=True):
             n, wi_nb, wo_nb, points, act = self._inputs(si, wo, active)
@@ -166,9 +231,10 @@ def _make_class() -> type:
                 f, p = self.model.eval(wi_nb, wo_nb, points), self.model.pdf(wi_nb, wo_nb, points)
             else:
                 f, p = np.zeros((n, 3), np.float32), np.zeros(n, np.float32)
-            f *= np.maximum(wi_nb[:, 2:3], 0.0)
+            cos = np.maximum(wi_nb[:, 2], 0.0)
+            f *= cos[:, None]
             f[~act], p[~act] = 0.0, 0.0
-            return color(f), floats(p)
+            return self._value(f, cos, wi_nb, wo_nb, points, act), floats(p)
 
         def sample(self, ctx, si, sample1, sample2, active=True):
             if not scalar:
@@ -187,17 +253,25 @@ def _make_class() -> type:
                 wi, weight, pdf = np.zeros((n, 3), np.float32), np.zeros((n, 3), np.float32), np.zeros(n, np.float32)
             none = ~act | (pdf <= 0.0)
             wi[none], weight[none], pdf[none] = 0.0, 0.0, 0.0
+            # The weight f cos / pdf: differentiable in f, the density held fixed.
+            scale = np.where(none, 0.0, np.maximum(wi[:, 2], 0.0) / np.where(none, 1.0, pdf)).astype(np.float32)
             bs = mi.BSDFSample3f() if scalar else dr.zeros(mi.BSDFSample3f, n)
             bs.wo = vector(wi)
             bs.pdf = floats(pdf)
             bs.eta = 1.0
             bs.sampled_type = mi.UInt32(+self.lobe)
             bs.sampled_component = mi.UInt32(0)
-            return bs, color(weight)
+            return bs, self._value(weight, scale, wi, wo_nb, points, ~none)
 
         def traverse(self, callback):
-            # Nothing to edit or differentiate: the BRDF lives in the Rust library.
-            pass
+            # Only the weights of a differentiable model; everything else lives in the Rust library.
+            if self.differentiable:
+                put = getattr(callback, "put", None) or callback.put_parameter
+                put("weights", self.weights, mi.ParamFlags.Differentiable)
+
+        def parameters_changed(self, keys):
+            if self.differentiable and "weights" in keys:
+                self.model = self.model.with_weights(np.asarray(self.weights, dtype=np.float32))
 
         def to_string(self):
             return f"NbrdfBSDF[{self.model!r}, position_len={self.model.position_len}]"
@@ -236,7 +310,7 @@ def shape(mesh: str, ply: str, bsdf: Optional[dict] = None) -> dict:
 
 def register(evaluated: bool = True) -> None:
     """Registers the ``"nbrdf"`` BSDF for the Mitsuba variant that is set (an ``*_rgb`` one). In a JIT
-    variant, ``evaluated`` turns Dr.Jit's symbolic loops and calls off, which the plugin's batched
+    variant, ``evaluated`` turns Dr.Jit's symbolic loops, calls and conditionals off, which the plugin's batched
     calls through numpy need (see the module's documentation)."""
     variant = mi.variant()
     if variant is None:
@@ -246,6 +320,8 @@ def register(evaluated: bool = True) -> None:
     if evaluated and not variant.startswith("scalar"):
         dr.set_flag(dr.JitFlag.SymbolicLoops, False)
         dr.set_flag(dr.JitFlag.SymbolicCalls, False)
+        # The prb integrators' adjoint pass also runs conditionals around BSDF calls.
+        dr.set_flag(dr.JitFlag.SymbolicConditionals, False)
     if variant not in _classes:
         _classes[variant] = _make_class()
     cls = _classes[variant]

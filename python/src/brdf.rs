@@ -374,6 +374,51 @@ impl Model {
         self.brdf.info().n_parameters
     }
 
+    /// The network weights (and per-object parameters) of a fitted `.nbrdf` model in file order:
+    /// (n_parameters,) float32, a copy. ValueError for a BRDF without a network of the trainer's.
+    #[getter]
+    fn weights<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f32>>> {
+        let w = crate::grad::weights(self)?;
+        Ok(arrays::out(py, &[], &[w.len()], w))
+    }
+
+    /// The same model (networks, sampler, position table) with other `weights` ((n_parameters,),
+    /// any real dtype, finite), stored in single precision. An energy bound is dropped: it bounded the
+    /// old weights' albedo (bound the result again with `trainer bound`).
+    fn with_weights(&self, py: Python<'_>, weights: &Bound<'_, PyAny>) -> PyResult<Model> {
+        guard(|| crate::grad::with_weights(py, self, weights))
+    }
+
+    /// The same model with its importance-sampling proxies fitted anew to its present weights (as
+    /// the trainer's export fits them): for a model whose weights were optimised elsewhere
+    /// (`with_weights`, the Mitsuba plugin's `differentiable` mode) before it is saved.
+    fn with_fitted_sampler(&self, py: Python<'_>) -> PyResult<Model> {
+        guard(|| crate::grad::with_fitted_sampler(py, self))
+    }
+
+    /// Writes a fitted `.nbrdf` model (e.g. one made by `with_weights`) to `path`, atomically.
+    fn save(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
+        guard(|| crate::grad::save(py, self, path))
+    }
+
+    /// `∂L/∂w`, (n_parameters,) float32, for a loss `L` whose derivative with respect to `f(wi, wo)`
+    /// (`eval`'s values) is `grad` at each pair: the sum over pairs of `grad · ∂f/∂w`, by the trainer's
+    /// backward pass. `wi`, `wo`, `grad` (and `points`) broadcast like `eval`'s arguments.
+    #[pyo3(signature = (wi, wo, grad, points = None))]
+    fn weight_gradient<'py>(
+        &self,
+        py: Python<'py>,
+        wi: &Bound<'py, PyAny>,
+        wo: &Bound<'py, PyAny>,
+        grad: &Bound<'py, PyAny>,
+        points: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyArrayDyn<f32>>> {
+        guard(|| {
+            let g = crate::grad::weight_gradient(py, self, wi, wo, grad, points)?;
+            Ok(arrays::out(py, &[], &[g.len()], g))
+        })
+    }
+
     fn __repr__(&self) -> String {
         let b = &self.brdf;
         let detail = match (b.as_model(), b.as_parametric(), b.as_builtin()) {

@@ -11,6 +11,7 @@
 mod arrays;
 mod brdf;
 mod error;
+mod grad;
 mod render;
 mod train;
 
@@ -30,6 +31,7 @@ fn _nbrdf(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(brdf::disney, m)?)?;
     m.add_function(wrap_pyfunction!(brdf::parametric_from_raw, m)?)?;
     m.add_function(wrap_pyfunction!(brdf::kernel_level, m)?)?;
+    m.add_function(wrap_pyfunction!(grad::init_model, m)?)?;
     m.add_function(wrap_pyfunction!(render::render, m)?)?;
     m.add_function(wrap_pyfunction!(render::mesh, m)?)?;
     m.add_function(wrap_pyfunction!(train::synth, m)?)?;

@@ -230,6 +230,10 @@ def test_synth_fit_and_compare(tmp_path):
     wi, wo = (v / np.linalg.norm(v, axis=-1, keepdims=True) for v in (rng.normal(size=(64, 3)) for _ in range(2)))
     wi[:, 2], wo[:, 2] = np.abs(wi[:, 2]), np.abs(wo[:, 2])
     np.testing.assert_array_equal(bounded.eval(wi, wo), bounded.eval(wo, wi))
+    # Its gradient is refused (the bound belongs to these weights); with_weights drops the bound.
+    with pytest.raises(ValueError, match="energy-bounded"):
+        bounded.weight_gradient(wi, wo, np.ones(3))
+    assert bounded.with_weights(bounded.weights).albedo_bound is None
     with pytest.raises(ValueError, match="unknown model"):
         nbrdf.fit("plastic", toy=10, out=tmp_path / "x", progress=False)
     with pytest.raises(ValueError, match="--data DIR, --diligent PATH or --toy N"):
@@ -365,3 +369,67 @@ def test_study_runs_a_config_and_returns_every_job_as_a_dict(tmp_path):
     assert [j["model"] for j in jobs] == ["rp", "single-mlp+exact"]
     assert all(j["eval"]["reference"] == "clean" and j["ceiling"]["psnr"] > 20 for j in jobs)
     assert (tmp_path / "out" / "REPORT.md").is_file() and reports[-1] == (10, 10)
+
+
+def test_with_fitted_sampler_fits_the_proxy_as_the_trainers_export_does(fitted):
+    """A fresh model samples the cosine lobe (a proxy of untrained weights would follow nothing);
+    `with_fitted_sampler` fits the proxies to the present weights exactly as a fit's export did."""
+    rng = np.random.default_rng(5)
+    wi, wo = unit_rows(rng, 64), unit_rows(rng, 64)
+    fresh = nbrdf.init_model("single-mlp", position="uniform", seed=1)
+    np.testing.assert_allclose(fresh.pdf(wi, wo), wi[:, 2] / np.pi, rtol=1e-5)
+    m = nbrdf.Model.load(fitted)
+    again = m.with_weights(m.weights).with_fitted_sampler()
+    np.testing.assert_array_equal(again.pdf(wi, wo), m.pdf(wi, wo))
+    np.testing.assert_array_equal(again.eval(wi, wo), m.eval(wi, wo))
+
+
+def test_weights_round_trip_and_their_gradient_by_the_trainers_backward(tmp_path):
+    """A model's weights as an array, the same model with others, written and loaded again; and
+    `weight_gradient`, the sum over pairs of grad · ∂f/∂w, which is linear in grad and broadcasts."""
+    m = nbrdf.init_model("additive-shared", enhanced=True, position="uniform", seed=2, median=0.3)
+    w = m.weights
+    assert w.shape == (m.n_parameters,) and w.dtype == np.float32
+    assert np.array_equal(nbrdf.init_model("additive-shared", enhanced=True, position="uniform", seed=2, median=0.3).weights, w)
+    rng = np.random.default_rng(4)
+    wi, wo = unit_rows(rng, 32), unit_rows(rng, 32)
+    moved = m.with_weights(w * 1.01)
+    assert np.array_equal(moved.weights, (w * 1.01).astype(np.float32))
+    assert not np.array_equal(moved.eval(wi, wo), m.eval(wi, wo))
+    moved.save(tmp_path / "moved.nbrdf")
+    again = nbrdf.Model.load(tmp_path / "moved.nbrdf")
+    np.testing.assert_array_equal(again.eval(wi, wo), moved.eval(wi, wo))
+    # Any real dtype is accepted; the sampler (fitted to the first weights) is kept: same directions.
+    u = rng.random((32, 3))
+    np.testing.assert_array_equal(m.with_weights(w.astype(np.float64) * 1.01).sample(wo, u)[0], m.sample(wo, u)[0])
+
+    g = rng.uniform(-1, 1, (32, 3))
+    grad = m.weight_gradient(wi, wo, g)
+    assert grad.shape == w.shape and np.abs(grad).max() > 0
+    np.testing.assert_allclose(m.weight_gradient(wi, wo, 2 * g), 2 * grad, rtol=1e-5, atol=1e-7)
+    # One grad row broadcast over every pair is the same as the rows repeated.
+    np.testing.assert_allclose(m.weight_gradient(wi, wo, [1.0, 0.5, 0.25]),
+                               m.weight_gradient(wi, wo, np.tile([1.0, 0.5, 0.25], (32, 1))), rtol=1e-6, atol=1e-9)
+    # The derivative along a direction of weight space: (L(w + h d) - L(w - h d)) / 2h = grad · d.
+    d = rng.normal(size=w.shape).astype(np.float32) * 1e-2
+    def loss(weights):
+        return float((m.with_weights(weights).eval(wi, wo).astype(np.float64) * g).sum())
+    h = 0.02
+    fd = (loss(w + h * d) - loss(w - h * d)) / (2 * h)
+    along = float(grad.astype(np.float64) @ d.astype(np.float64))
+    assert abs(fd - along) <= 0.02 * abs(fd) + 1e-6, (fd, along)
+
+    with pytest.raises(ValueError, match=r"weights must have shape \(%d,\)" % len(w)):
+        m.with_weights(w[:-1])
+    with pytest.raises(ValueError, match="not a finite number"):
+        m.with_weights(np.where(np.arange(len(w)) == 7, np.nan, w))
+    with pytest.raises(ValueError, match="grad must have shape"):
+        m.weight_gradient(wi, wo, g[:, :2])
+    with pytest.raises(ValueError, match="no network weights"):
+        nbrdf.lambert([0.5, 0.5, 0.5]).weights
+    with pytest.raises(ValueError, match="pass points"):
+        nbrdf.init_model("single-mlp", position="extrinsic:2").weight_gradient(wi, wo, g)
+    with pytest.raises(ValueError, match="intrinsic"):
+        nbrdf.init_model("single-mlp", position="intrinsic:8")
+    with pytest.raises(ValueError, match="model: unknown model"):
+        nbrdf.init_model("plastic")
