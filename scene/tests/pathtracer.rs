@@ -161,6 +161,17 @@ fn skipped_effects_leave_the_image_unchanged() {
     let direct = render(&scene, &Options { spp: 4, seed: 9, max_depth: 1, ..Options::default() }, &|_| {});
     let sum = |r: &Rendered| r.image.data.iter().map(|p| p[0] as f64).sum::<f64>();
     assert!(sum(&auto) > sum(&direct), "bounces add light");
+    // The interreflected part alone: with the same random numbers, direct + indirect is the whole
+    // render, pixel by pixel (up to the order of the additions).
+    let o = Options { spp: 4, seed: 9, max_depth: 4, ..Options::default() };
+    let (whole, indirect) = (render(&scene, &o, &|_| {}), render(&scene, &Options { indirect_only: true, ..o }, &|_| {}));
+    let direct = render(&scene, &Options { max_depth: 1, ..o }, &|_| {});
+    assert!(sum(&indirect) > 0.0, "the torus lights itself");
+    for ((w, d), i) in whole.image.data.iter().zip(&direct.image.data).zip(&indirect.image.data) {
+        for c in 0..3 {
+            assert!((w[c] - (d[c] + i[c])).abs() <= 1e-5 * w[c].max(1e-3), "{w:?} = {d:?} + {i:?}");
+        }
+    }
 }
 
 #[test]

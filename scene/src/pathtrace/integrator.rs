@@ -55,11 +55,14 @@ pub struct Options {
     pub seed: u64,
     /// Simulate every effect even where the scene cannot show it ([`Plan::everything`]).
     pub force_all: bool,
+    /// Count only light that reached the camera over two or more surface vertices: the interreflected
+    /// part, which an Eq. 9 (direct-only) render lacks.
+    pub indirect_only: bool,
 }
 
 impl Default for Options {
     fn default() -> Self {
-        Options { spp: 16, max_depth: 8, rr_depth: 3, seed: 0, force_all: false }
+        Options { spp: 16, max_depth: 8, rr_depth: 3, seed: 0, force_all: false, indirect_only: false }
     }
 }
 
@@ -221,9 +224,12 @@ fn trace(scene: &Scene, plan: &Plan, options: &Options, camera_ray: Ray, rng: &S
     let mut bsdf_pdf: Option<f32> = None;
     let mut depth = 0u32;
     loop {
+        // Light arriving at vertex `depth` reaches the camera over `depth + 1` vertices.
+        let counts = !options.indirect_only || depth >= 1;
         let Some(s) = hit else {
-            // Escaped: the environment, MIS-weighted against environment sampling.
-            if let Some(env) = scene.env {
+            // Escaped: the environment, MIS-weighted against environment sampling (light that left
+            // the vertex before, `depth - 1`).
+            if let (Some(env), true) = (scene.env, !options.indirect_only || depth >= 2) {
                 let le = env.eval(dir);
                 let w = match bsdf_pdf {
                     Some(p) if plan.env_sampling => power(p, env.pdf(dir)),
@@ -241,7 +247,7 @@ fn trace(scene: &Scene, plan: &Plan, options: &Options, camera_ray: Ray, rng: &S
         }
         let pt = m.point(&g.mesh, s.hit.triangle, s.hit.b1, s.hit.b2, s.position);
         // Next-event estimation: directional lights (delta: no MIS).
-        for light in scene.lights {
+        for light in scene.lights.iter().filter(|_| counts) {
             if unoccluded(g, &s, light.direction, plan, stats) {
                 let wi = frame.to_local(light.direction);
                 let f = pt.eval(wi, wo);
@@ -250,7 +256,7 @@ fn trace(scene: &Scene, plan: &Plan, options: &Options, camera_ray: Ray, rng: &S
             }
         }
         // Next-event estimation: the environment, MIS with the BSDF's density.
-        if let (true, Some(env)) = (plan.env_sampling, scene.env) {
+        if let (true, true, Some(env)) = (counts, plan.env_sampling, scene.env) {
             if let Some(ls) = env.sample([rng.get(base), rng.get(base + 1)]) {
                 if unoccluded(g, &s, ls.dir, plan, stats) {
                     let wi = frame.to_local(ls.dir);
