@@ -202,13 +202,17 @@ def synth(
     light_intensity: Optional[float] = None,
     target_median: Optional[float] = None,
     force_shadows: bool = False,
+    interreflections: int = 0,
     progress: Progress = None,
 ) -> Path:
     """Renders a semi-synthetic data set (Sec. 5.3; ``trainer synth``): ``mesh`` ("sphere", "torus",
     "grooved" or an OBJ/PLY file) with the ground-truth ``material`` (a built-in id, a MERL ``.binary``,
     an NBRDF-json ``.json`` or ``lambert:R,G,B``), seen from ``views`` cameras, each lit by directional
     lights, with Gaussian noise ``sigma``; the lights have ``light_intensity`` (default 1), or the one
-    that exposes the object's lit pixels at median luminance ``target_median`` (docs/study.md). Writes ``out/dataset.json`` with its images and returns
+    that exposes the object's lit pixels at median luminance ``target_median`` (docs/study.md).
+    ``interreflections``: also the light that bounces between the object's parts, path traced with this
+    many samples per pixel per image (0, the paper's data: direct light only); each image's
+    interreflected part is written beside it. Writes ``out/dataset.json`` with its images and returns
     ``out``. ``progress``: by default a bar where stderr is a terminal, a display in a Jupyter
     notebook, nothing elsewhere; ``True``/``False`` force the terminal bar on or off; a callable is
     called with ``(images written, images)``. Ctrl-C (a notebook's interrupt) stops it within a
@@ -219,7 +223,7 @@ def synth(
             out, mesh=mesh, material=material, size=size, views=views, train_views=train_views,
             train_lights=train_lights, test_lights=test_lights, sigma=sigma, seed=seed, fov=fov,
             light_intensity=light_intensity, target_median=target_median, force_shadows=force_shadows,
-            quiet=not bar, progress=callback,
+            interreflections=interreflections, quiet=not bar, progress=callback,
         ))
     finally:
         close()

@@ -199,6 +199,7 @@ def synth(
     light_intensity: Optional[float] = None,
     target_median: Optional[float] = None,
     force_shadows: bool = False,
+    interreflections: Optional[int] = None,
     quiet: bool = False,
     progress: Optional[Callable[[int, int], None]] = None,
 ) -> str:

@@ -67,8 +67,8 @@ fn interruptible<T: Send>(py: Python<'_>, progress: Option<&Bound<'_, PyAny>>, w
 #[pyfunction]
 #[pyo3(signature = (out, *, mesh = None, material = None, size = None, views = None, train_views = None,
                     train_lights = None, test_lights = None, sigma = None, seed = None, fov = None,
-                    light_intensity = None, target_median = None, force_shadows = false, quiet = false,
-                    progress = None))]
+                    light_intensity = None, target_median = None, force_shadows = false, interreflections = None,
+                    quiet = false, progress = None))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn synth(
     py: Python<'_>,
@@ -86,6 +86,7 @@ pub(crate) fn synth(
     light_intensity: Option<f32>,
     target_median: Option<f32>,
     force_shadows: bool,
+    interreflections: Option<u32>,
     quiet: bool,
     progress: Option<Bound<'_, PyAny>>,
 ) -> PyResult<PathBuf> {
@@ -107,6 +108,7 @@ pub(crate) fn synth(
         a.seed = seed.unwrap_or(a.seed);
         a.fov = fov.unwrap_or(a.fov);
         a.light_intensity = light_intensity.unwrap_or(a.light_intensity);
+        a.interreflections = interreflections.unwrap_or(a.interreflections);
         (a.target_median, a.force_shadows, a.quiet) = (target_median, force_shadows, quiet);
         // The checks name the keyword arguments, not the command line's flags.
         a.check_as(&|key| key.to_string()).map_err(error::trainer)?;

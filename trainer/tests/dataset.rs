@@ -64,6 +64,40 @@ fn synth_writes_a_described_deterministic_data_set() {
 }
 
 #[test]
+fn interreflections_add_the_path_traced_bounces_and_are_written_beside_each_image() {
+    use nbrdf_scene::image::read_exr;
+    // The same noise-free data set with and without the bounces: the radiance with them is the
+    // direct-only radiance plus the interreflected part written beside it.
+    for (mesh, sees_itself) in [("grooved", true), ("sphere", false)] {
+        let (plain, bounced) = (tmpdir(&format!("direct-{mesh}")), tmpdir(&format!("bounced-{mesh}")));
+        let args = SynthArgs { material: "lambert:0.8,0.8,0.8".into(), ..small(&plain, mesh, 0.0, 8) };
+        let (direct, _) = synthesize(&args).unwrap();
+        let (file, reports) = synthesize(&SynthArgs { out: bounced.clone(), interreflections: 8, ..args }).unwrap();
+        assert!(reports.iter().all(|r| !r.noise_pass));
+        assert!(direct.views.iter().flat_map(|v| &v.images).all(|im| im.indirect.is_none()));
+        let mut indirect_sum = 0.0f64;
+        for (v, w) in direct.views.iter().zip(&file.views) {
+            for (a, b) in v.images.iter().zip(&w.images) {
+                let (d, r) = (read_exr(plain.join(&a.radiance)).unwrap(), read_exr(bounced.join(&b.radiance)).unwrap());
+                let part = read_exr(bounced.join(b.indirect.as_ref().expect("each image has its interreflected part"))).unwrap();
+                for ((d, r), i) in d.data.iter().zip(&r.data).zip(&part.data) {
+                    for c in 0..3 {
+                        assert!(i[c] >= 0.0 && (r[c] - (d[c] + i[c])).abs() <= 1e-5 * r[c].abs().max(1.0), "{r:?} = {d:?} + {i:?}");
+                    }
+                    indirect_sum += f64::from(i[1]);
+                }
+            }
+        }
+        assert_eq!(indirect_sum > 0.0, sees_itself, "{mesh}: interreflected light {indirect_sum}");
+        // Only the extra files differ from a direct-only set's description.
+        assert_eq!(file.views.len(), direct.views.len());
+        for d in [plain, bounced] {
+            std::fs::remove_dir_all(d).unwrap();
+        }
+    }
+}
+
+#[test]
 fn samples_are_lit_pixels_and_satisfy_eq9() {
     let dir = tmpdir("samples");
     let (file, _) = synthesize(&small(&dir, "grooved", 0.0, 1)).unwrap();

@@ -124,6 +124,19 @@ pub enum Material {
 }
 
 impl Material {
+    /// The same material for the path tracer.
+    pub fn path_traced(&self) -> crate::Result<nbrdf_scene::pathtrace::Material> {
+        use nbrdf_scene::pathtrace::Material as Pt;
+        Ok(match self {
+            Material::Lambert { albedo } => {
+                Pt::new(nbrdf::any::AnyBrdf::from_params(nbrdf::parametric::ParametricKind::Lambert, albedo)?)?
+            }
+            Material::Builtin(b) => Pt::builtin(*b),
+            Material::Merl(t) => Pt::merl((**t).clone()),
+            Material::NbrdfJson(n) => Pt::nbrdf_json((**n).clone()),
+        })
+    }
+
     /// `f(wi, wo)` in 1/sr for local directions (normal `+z`); 0 below the horizon.
     #[inline]
     pub fn eval(&self, wi: Vec3, wo: Vec3) -> Rgb {

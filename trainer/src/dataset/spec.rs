@@ -60,6 +60,10 @@ pub struct ImageSpec {
     pub brdf: PathBuf,
     /// Lit, unshadowed pixels (`I_s · [cos θ_l > 0]`), 8-bit PNG.
     pub lit: PathBuf,
+    /// The interreflected part of `radiance` (light over two or more surface vertices, without the
+    /// noise; a path-traced estimate), OpenEXR; absent in a direct-only (Eq. 9) data set.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub indirect: Option<PathBuf>,
 }
 
 /// One view: a camera in the OpenCV convention and its images.

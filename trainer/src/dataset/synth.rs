@@ -5,12 +5,15 @@
 //! test; each view is lit by directional lights drawn uniformly from the hemisphere facing its camera.
 //! Every image is rendered with Eq. 9, gets Gaussian noise of σ, and is written with its raw BRDF
 //! values and its lit mask; `dataset.json` describes it all. Same arguments and seed, same bytes.
+//! With `--interreflections SPP`, each image also gets the light that bounces between parts of the
+//! mesh, path traced (`nbrdf_scene::pathtrace`), added before the noise and written on its own.
 
 use std::path::{Path, PathBuf};
 
 use indicatif::{ProgressBar, ProgressStyle};
 use nbrdf_scene::image::{write_exr, write_png_mask, write_png_srgb, RgbImage};
-use nbrdf_scene::scene::render::{render_view, LightImage, RenderOptions, RenderReport, ShadowPass};
+use nbrdf_scene::pathtrace::{render as pt_render, Material as PtMaterial, Options as PtOptions, Scene as PtScene};
+use nbrdf_scene::scene::render::{add_noise, render_view, LightImage, RenderOptions, RenderReport, ShadowPass};
 use nbrdf_scene::scene::{Camera, DirectionalLight, Frame, Geometry};
 use nbrdf::{Error, Vec3};
 use rand::{RngExt, SeedableRng};
@@ -67,6 +70,11 @@ pub struct SynthArgs {
     /// for its body, letting the highlights clip. Measured on a noise-free probe of four of the views.
     #[arg(long)]
     pub target_median: Option<f32>,
+    /// Add the light that interreflects (two or more surface vertices), path traced with this many
+    /// samples per pixel per image, to the Eq. 9 direct light; 0: direct light only (the paper's data).
+    /// Only a mesh that sees itself has any; each image also gets its interreflected part alone.
+    #[arg(long, default_value_t = 0)]
+    pub interreflections: u32,
     /// Cast shadow rays even on a convex mesh (they change nothing; for checking).
     #[arg(long)]
     pub force_shadows: bool,
@@ -114,6 +122,10 @@ impl SynthArgs {
             if v > MAX_COUNT {
                 return Err(crate::Error::from(bad(key, &v, format!("at most {MAX_COUNT}"))));
             }
+        }
+        if self.interreflections > nbrdf_scene::pathtrace::MAX_SPP {
+            let max = nbrdf_scene::pathtrace::MAX_SPP;
+            return Err(crate::Error::from(bad("interreflections", &self.interreflections, format!("at most {max} samples per pixel"))));
         }
         if self.views == 0 {
             return Err(crate::Error::from(bad("views", &0, "need at least one view".into())));
@@ -342,6 +354,8 @@ pub fn synthesize(args: &SynthArgs) -> crate::Result<(DatasetFile, Vec<RenderRep
             calibrate_intensity(&geometry, &probes, &material, target)?
         }
     };
+    // The path tracer's copy of the material, for the interreflected light.
+    let traced = if args.interreflections > 0 { Some(material.path_traced()?) } else { None };
     let mut luminances = Vec::new();
     let (mut saturated, mut lit_pixels) = (0usize, 0usize);
 
@@ -354,10 +368,27 @@ pub fn synthesize(args: &SynthArgs) -> crate::Result<(DatasetFile, Vec<RenderRep
         let count = lights.len();
         let options = RenderOptions {
             shadows: if args.force_shadows { ShadowPass::Force } else { ShadowPass::Auto },
-            noise_sigma: args.sigma,
+            // With interreflections, the noise goes on the sum of both parts, below.
+            noise_sigma: if args.interreflections > 0 { 0.0 } else { args.sigma },
             seed: mix(args.seed, 10_000 + i as u64),
         };
-        let rendered = render_view(&geometry, &camera, &lights, |_, wi, wo| material.eval(wi, wo), &options);
+        let mut rendered = render_view(&geometry, &camera, &lights, |_, wi, wo| material.eval(wi, wo), &options);
+        let indirect = match &traced {
+            Some(m) => {
+                let parts = interreflected(&geometry, &camera, &lights, m, args.interreflections, mix(args.seed, 20_000 + i as u64));
+                for (li, (img, part)) in rendered.images.iter_mut().zip(&parts).enumerate() {
+                    for (r, q) in img.radiance.iter_mut().zip(part) {
+                        *r = core::array::from_fn(|c| r[c] + q[c]);
+                    }
+                    if args.sigma > 0.0 {
+                        add_noise(&mut img.radiance, args.sigma, options.seed, li as u64);
+                    }
+                }
+                rendered.report.noise_pass = args.sigma > 0.0;
+                Some(parts)
+            }
+            None => None,
+        };
         let dir_rel = PathBuf::from(format!("views/{i:02}"));
         let dir = out.join(&dir_rel);
         std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, &e))?;
@@ -380,6 +411,14 @@ pub fn synthesize(args: &SynthArgs) -> crate::Result<(DatasetFile, Vec<RenderRep
             write_exr(out.join(&radiance), &rad_img)?;
             write_exr(out.join(&brdf), &RgbImage::from_data(args.size, args.size, img.brdf.clone())?)?;
             write_png_mask(out.join(&lit), args.size, args.size, &img.lit)?;
+            let indirect = match &indirect {
+                Some(parts) => {
+                    let path = dir_rel.join(format!("{li:03}_indirect.exr"));
+                    write_exr(out.join(&path), &RgbImage::from_data(args.size, args.size, parts[li].clone())?)?;
+                    Some(path)
+                }
+                None => None,
+            };
             if li == 0 {
                 write_png_srgb(dir.join("preview.png"), &rad_img, 1.0)?;
             }
@@ -388,6 +427,7 @@ pub fn synthesize(args: &SynthArgs) -> crate::Result<(DatasetFile, Vec<RenderRep
                 radiance,
                 brdf,
                 lit,
+                indirect,
             });
             bar.inc(1);
             crate::progress::advance();
@@ -434,6 +474,20 @@ pub fn synthesize(args: &SynthArgs) -> crate::Result<(DatasetFile, Vec<RenderRep
     file.write(out)?;
     staged.commit()?;
     Ok((file, reports))
+}
+
+/// The interreflected radiance of each light's image (light over two or more surface vertices, the
+/// part an Eq. 9 render lacks), path traced with `spp` samples per pixel; all black on a convex mesh.
+fn interreflected(geometry: &Geometry, camera: &Camera, lights: &[DirectionalLight], material: &PtMaterial, spp: u32, seed: u64) -> Vec<Vec<[f32; 3]>> {
+    lights
+        .iter()
+        .enumerate()
+        .map(|(li, light)| {
+            let scene = PtScene { geometry, material, lights: std::slice::from_ref(light), env: None, camera };
+            let options = PtOptions { spp, seed: mix(seed, li as u64), indirect_only: true, ..PtOptions::default() };
+            pt_render(&scene, &options, &|_| {}).image.data
+        })
+        .collect()
 }
 
 /// Whether `dir` holds nothing but what `synth` writes (so replacing it whole loses nothing else).
