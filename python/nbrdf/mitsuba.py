@@ -120,7 +120,11 @@ def _make_class() -> type:
             g = np.asarray(self.grad_out(), dtype=np.float32).reshape(3, -1).T
             g = np.ascontiguousarray(np.broadcast_to(g, (len(q.scale), 3)) * q.scale[:, None])
             g[~q.act] = 0.0
-            grad = q.model.weight_gradient(q.wi, q.wo, g, q.points)
+            # Only the pairs that carry a derivative (misses, inactive lanes and zero cotangents do not).
+            keep = np.flatnonzero(np.any(g != 0.0, axis=1))
+            wi, wo = np.broadcast_to(q.wi, g.shape)[keep], np.broadcast_to(q.wo, g.shape)[keep]
+            points = None if q.points is None else np.broadcast_to(q.points, (len(g), q.points.shape[-1]))[keep]
+            grad = q.model.weight_gradient(wi, wo, g[keep], points) if len(keep) else np.zeros(q.model.n_parameters, np.float32)
             self.set_grad_in("weights", mi.Float(grad))
 
         def name(self) -> str:
