@@ -1,8 +1,11 @@
 """The Mitsuba 3 plugin: the directions' conventions, the chi-square test of its sampling against its
 density (a parametric and a fitted neural model), nbrdf's Lambert against Mitsuba's diffuse, the
-white furnace, and an NBRDF-json material rendered by Mitsuba and by nbrdf's own path tracer."""
+white furnace, an NBRDF-json material rendered by Mitsuba and by nbrdf's own path tracer, and the
+differentiable mode: its gradients against central differences and a fit through `prb`."""
 
 from __future__ import annotations
+
+import json
 
 import numpy as np
 import pytest
@@ -339,3 +342,33 @@ def test_differentiable_plugin_refuses_what_it_cannot_differentiate(tmp_path):
     use("scalar_rgb")
     with pytest.raises(Exception, match="_ad_rgb variant"):
         bsdf(filename=str(path), differentiable=True)
+
+
+def test_fit_in_mitsuba_example_fits_from_images_and_writes_a_loadable_model(tmp_path):
+    """python/examples/fit_in_mitsuba.py: a data set with interreflections, a short fit through `prb`
+    from scratch, and a .nbrdf that the core loads, with other weights and a sampler of its own."""
+    use("llvm_ad_rgb")
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples"))
+    import fit_in_mitsuba
+
+    data = nbrdf.synth(tmp_path / "data", mesh="grooved", material="lambert:0.7,0.6,0.5", size=24, views=3,
+                       train_views=2, train_lights=2, test_lights=1, interreflections=4, target_median=0.2,
+                       progress=False)
+    out = tmp_path / "gi.nbrdf"
+    fit_in_mitsuba.main([str(data), "--model", "additive-separate", "--out", str(out), "--iterations", "4",
+                         "--spp", "2", "--max-depth", "3", "--lr", "1e-3"])
+    m = nbrdf.Model.load(out)
+    start = nbrdf.init_model("additive-separate", position="uniform",
+                             median=fit_in_mitsuba.Dataset(data).spec["exposure"]["median_luminance"])
+    assert m.kind == "model" and m.position_len == 0 and m.n_parameters == start.n_parameters
+    assert not np.array_equal(m.weights, start.weights), "the fit moved the weights"
+    rng = np.random.default_rng(2)
+    wi, wo = unit_rows(rng, 16), unit_rows(rng, 16)
+    assert np.isfinite(m.eval(wi, wo)).all()
+    # Its sampler is the one fitted to the fitted weights.
+    np.testing.assert_array_equal(m.pdf(wi, wo), m.with_weights(m.weights).with_fitted_sampler().pdf(wi, wo))
+    log = json.loads((tmp_path / "gi.work" / "log.json").read_text())
+    assert len(log["loss"]) == 4 and all(np.isfinite(log["loss"]))
