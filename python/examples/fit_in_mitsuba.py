@@ -132,11 +132,61 @@ def light_transform(direction: np.ndarray) -> Any:
                                     up=[0, 0, 1] if abs(direction[2]) < 0.9 else [1, 0, 0])
 
 
+def srgb_slope(x: np.ndarray) -> np.ndarray:
+    """γ's derivative (zero above 1, where γ clips)."""
+    c = np.asarray(x, dtype=np.float64)
+    slope = np.where(c <= 0.0031308, 12.92, 1.055 / 2.4 * np.maximum(c, 0.0031308) ** (1 / 2.4 - 1))
+    return np.where(c < 1.0, slope, 0.0).astype(np.float32)
+
+
+class _PixelCentre:
+    """A sampler stand-in whose first 2D sample (a camera ray's place in its pixel) is the pixel's centre;
+    every other sample comes from the wrapped sampler, whose dimension it still advances."""
+
+    def __init__(self, sampler: Any) -> None:
+        self._sampler, self._first = sampler, True
+
+    def sample_count(self) -> int:
+        return self._sampler.sample_count()
+
+    def next_1d(self, *args: Any) -> Any:
+        return self._sampler.next_1d(*args)
+
+    def next_2d(self, *args: Any) -> Any:
+        sample = self._sampler.next_2d(*args)
+        if self._first:
+            import mitsuba as mi
+
+            self._first = False
+            return mi.Point2f(0.5, 0.5)
+        return sample
+
+
+def register_pixel_centre_prb() -> str:
+    """Registers ``prb_pixel_centre``: Mitsuba's ``prb`` with every camera ray through its pixel's centre.
+
+    A data set's images sample each pixel at its centre (one ray per pixel, the trainer's model of them);
+    Mitsuba's cameras average the pixel's area. The two differ along silhouettes, creases and shadow
+    edges by far more than the models differ (27.7 dB PSNR between the ground-truth material rendered
+    each way on the rocker arm), and a fit against the centre samples through area-averaged renders
+    bends the BRDF to explain those edges. Rendering the same rays removes the mismatch."""
+    import mitsuba as mi
+    from mitsuba.ad.integrators.prb import PRBIntegrator
+
+    class PixelCentrePRB(PRBIntegrator):
+        def sample_rays(self, scene: Any, sensor: Any, sampler: Any) -> Any:
+            return super().sample_rays(scene, sensor, _PixelCentre(sampler))
+
+    mi.register_integrator("prb_pixel_centre", lambda props: PixelCentrePRB(props))
+    return "prb_pixel_centre"
+
+
 def fit(ds: Dataset, start: "nbrdf.Model", work: Path, iterations: int, spp: int = 8, max_depth: int = 4,
         lr: float = 1e-4, seed: int = 0, log_every: int = 10) -> Tuple["nbrdf.Model", Dict[str, Any]]:
     """Optimises `start`'s weights with Adam through Mitsuba's ``prb`` integrator: each iteration renders
-    one training image (views and lights in a shuffled cycle) and steps on Eq. 10's tone-mapped MSE
-    over the object's pixels inside its silhouette. Returns the fitted model and a log (loss and seconds per iteration)."""
+    one training image (views and lights in a shuffled cycle) through each pixel's centre, as the data
+    set's images were, and steps on Eq. 10's tone-mapped MSE (to first order) over the object's pixels
+    inside its silhouette. Returns the fitted model and a log (loss and seconds per iteration)."""
     import drjit as dr
     import mitsuba as mi
     import nbrdf.mitsuba
@@ -146,7 +196,7 @@ def fit(ds: Dataset, start: "nbrdf.Model", work: Path, iterations: int, spp: int
     start_file = work / "start.nbrdf"
     start.with_weights(start.weights).save(start_file)
     bsdf = {"type": "nbrdf", "filename": str(start_file), "differentiable": True}
-    integrator = {"type": "prb", "max_depth": max_depth}
+    integrator = {"type": register_pixel_centre_prb(), "max_depth": max_depth}
     train = [(v, li) for v in ds.split("train") for li in range(len(ds.views[v]["images"]))]
     # One scene per training view (its sensor); the light is moved per image.
     scenes = {v: mi.load_dict(scene_dict(ds, bsdf, v, 0, integrator, spp, work / "mesh.ply")) for v, _ in train}
@@ -165,13 +215,17 @@ def fit(ds: Dataset, start: "nbrdf.Model", work: Path, iterations: int, spp: int
         p["light.to_world"] = light_transform(ds.light(view, light)[0])
         p.update()
         if (view, light) not in targets:
+            image = ds.image(view, light)
             inside = ds.mask(view)[..., None].astype(np.float32)
-            targets[(view, light)] = (mi.TensorXf(srgb(ds.image(view, light))), mi.TensorXf(np.repeat(inside, 3, axis=2)),
+            targets[(view, light)] = (mi.TensorXf(image), mi.TensorXf(srgb_slope(image) ** 2 * inside),
                                       float(inside.sum() * 3))
-        target, inside, count = targets[(view, light)]
+        target, weight, count = targets[(view, light)]
         t0 = time.perf_counter()
         img = mi.render(scenes[view], p, spp=spp, seed=2 * it, seed_grad=2 * it + 1)
-        loss = dr.sum(dr.square(srgb(img) - target) * inside, axis=None) / count
+        # Eq. 10's tone-mapped MSE to first order about the target, (γ'(t)·(I − t))²: quadratic in the
+        # render, so the gradient from independent primal and adjoint samples stays unbiased (γ of a noisy
+        # render is darker on average than γ of its mean).
+        loss = dr.sum(dr.square(img - target) * weight, axis=None) / count
         dr.backward(loss)
         opt.step()
         dr.eval(opt[key])
@@ -208,6 +262,8 @@ def main(argv: Optional[Sequence[str]] = None) -> None:
     start.add_argument("--init", type=Path, help="start from this .nbrdf model (e.g. a trainer fit)")
     start.add_argument("--model", help="start from scratch with this variant (fit's names: single-mlp, ...)")
     ap.add_argument("--enhanced", action="store_true", help="with --model: Eq. 8's enhanced additive split")
+    ap.add_argument("--position", default="uniform",
+                    help="with --model: uniform or extrinsic:F (the hit point, in the data set's unit-sphere frame)")
     ap.add_argument("--out", type=Path, required=True, help="the fitted .nbrdf model")
     ap.add_argument("--iterations", type=int, default=200)
     ap.add_argument("--spp", type=int, default=8)
@@ -226,7 +282,7 @@ def main(argv: Optional[Sequence[str]] = None) -> None:
         model = nbrdf.Model.load(args.init)
     else:
         median = ds.spec.get("exposure", {}).get("median_luminance")
-        model = nbrdf.init_model(args.model, enhanced=args.enhanced, position="uniform", median=median)
+        model = nbrdf.init_model(args.model, enhanced=args.enhanced, position=args.position, median=median)
     work = args.out.parent / (args.out.stem + ".work")
     fitted, log = fit(ds, model, work, args.iterations, spp=args.spp, max_depth=args.max_depth, lr=args.lr)
     fitted.save(args.out)

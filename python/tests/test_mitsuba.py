@@ -372,3 +372,31 @@ def test_fit_in_mitsuba_example_fits_from_images_and_writes_a_loadable_model(tmp
     np.testing.assert_array_equal(m.pdf(wi, wo), m.with_weights(m.weights).with_fitted_sampler().pdf(wi, wo))
     log = json.loads((tmp_path / "gi.work" / "log.json").read_text())
     assert len(log["loss"]) == 4 and all(np.isfinite(log["loss"]))
+
+
+def test_fit_in_mitsuba_renders_the_rays_the_data_set_sampled(tmp_path):
+    """The data set's images sample each pixel's centre; `prb_pixel_centre` renders those rays, so the
+    ground-truth material reproduces its images to their noise, where Mitsuba's area-averaged pixels
+    differ along the silhouette and shadow edges."""
+    use("llvm_ad_rgb")
+    import sys
+    from pathlib import Path
+
+    import mitsuba as mi
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples"))
+    import fit_in_mitsuba as fm
+
+    data = nbrdf.synth(tmp_path / "data", mesh="grooved", material="lambert:0.7,0.6,0.5", size=32, views=2,
+                       train_views=1, train_lights=2, test_lights=1, target_median=0.2, progress=False)
+    ds = fm.Dataset(data)
+    bsdf = {"type": "nbrdf", "spec": "lambert:0.7,0.6,0.5"}
+    view = ds.split("train")[0]
+    errors = {}
+    for name in (fm.register_pixel_centre_prb(), "prb"):
+        scene = mi.load_dict(fm.scene_dict(ds, bsdf, view, 1, {"type": name, "max_depth": 2}, 4, tmp_path / "mesh.ply"))
+        image = np.asarray(mi.render(scene, spp=4), dtype=np.float32)
+        errors[name] = float(np.mean(((image - ds.image(view, 1)) ** 2)[ds.mask(view, erode=0)]))
+    sigma = float(ds.spec["noise_sigma"])
+    assert errors["prb_pixel_centre"] < 4 * sigma**2 + 1e-7, errors
+    assert errors["prb"] > 10 * errors["prb_pixel_centre"], errors
