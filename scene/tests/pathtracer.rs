@@ -175,7 +175,7 @@ fn skipped_effects_leave_the_image_unchanged() {
 }
 
 #[test]
-fn proxy_and_cosine_sampling_converge_to_the_same_image() {
+fn table_proxy_and_cosine_sampling_converge_to_the_same_image() {
     // Neural BRDFs whose weights need no training: the built-in two-lobe metal tabulated as a MERL table
     // (always), and the published NBRDF fit of MERL's gold-metallic-paint when the shared data is present.
     // Their lobes are broad enough that cosine sampling converges at this sample count, so the two means
@@ -194,13 +194,19 @@ fn proxy_and_cosine_sampling_converge_to_the_same_image() {
         let scene = Scene { geometry: &geometry, material: m, lights: &[], env: Some(&env), camera: &cam };
         render(&scene, &Options { spp: 256, seed, ..Options::default() }, &|_| {})
     };
-    for (name, proxy) in cases {
-        let cosine = proxy.clone().with_sampling(Sampling::Cosine);
-        let (a, b) = (run(&proxy, 3), run(&cosine, 4));
-        for c in 0..3 {
-            let ((ma, sa), (mb, sb)) = (mean_and_se(&a, c), mean_and_se(&b, c));
-            let z = (ma - mb) / (sa * sa + sb * sb).sqrt();
-            assert!(z.abs() < 4.0, "{name}, channel {c}: proxy {ma} ± {sa}, cosine {mb} ± {sb}");
+    for (name, table) in cases {
+        // The per-view table (native), the single all-view proxy it replaced, and cosine sampling.
+        let single = table.clone().with_sampling(Sampling::Proxy);
+        assert!(single.describe().contains("single all-view proxy (forced)"), "{}", single.describe());
+        let cosine = table.clone().with_sampling(Sampling::Cosine);
+        let b = run(&cosine, 4);
+        for (sampler, m, seed) in [("table", &table, 3), ("single proxy", &single, 5)] {
+            let a = run(m, seed);
+            for c in 0..3 {
+                let ((ma, sa), (mb, sb)) = (mean_and_se(&a, c), mean_and_se(&b, c));
+                let z = (ma - mb) / (sa * sa + sb * sb).sqrt();
+                assert!(z.abs() < 4.0, "{name}, channel {c}: {sampler} {ma} ± {sa}, cosine {mb} ± {sb}");
+            }
         }
     }
 }

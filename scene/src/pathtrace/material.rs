@@ -43,6 +43,8 @@ pub enum Sampling {
 pub struct Material {
     brdf: Arc<AnyBrdf<'static>>,
     sampling: Sampling,
+    /// The mixture `sampling` samples instead of the BRDF's own sampler, worked out once.
+    instead: Option<Proxy>,
 }
 
 impl core::fmt::Debug for Material {
@@ -65,27 +67,27 @@ impl Material {
                 });
             }
         }
-        Ok(Material { brdf, sampling: Sampling::Native })
+        Ok(Material { brdf, sampling: Sampling::Native, instead: None })
     }
 
     /// An analytic model with fixed parameters.
     pub fn parametric(p: Parametric) -> Self {
-        Material { brdf: Arc::new(AnyBrdf::parametric(p)), sampling: Sampling::Native }
+        Material { brdf: Arc::new(AnyBrdf::parametric(p)), sampling: Sampling::Native, instead: None }
     }
 
     /// A built-in procedural material.
     pub fn builtin(b: Builtin) -> Self {
-        Material { brdf: Arc::new(AnyBrdf::builtin(b)), sampling: Sampling::Native }
+        Material { brdf: Arc::new(AnyBrdf::builtin(b)), sampling: Sampling::Native, instead: None }
     }
 
     /// A MERL table (nearest lookup), sampled through its proxy.
     pub fn merl(t: MerlTable) -> Self {
-        Material { brdf: Arc::new(AnyBrdf::merl(t)), sampling: Sampling::Native }
+        Material { brdf: Arc::new(AnyBrdf::merl(t)), sampling: Sampling::Native, instead: None }
     }
 
     /// An NBRDF-json network, sampled through its proxy.
     pub fn nbrdf_json(n: NbrdfNetwork) -> Self {
-        Material { brdf: Arc::new(AnyBrdf::nbrdf_json(n)), sampling: Sampling::Native }
+        Material { brdf: Arc::new(AnyBrdf::nbrdf_json(n)), sampling: Sampling::Native, instead: None }
     }
 
     /// A `.nbrdf` model (see [`Material::new`] for what is refused).
@@ -133,6 +135,11 @@ impl Material {
     /// The same material sampled with `sampling`.
     pub fn with_sampling(mut self, sampling: Sampling) -> Self {
         self.sampling = sampling;
+        self.instead = match sampling {
+            Sampling::Native => None,
+            Sampling::Cosine => Some(Proxy::COSINE),
+            Sampling::Proxy => self.brdf.proxy(),
+        };
         self
     }
 
@@ -145,7 +152,7 @@ impl Material {
                 let what = what.split(", sampled").next().unwrap_or(&what);
                 std::format!("{what}, sampled by cosine (forced)")
             }
-            Sampling::Proxy => match self.brdf.proxy() {
+            Sampling::Proxy => match self.instead {
                 Some(_) => {
                     let what = what.split(", sampled").next().unwrap_or(&what);
                     std::format!("{what}, sampled by its single all-view proxy (forced)")
@@ -159,11 +166,7 @@ impl Material {
     /// (for an extrinsic encoding the mesh should lie in the unit sphere, as in training).
     #[inline]
     pub fn point(&self, mesh: &Mesh, tri: u32, b1: f32, b2: f32, x: Vec3) -> Shading<'_> {
-        let instead = match self.sampling {
-            Sampling::Native => None,
-            Sampling::Cosine => Some(Proxy::COSINE),
-            Sampling::Proxy => self.brdf.proxy(),
-        };
+        let instead = self.instead;
         // A BRDF that is the same everywhere, or a model prepared once at load.
         if let Some(at) = self.brdf.at_prepared(None) {
             return Shading { at: Some(at), instead };
