@@ -67,27 +67,32 @@ impl Material {
                 });
             }
         }
-        Ok(Material { brdf, sampling: Sampling::Native, instead: None })
+        Ok(Self::native(brdf))
+    }
+
+    /// `brdf` with its own sampler.
+    fn native(brdf: Arc<AnyBrdf<'static>>) -> Self {
+        Material { brdf, sampling: Sampling::Native, instead: None }
     }
 
     /// An analytic model with fixed parameters.
     pub fn parametric(p: Parametric) -> Self {
-        Material { brdf: Arc::new(AnyBrdf::parametric(p)), sampling: Sampling::Native, instead: None }
+        Self::native(Arc::new(AnyBrdf::parametric(p)))
     }
 
     /// A built-in procedural material.
     pub fn builtin(b: Builtin) -> Self {
-        Material { brdf: Arc::new(AnyBrdf::builtin(b)), sampling: Sampling::Native, instead: None }
+        Self::native(Arc::new(AnyBrdf::builtin(b)))
     }
 
     /// A MERL table (nearest lookup), sampled through its proxy.
     pub fn merl(t: MerlTable) -> Self {
-        Material { brdf: Arc::new(AnyBrdf::merl(t)), sampling: Sampling::Native, instead: None }
+        Self::native(Arc::new(AnyBrdf::merl(t)))
     }
 
     /// An NBRDF-json network, sampled through its proxy.
     pub fn nbrdf_json(n: NbrdfNetwork) -> Self {
-        Material { brdf: Arc::new(AnyBrdf::nbrdf_json(n)), sampling: Sampling::Native, instead: None }
+        Self::native(Arc::new(AnyBrdf::nbrdf_json(n)))
     }
 
     /// A `.nbrdf` model (see [`Material::new`] for what is refused).
