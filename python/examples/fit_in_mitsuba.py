@@ -33,15 +33,17 @@ import numpy as np
 import nbrdf
 
 
-def srgb(x: Any) -> Any:
-    """The trainer's tone curve γ of Eq. 10 (sRGB of the input clamped to [0, 1]), for numpy or Dr.Jit."""
-    import drjit as dr
+def srgb(x: np.ndarray) -> np.ndarray:
+    """The trainer's tone curve γ of Eq. 10 (sRGB of the input clamped to [0, 1])."""
+    c = np.clip(x, 0.0, 1.0)
+    return np.where(c <= 0.0031308, 12.92 * c, 1.055 * np.maximum(c, 0.0031308) ** (1 / 2.4) - 0.055)
 
-    if isinstance(x, np.ndarray):
-        c = np.clip(x, 0.0, 1.0)
-        return np.where(c <= 0.0031308, 12.92 * c, 1.055 * np.maximum(c, 0.0031308) ** (1 / 2.4) - 0.055)
-    c = dr.clip(x, 0.0, 1.0)
-    return dr.select(c <= 0.0031308, 12.92 * c, 1.055 * dr.power(dr.maximum(c, 0.0031308), 1 / 2.4) - 0.055)
+
+def srgb_slope(x: np.ndarray) -> np.ndarray:
+    """γ's derivative (zero above 1, where γ clips)."""
+    c = np.asarray(x, dtype=np.float64)
+    slope = np.where(c <= 0.0031308, 12.92, 1.055 / 2.4 * np.maximum(c, 0.0031308) ** (1 / 2.4 - 1))
+    return np.where(c < 1.0, slope, 0.0).astype(np.float32)
 
 
 class Dataset:
@@ -130,13 +132,6 @@ def light_transform(direction: np.ndarray) -> Any:
 
     return mi.Transform4f().look_at(origin=[0, 0, 0], target=(-direction).tolist(),
                                     up=[0, 0, 1] if abs(direction[2]) < 0.9 else [1, 0, 0])
-
-
-def srgb_slope(x: np.ndarray) -> np.ndarray:
-    """γ's derivative (zero above 1, where γ clips)."""
-    c = np.asarray(x, dtype=np.float64)
-    slope = np.where(c <= 0.0031308, 12.92, 1.055 / 2.4 * np.maximum(c, 0.0031308) ** (1 / 2.4 - 1))
-    return np.where(c < 1.0, slope, 0.0).astype(np.float32)
 
 
 class _PixelCentre:

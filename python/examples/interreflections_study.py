@@ -49,12 +49,6 @@ OWN = "direct-only, data without interreflections"
 GI = "GI (Mitsuba prb)"
 
 
-def psnr(a: np.ndarray, b: np.ndarray, mask: np.ndarray) -> float:
-    """PSNR (dB) of γ(a) against γ(b) over the pixels of `mask`, every channel."""
-    d = (srgb(a) - srgb(b))[mask]
-    return float(10 * np.log10(1.0 / max(float(np.mean(d**2)), 1e-12)))
-
-
 def png(path: Path, tiles: List[np.ndarray]) -> None:
     """A row of tiles (linear RGB shown through γ, or a mask) as one 8-bit PNG."""
     import mitsuba as mi
@@ -74,14 +68,13 @@ def study_object(out: Path, mesh: str, material: Path, a: argparse.Namespace) ->
     name = Path(mesh).stem
     root = out / name
     data = root / "data"
-    if not (data / "dataset.json").exists():
-        nbrdf.synth(data, mesh=mesh, material=str(material), size=a.size, views=a.views, train_views=a.train_views,
-                    train_lights=a.train_lights, test_lights=a.test_lights, target_median=0.2,
-                    interreflections=a.data_spp, progress=False)
     clean = root / "data-direct"
-    if not (clean / "dataset.json").exists():
-        nbrdf.synth(clean, mesh=mesh, material=str(material), size=a.size, views=a.views, train_views=a.train_views,
-                    train_lights=a.train_lights, test_lights=a.test_lights, target_median=0.2, progress=False)
+    # The same views, lights and noise, with and without the interreflected light.
+    for folder, spp in ((data, a.data_spp), (clean, 0)):
+        if not (folder / "dataset.json").exists():
+            nbrdf.synth(folder, mesh=mesh, material=str(material), size=a.size, views=a.views,
+                        train_views=a.train_views, train_lights=a.train_lights, test_lights=a.test_lights,
+                        target_median=0.2, interreflections=spp, progress=False)
     ds = Dataset(data)
     common = dict(position=a.position, batch=a.batch, progress=False)
     # Direct-only: the trainer, Eq. 9.
@@ -124,11 +117,11 @@ def study_object(out: Path, mesh: str, material: Path, a: argparse.Namespace) ->
     for k, imgs in rows.items():
         if k == "reference":
             continue
+        # The study's PSNR (on γ, over the mask's pixels, every channel).
         ref = renders["reference"]
-        scores[k] = {
-            "psnr": float(np.mean([psnr(i, r, m[0]) for i, r, m in zip(imgs, ref, masks)])),
-            "psnr_recess": float(np.mean([psnr(i, r, m[1]) for i, r, m in zip(imgs, ref, masks) if m[1].sum() >= 10])),
-        }
+        whole = [nbrdf.compare(r, i, m[0])["psnr"] for i, r, m in zip(imgs, ref, masks)]
+        recess = [nbrdf.compare(r, i, m[1])["psnr"] for i, r, m in zip(imgs, ref, masks) if m[1].sum() >= 10]
+        scores[k] = {"psnr": float(np.mean(whole)), "psnr_recess": float(np.mean(recess))}
     recess_share = float(np.mean([m[1].sum() / max(m[0].sum(), 1) for m in masks]))
     # One test image: reference, the two fits, their errors ×4, the recess mask.
     j = int(np.argmax([m[1].sum() for m in masks]))

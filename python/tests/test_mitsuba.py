@@ -43,6 +43,18 @@ def bsdf(**props):
     return mi.load_dict({"type": "nbrdf", **props})
 
 
+def fit_example():
+    """python/examples/fit_in_mitsuba.py, imported as a module."""
+    import importlib
+    import sys
+    from pathlib import Path
+
+    examples = str(Path(__file__).resolve().parents[1] / "examples")
+    if examples not in sys.path:
+        sys.path.insert(0, examples)
+    return importlib.import_module("fit_in_mitsuba")
+
+
 def test_plugin_swaps_the_directions_and_adds_the_cosine(variant):
     """Mitsuba's si.wi is the viewer (nbrdf's wo), its wo the light (nbrdf's wi), its eval has the
     cosine: checked on a non-reciprocal BRDF, where swapping the two would show."""
@@ -348,11 +360,7 @@ def test_fit_in_mitsuba_example_fits_from_images_and_writes_a_loadable_model(tmp
     """python/examples/fit_in_mitsuba.py: a data set with interreflections, a short fit through `prb`
     from scratch, and a .nbrdf that the core loads, with other weights and a sampler of its own."""
     use("llvm_ad_rgb")
-    import sys
-    from pathlib import Path
-
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples"))
-    import fit_in_mitsuba
+    fit_in_mitsuba = fit_example()
 
     data = nbrdf.synth(tmp_path / "data", mesh="grooved", material="lambert:0.7,0.6,0.5", size=24, views=3,
                        train_views=2, train_lights=2, test_lights=1, interreflections=4, target_median=0.2,
@@ -379,13 +387,7 @@ def test_fit_in_mitsuba_renders_the_rays_the_data_set_sampled(tmp_path):
     ground-truth material reproduces its images to their noise, where Mitsuba's area-averaged pixels
     differ along the silhouette and shadow edges."""
     use("llvm_ad_rgb")
-    import sys
-    from pathlib import Path
-
-    import mitsuba as mi
-
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples"))
-    import fit_in_mitsuba as fm
+    fm = fit_example()
 
     data = nbrdf.synth(tmp_path / "data", mesh="grooved", material="lambert:0.7,0.6,0.5", size=32, views=2,
                        train_views=1, train_lights=2, test_lights=1, target_median=0.2, progress=False)
